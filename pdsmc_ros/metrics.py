@@ -1,0 +1,83 @@
+"""Tracking and contouring statistics as the thesis's tables compute them.
+
+One implementation serves the in-process simulator and the bag analysis
+(NOTES.md section 4): means and population standard deviations of ABSOLUTE
+errors over the sampled instants; axial errors per actuated joint
+(``e = q_d - q``); task-space |x error|, |y error| and the error magnitude;
+contour error (Eqs. 2.9 / 2.10); share of samples within the contour bound;
+maximum |torque| per actuated joint.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import numpy as np
+
+from .models import FloatArray
+from .trajectories import Contour
+
+
+@dataclass(frozen=True)
+class Metrics:
+    """Statistics of one run (units: rad, m, %, N m)."""
+
+    axial_mean: list[float]
+    axial_sd: list[float]
+    task_mean: dict[str, float]
+    task_sd: dict[str, float]
+    contour_mean: float
+    contour_sd: float
+    contour_bound: float
+    contour_within_pct: float
+    max_torque: list[float]
+    samples: int
+
+    def as_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+@dataclass(frozen=True)
+class Samples:
+    """Sampled signals of a run, each row one statistics instant."""
+
+    t: FloatArray  # (S,)
+    q: FloatArray  # (S, n) actual actuated joints
+    q_ref: FloatArray  # (S, n) desired actuated joints
+    xy: FloatArray  # (S, 2) actual end-effector
+    xy_ref: FloatArray  # (S, 2) desired end-effector
+    tau: FloatArray  # (S, n) applied torque
+    contour_error: FloatArray  # (S,)
+
+
+def sample_times(duration: float, sample_rate: float) -> FloatArray:
+    """Statistics instants ``0, 1/f, ..., T`` (inclusive; 2501 for 5 s at 500 Hz)."""
+    count = int(round(duration * sample_rate))
+    return np.arange(count + 1) / sample_rate
+
+
+def contour_errors(contour: Contour, t: FloatArray, xy: FloatArray) -> FloatArray:
+    """Contour error of actual points ``xy`` at times ``t`` (delegates to the contour)."""
+    return contour.contour_error(t, xy)
+
+
+def compute_metrics(samples: Samples, bound: float) -> Metrics:
+    """Thesis-style statistics of sampled signals (NOTES.md section 4)."""
+    axial = np.abs(samples.q_ref - samples.q)
+    ex = np.abs(samples.xy_ref[:, 0] - samples.xy[:, 0])
+    ey = np.abs(samples.xy_ref[:, 1] - samples.xy[:, 1])
+    total = np.hypot(ex, ey)
+    eps = np.abs(samples.contour_error)
+    return Metrics(
+        axial_mean=axial.mean(axis=0).tolist(),
+        axial_sd=axial.std(axis=0).tolist(),
+        task_mean={"x": float(ex.mean()), "y": float(ey.mean()), "total": float(total.mean())},
+        task_sd={"x": float(ex.std()), "y": float(ey.std()), "total": float(total.std())},
+        contour_mean=float(eps.mean()),
+        contour_sd=float(eps.std()),
+        contour_bound=float(bound),
+        contour_within_pct=float(100.0 * np.mean(eps <= bound)),
+        max_torque=np.max(np.abs(samples.tau), axis=0).tolist(),
+        samples=int(len(samples.t)),
+    )

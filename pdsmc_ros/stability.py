@@ -1,0 +1,125 @@
+"""Discrete-time stability of a control law sampled with a zero-order hold.
+
+A digital controller applies ``tau_k`` over a whole period ``h``. Around the
+reference, the error dynamics are ``Mbar edd = -Kp_eff e - Kd_eff ed`` with a
+held input, whose exact discretisation is
+
+    e_{k+1}  = e_k + h ed_k - (h^2/2) Mbar^{-1} (Kp e_k + Kd ed_k)
+    ed_{k+1} = ed_k        - h Mbar^{-1} (Kp e_k + Kd ed_k)
+
+(damping, Coriolis and gravity variations left out). The loop is stable at
+rate ``1/h`` only if the spectral radius of that map is below 1 at every
+configuration the motion visits. With the serial arm's thesis gains this
+requires about 10 kHz (NOTES.md section 1).
+
+Effective gains inside the boundary layer (``|s| < phi``), where the
+switching term is linear:
+
+* PD (Eq. 3.4): ``Kp``, ``Kd``.
+* PD-SMC (Eq. 3.44): ``Kp + Ks lambda / phi``, ``Kd + Ks / phi``.
+* SMC (Eq. 3.15): ``Ks lambda / phi``, ``s_M lambda Mbar + Ks / phi``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import UnstableRateError
+from .models import FloatArray
+from .presets import RunSpec
+from .trajectories import JointReference
+
+
+@dataclass(frozen=True)
+class RateCheck:
+    """Result of :func:`rate_margin`."""
+
+    rate: float
+    lowest_stable_rate: float
+    spectral_radius: float
+    worst_joint: int  # 1-based
+    stable: bool
+
+
+def effective_gains(spec: RunSpec, mass: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Linear gains ``(Kp_eff, Kd_eff)`` of the law inside its boundary layer."""
+    g = spec.gains.matrix()
+    kp, kd, ks, lam, phi = (np.diag(row) for row in g)
+    ks_phi = ks @ np.linalg.solve(np.diag(g[4]), np.eye(len(g[4])))
+    if spec.controller == "pd":
+        return kp, kd
+    if spec.controller == "pdsmc":
+        return kp + ks_phi @ lam, kd + ks_phi
+    scale = float(spec.smc_model_vector()[0])
+    return ks_phi @ lam, scale * mass @ lam + ks_phi
+
+
+def spectral_radius(mass: FloatArray, kp: FloatArray, kd: FloatArray, h: float) -> tuple[float, int]:
+    """Spectral radius of the held-input error map and the joint dominating its mode."""
+    n = mass.shape[0]
+    minv_kp = np.linalg.solve(mass, kp)
+    minv_kd = np.linalg.solve(mass, kd)
+    eye = np.eye(n)
+    a = np.block(
+        [
+            [eye - 0.5 * h * h * minv_kp, h * eye - 0.5 * h * h * minv_kd],
+            [-h * minv_kp, eye - h * minv_kd],
+        ]
+    )
+    values, vectors = np.linalg.eig(a)
+    k = int(np.argmax(np.abs(values)))
+    mode = np.abs(vectors[:n, k]) + np.abs(vectors[n:, k]) * h
+    return float(np.abs(values[k])), int(np.argmax(mode)) + 1
+
+
+def _lowest_rate(mass: FloatArray, kp: FloatArray, kd: FloatArray) -> float:
+    lo, hi = 1.0, 1e8  # Hz; stable at hi for any positive gains
+    if spectral_radius(mass, kp, kd, 1.0 / lo)[0] < 1.0:
+        return lo
+    for _ in range(24):  # bracket ratio 1e8 -> about 0.1 % resolution
+        mid = np.sqrt(lo * hi)
+        if spectral_radius(mass, kp, kd, 1.0 / mid)[0] < 1.0:
+            hi = mid
+        else:
+            lo = mid
+    return hi
+
+
+def rate_margin(spec: RunSpec, reference: JointReference, *, points: int = 13) -> RateCheck:
+    """Lowest stable rate over the motion and the radius at ``spec.rate``."""
+    robot = spec.robot_model()
+    t = np.linspace(0.0, reference.duration, points)
+    q = reference.sample(t).q
+    masses = robot._mass_matrix(q)
+    lowest = 0.0
+    worst = (0.0, 1)
+    for mass in masses:
+        kp, kd = effective_gains(spec, mass)
+        lowest = max(lowest, _lowest_rate(mass, kp, kd))
+        radius = spectral_radius(mass, kp, kd, 1.0 / spec.rate)
+        if radius[0] > worst[0]:
+            worst = radius
+    return RateCheck(spec.rate, lowest, worst[0], worst[1], worst[0] < 1.0)
+
+
+def check_rate(spec: RunSpec, reference: JointReference) -> RateCheck:
+    """Refuse a rate at which the gains cannot be stable.
+
+    Raises
+    ------
+    UnstableRateError
+        Naming the joint that dominates the unstable mode and the lowest
+        rate that would work.
+    """
+    result = rate_margin(spec, reference)
+    if not result.stable:
+        suggestion = np.ceil(1.2 * result.lowest_stable_rate / spec.sample_rate) * spec.sample_rate
+        raise UnstableRateError(
+            f"{spec.controller} gains for {spec.robot}/{spec.contour} cannot be stable at "
+            f"{spec.rate:g} Hz: joint {result.worst_joint} diverges (discrete pole radius "
+            f"{result.spectral_radius:.3f} > 1); the lowest stable rate is about "
+            f"{result.lowest_stable_rate:,.0f} Hz, use --rate {suggestion:g} or higher"
+        )
+    return result

@@ -1,0 +1,33 @@
+"""ament_python package definition (colcon build or pip install)."""
+
+from glob import glob
+
+from setuptools import find_packages, setup
+
+PACKAGE = "pdsmc_ros"
+
+setup(
+    name=PACKAGE,
+    version="0.1.0",
+    packages=find_packages(exclude=["test", "test.*"]),
+    package_data={PACKAGE: ["py.typed"]},
+    data_files=[
+        ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
+        (f"share/{PACKAGE}", ["package.xml"]),
+        (f"share/{PACKAGE}/config", sorted(glob("config/*.yaml"))),
+        (f"share/{PACKAGE}/scripts", sorted(glob("scripts/*.sh"))),
+    ],
+    install_requires=["setuptools", "numpy", "PyYAML", "numba", "rosbags", "mcap"],
+    zip_safe=True,
+    maintainer="pdsmc_ros developers",
+    maintainer_email="pdsmc_ros@example.org",
+    description="Hybrid PD sliding mode control for robotic manipulators on ROS 2",
+    license="Apache-2.0",
+    python_requires=">=3.10",
+    tests_require=["pytest"],
+    entry_points={
+        "console_scripts": [
+            "pdsmc = pdsmc_ros.cli:main",
+        ],
+    },
+)
