@@ -17,10 +17,20 @@ export NUMBA_CACHE_DIR := $(abspath $(VENV))/numba-cache
 
 setup: $(STAMP)
 
-$(STAMP): requirements.txt requirements-test.txt constraints.txt setup.py setup.cfg package.xml $(wildcard config/*.yaml) $(wildcard scripts/*.sh)
+SOURCES := setup.py setup.cfg package.xml $(wildcard config/*.yaml) $(wildcard scripts/*.sh) \
+	$(wildcard pdsmc_ros/*.py pdsmc_ros/*/*.py)
+DEPS_STAMP := $(VENV)/.pdsmc-deps
+
+$(DEPS_STAMP): requirements.txt requirements-test.txt constraints.txt
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --disable-pip-version-check -r requirements.txt -r requirements-test.txt -c constraints.txt
-	$(PY) -m pip install --quiet --disable-pip-version-check --no-deps --no-build-isolation -e .
+	@touch $(DEPS_STAMP)
+
+# A regular (non-editable) install puts console scripts and share/ data into the venv prefix
+# exactly as a wheel would; it is redone whenever a source file changes.
+$(STAMP): $(DEPS_STAMP) $(SOURCES)
+	$(PY) -m pip install --quiet --disable-pip-version-check --no-deps --no-build-isolation --force-reinstall .
+	@rm -rf build pdsmc_ros.egg-info
 	@# ament layout: executables under <prefix>/lib/<package>, as colcon installs them
 	@mkdir -p $(VENV)/lib/pdsmc_ros
 	@for exe in $(EXECUTABLES); do ln -sf ../../bin/$$exe $(VENV)/lib/pdsmc_ros/$$exe; done

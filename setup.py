@@ -24,7 +24,6 @@ setup(
     description="Hybrid PD sliding mode control for robotic manipulators on ROS 2",
     license="Apache-2.0",
     python_requires=">=3.10",
-    tests_require=["pytest"],
     entry_points={
         "console_scripts": [
             "pdsmc = pdsmc_ros.cli:main",

@@ -1,0 +1,159 @@
+"""Plant simulator node: integrates Eq. (4.1) one control period per effort command.
+
+Publishes ``/joint_states`` (position, velocity and, in ``effort``, the torque
+applied over the period that ended at the stamp; passive joints of the
+five-bar too), the actual end-effector point, and in lockstep mode ``/clock``.
+
+Lockstep: state ``k`` is published, the plant waits for the effort of step
+``k`` (``layout.data_offset == k``), integrates one period with it held and
+publishes state ``k + 1``. Real time: a wall-clock timer integrates with the
+latest effort at the control rate.
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Sequence
+
+import numpy as np
+from builtin_interfaces.msg import Time
+from geometry_msgs.msg import PointStamped
+from rclpy.node import Node
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray
+
+from ..simulator import PlantStepper, control_steps
+from .common import (
+    EXIT_OK,
+    LOCKSTEP_QOS,
+    TOPIC_EE_ACTUAL,
+    TOPIC_EFFORT,
+    TOPIC_JOINT_STATES,
+    declare_run_parameters,
+    run_node,
+    run_spec_from_parameters,
+    step_stamp,
+)
+
+
+class PlantNode:
+    """Thin wrapper: parameters, QoS and topics around :class:`PlantStepper`."""
+
+    def __init__(self) -> None:
+        self.node = Node("plant")
+        node = self.node
+        declare_run_parameters(node)
+        node.declare_parameter("expected_subscribers", 3)  # trajectory, controller, recorder
+        self.spec = run_spec_from_parameters(node)
+        self.mode = node.get_parameter("mode").value
+        self.expected = int(node.get_parameter("expected_subscribers").value)
+        reference = self.spec.reference()
+        self.robot = self.spec.robot_model()
+        q0 = reference.sample([0.0]).q[0]
+        self.plant = PlantStepper(self.robot, 1.0 / self.spec.rate, q0, np.zeros(self.robot.n))
+        self.last_step = control_steps(reference.duration, self.spec.rate)
+        self.applied = np.zeros(self.robot.n)
+        self.latest_effort = np.zeros(self.robot.n)
+        self.names = list(self.robot.joint_names) + list(self.robot.passive_joint_names)
+        self.done = False
+        self.exit_code = EXIT_OK
+        self.rejected = 0
+        self.started = False
+
+        self.pub_state = node.create_publisher(JointState, TOPIC_JOINT_STATES, LOCKSTEP_QOS)
+        self.pub_ee = node.create_publisher(PointStamped, TOPIC_EE_ACTUAL, LOCKSTEP_QOS)
+        self.pub_clock = node.create_publisher(Clock, "/clock", LOCKSTEP_QOS)
+        node.create_subscription(Float64MultiArray, TOPIC_EFFORT, self.on_effort, LOCKSTEP_QOS)
+
+        if self.mode == "lockstep":
+            self.timer = node.create_timer(0.01, self.try_start)
+        else:
+            self.timer = node.create_timer(1.0 / self.spec.rate, self.on_tick)
+        node.get_logger().info(
+            f"{self.spec.robot} plant, {self.mode}, {self.spec.rate:g} Hz, "
+            f"{self.last_step} steps, payload {self.spec.payload:g} kg"
+        )
+
+    # -- publishing --------------------------------------------------------- #
+    def publish_state(self) -> None:
+        sec, nanosec = step_stamp(self.plant.steps, self.spec.rate)
+        stamp = Time(sec=sec, nanosec=nanosec)
+        if self.mode == "lockstep":
+            self.pub_clock.publish(Clock(clock=stamp))
+        msg = JointState()
+        msg.header.stamp = stamp
+        msg.name = self.names
+        q, qd = self.plant.q, self.plant.qd
+        passive_q, passive_qd = self.robot.passive_joints(q, qd)
+        msg.position = q.tolist() + passive_q.tolist()
+        msg.velocity = qd.tolist() + passive_qd.tolist()
+        msg.effort = self.applied.tolist() + [0.0] * len(passive_q)
+        self.pub_state.publish(msg)
+        x, y = self.robot.position(q)
+        ee = PointStamped()
+        ee.header.stamp = stamp
+        ee.point.x, ee.point.y = float(x), float(y)
+        self.pub_ee.publish(ee)
+
+    def try_start(self) -> None:
+        """Lockstep: publish state 0 once every participant is listening."""
+        if self.started:
+            return
+        if (
+            self.pub_state.get_subscription_count() >= self.expected
+            and self.node.count_publishers(TOPIC_EFFORT) >= 1
+        ):
+            self.started = True
+            self.timer.cancel()
+            self.publish_state()
+
+    # -- effort ------------------------------------------------------------- #
+    def validate(self, msg: Float64MultiArray) -> np.ndarray | None:
+        tau = np.asarray(msg.data, dtype=float)
+        if tau.shape != (self.robot.n,) or not np.all(np.isfinite(tau)):
+            self.rejected += 1
+            self.node.get_logger().warn(
+                f"rejected effort command (needs {self.robot.n} finite values, got "
+                f"{list(msg.data)}); {self.rejected} rejected so far"
+            )
+            return None
+        return tau
+
+    def on_effort(self, msg: Float64MultiArray) -> None:
+        tau = self.validate(msg)
+        if tau is None:
+            return
+        if self.mode == "realtime":
+            self.latest_effort = tau
+            return
+        step = int(msg.layout.data_offset)
+        if step != self.plant.steps:
+            self.rejected += 1
+            self.node.get_logger().warn(
+                f"rejected effort for step {step} while at step {self.plant.steps}"
+            )
+            return
+        if step >= self.last_step:
+            self.done = True  # the controller's effort for t = T closes the run
+            return
+        self.plant.step(tau)
+        self.applied = tau
+        self.publish_state()
+
+    def on_tick(self) -> None:
+        """Real time: integrate one period with the latest effort."""
+        if self.plant.steps >= self.last_step:
+            self.done = True
+            return
+        self.publish_state()
+        self.applied = self.latest_effort
+        self.plant.step(self.applied)
+
+
+def main(args: Sequence[str] | None = None) -> int:
+    return run_node("plant", PlantNode, args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,124 @@
+"""Trajectory generator node: joint references and the desired end-effector point.
+
+Publishes ``/reference`` (``trajectory_msgs/JointTrajectory`` with one point:
+positions, velocities, accelerations; stamped with the control instant) and
+``/end_effector/desired``. The references of every control instant are
+computed once at start with the same vectorised call as the in-process
+simulator, so both see bit-identical references.
+
+Lockstep: reference ``0`` is published once its subscribers listen, then
+reference ``k + 1`` as soon as joint state ``k`` arrives (one step ahead, so
+the controller never waits for it). Real time: a wall-clock timer publishes
+the reference of the current instant.
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Sequence
+
+import numpy as np
+from builtin_interfaces.msg import Duration, Time
+from geometry_msgs.msg import PointStamped
+from rclpy.node import Node
+from sensor_msgs.msg import JointState
+from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+
+from ..simulator import control_steps
+from .common import (
+    EXIT_OK,
+    LOCKSTEP_QOS,
+    TOPIC_EE_DESIRED,
+    TOPIC_JOINT_STATES,
+    TOPIC_REFERENCE,
+    declare_run_parameters,
+    run_node,
+    run_spec_from_parameters,
+    stamp_to_step,
+    step_stamp,
+)
+
+
+class TrajectoryNode:
+    """Thin wrapper around :class:`~pdsmc_ros.trajectories.JointReference`."""
+
+    def __init__(self) -> None:
+        self.node = Node("trajectory")
+        node = self.node
+        declare_run_parameters(node)
+        node.declare_parameter("expected_subscribers", 2)  # controller, recorder
+        self.spec = run_spec_from_parameters(node)
+        self.mode = node.get_parameter("mode").value
+        self.expected = int(node.get_parameter("expected_subscribers").value)
+        reference = self.spec.reference()
+        self.robot = self.spec.robot_model()
+        self.last_step = control_steps(reference.duration, self.spec.rate)
+        t = np.arange(self.last_step + 1) / self.spec.rate
+        self.refs = reference.sample(t)
+        self.task = reference.contour.task(t).p
+        self.names = list(self.robot.joint_names)
+        self.next_step = 0
+        self.done = False
+        self.exit_code = EXIT_OK
+
+        self.pub_ref = node.create_publisher(JointTrajectory, TOPIC_REFERENCE, LOCKSTEP_QOS)
+        self.pub_ee = node.create_publisher(PointStamped, TOPIC_EE_DESIRED, LOCKSTEP_QOS)
+        node.create_subscription(JointState, TOPIC_JOINT_STATES, self.on_state, LOCKSTEP_QOS)
+        if self.mode == "lockstep":
+            self.timer = node.create_timer(0.01, self.try_start)
+        else:
+            self.start_ns = node.get_clock().now().nanoseconds
+            self.timer = node.create_timer(1.0 / self.spec.rate, self.on_tick)
+        node.get_logger().info(
+            f"{self.spec.contour} for {self.spec.robot}: {reference.duration:g} s, "
+            f"{self.last_step + 1} references"
+        )
+
+    def publish(self, step: int) -> None:
+        sec, nanosec = step_stamp(step, self.spec.rate)
+        stamp = Time(sec=sec, nanosec=nanosec)
+        msg = JointTrajectory()
+        msg.header.stamp = stamp
+        msg.joint_names = self.names
+        point = JointTrajectoryPoint()
+        point.positions = self.refs.q[step].tolist()
+        point.velocities = self.refs.qd[step].tolist()
+        point.accelerations = self.refs.qdd[step].tolist()
+        point.time_from_start = Duration(sec=0, nanosec=0)
+        msg.points = [point]
+        self.pub_ref.publish(msg)
+        ee = PointStamped()
+        ee.header.stamp = stamp
+        ee.point.x, ee.point.y = float(self.task[step, 0]), float(self.task[step, 1])
+        self.pub_ee.publish(ee)
+
+    def try_start(self) -> None:
+        if self.next_step == 0 and self.pub_ref.get_subscription_count() >= self.expected:
+            self.timer.cancel()
+            self.publish(0)
+            self.next_step = 1
+
+    def on_state(self, msg: JointState) -> None:
+        if self.mode != "lockstep":
+            return
+        step = stamp_to_step(msg.header.stamp.sec, msg.header.stamp.nanosec, self.spec.rate)
+        if step + 1 == self.next_step and self.next_step <= self.last_step:
+            self.publish(self.next_step)
+            self.next_step += 1
+        if step >= self.last_step:
+            self.done = True
+
+    def on_tick(self) -> None:
+        elapsed = (self.node.get_clock().now().nanoseconds - self.start_ns) * 1e-9
+        step = min(int(elapsed * self.spec.rate), self.last_step)
+        self.publish(step)
+        if step >= self.last_step:
+            self.done = True
+
+
+def main(args: Sequence[str] | None = None) -> int:
+    return run_node("trajectory", TrajectoryNode, args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
