@@ -27,6 +27,11 @@ setup(
     entry_points={
         "console_scripts": [
             "pdsmc = pdsmc_ros.cli:main",
+            "ros2 = pdsmc_ros.ros2:main",
+            "plant = pdsmc_ros.nodes.plant:main",
+            "trajectory = pdsmc_ros.nodes.trajectory:main",
+            "controller = pdsmc_ros.nodes.controller:main",
+            "recorder = pdsmc_ros.nodes.recorder:main",
         ],
     },
 )

@@ -11,12 +11,20 @@ import os
 import signal
 import sys
 import threading
+import time
 from collections.abc import Callable, Sequence
 from typing import Any
 
 import rclpy
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
+from rclpy.clock import Clock, ClockType
+from rclpy.exceptions import (
+    InvalidParameterTypeException,
+    ParameterException,
+    ParameterUninitializedException,
+)
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -59,6 +67,9 @@ LATCHED_QOS = QoSProfile(
     durability=DurabilityPolicy.TRANSIENT_LOCAL,
 )
 
+# Start-up polling must not wait for /clock, which starts only once everyone is there.
+STEADY_CLOCK = Clock(clock_type=ClockType.STEADY_TIME)
+
 EXIT_OK = 0
 EXIT_FAILURE = 1
 EXIT_BAD_INPUT = 2
@@ -67,7 +78,11 @@ EXIT_BAD_INPUT = 2
 def _descriptor(
     description: str, *, lo: float | None = None, hi: float | None = None, constraints: str = ""
 ) -> ParameterDescriptor:
-    desc = ParameterDescriptor(description=description, additional_constraints=constraints)
+    # dynamic typing: `-p rate:=1000` (an integer) is accepted and checked by us,
+    # so a wrong type is one clear line instead of an rclpy traceback
+    desc = ParameterDescriptor(
+        description=description, additional_constraints=constraints, dynamic_typing=True
+    )
     if lo is not None and hi is not None:
         desc.floating_point_range = [FloatingPointRange(from_value=lo, to_value=hi, step=0.0)]
     return desc
@@ -86,6 +101,7 @@ RUN_PARAMETERS: dict[str, tuple[Any, ParameterDescriptor]] = {
     "ellipse_error": ("nearest", _descriptor("ellipse contour error", constraints="nearest or osculating")),
     "waypoints_file": ("", _descriptor("CSV of task-space waypoints for contour csv")),
     "segment_duration": (2.0, _descriptor("seconds per CSV segment", lo=0.001, hi=1000.0)),
+    "clock_rate": (1000.0, _descriptor("lockstep: /clock publication rate in sim-time Hz", lo=1.0, hi=1.0e6)),
 }
 GAIN_DESCRIPTIONS = {
     "kp": "proportional gains Kp, one per joint (empty: preset of Table 4.16 / 4.33)",
@@ -96,15 +112,20 @@ GAIN_DESCRIPTIONS = {
 }
 
 
+def _range_of(name: str) -> tuple[float, float]:
+    ranges = RUN_PARAMETERS[name][1].floating_point_range
+    if ranges:
+        return ranges[0].from_value, ranges[0].to_value
+    return float("-inf"), float("inf")
+
+
 def declare_run_parameters(node: Node, *, gains: bool = False) -> None:
     """Declare the parameters that define a run (and the gains, for the controller)."""
     for name, (default, desc) in RUN_PARAMETERS.items():
         node.declare_parameter(name, default, desc)
     if gains:
         for name in GAIN_NAMES:
-            node.declare_parameter(
-                name, Parameter.Type.DOUBLE_ARRAY, _descriptor(GAIN_DESCRIPTIONS[name])
-            )
+            node.declare_parameter(name, None, _descriptor(GAIN_DESCRIPTIONS[name]))
 
 
 def run_spec_from_parameters(node: Node) -> RunSpec:
@@ -115,7 +136,20 @@ def run_spec_from_parameters(node: Node) -> RunSpec:
     InvalidInputError
         With a message naming the parameter and what is allowed.
     """
-    p = {name: node.get_parameter(name).value for name in RUN_PARAMETERS}
+    p = {}
+    for name, (default, _desc) in RUN_PARAMETERS.items():
+        value = node.get_parameter(name).value
+        if isinstance(default, str):
+            if not isinstance(value, str):
+                raise ConfigError(f"parameter {name} must be a string, got {value!r}")
+        else:
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise ConfigError(f"parameter {name} must be a number, got {value!r}")
+            value = float(value)
+            lo, hi = _range_of(name)
+            if not lo <= value <= hi:
+                raise ConfigError(f"parameter {name} must be in [{lo:g}, {hi:g}], got {value:g}")
+        p[name] = value
     if p["mode"] not in MODES:
         raise ConfigError(f"parameter mode: unknown value {p['mode']!r}; choose one of: lockstep, realtime")
     from ..reproduce import smc_reading
@@ -141,10 +175,18 @@ def run_spec_from_parameters(node: Node) -> RunSpec:
         spec = dataclasses.replace(spec, duration_factor=spec.duration_factor * p["duration_factor"])
     overrides = {}
     for name in GAIN_NAMES:
-        if node.has_parameter(name):
+        if not node.has_parameter(name):
+            continue
+        try:
             value = node.get_parameter(name).value
-            if value is not None and len(value) > 0:
-                overrides[name] = list(value)
+        except ParameterUninitializedException:
+            continue  # not given: the preset applies
+        if value is not None and len(value) > 0:
+            if isinstance(value, str) or not all(
+                isinstance(v, (int, float)) and not isinstance(v, bool) for v in value
+            ):
+                raise ConfigError(f"parameter {name} must be a list of numbers, got {value!r}")
+            overrides[name] = [float(v) for v in value]
     if overrides:
         import dataclasses
 
@@ -155,23 +197,38 @@ def run_spec_from_parameters(node: Node) -> RunSpec:
     return spec
 
 
-def gains_callback(node: Node, spec_holder: dict[str, RunSpec]) -> Callable[[list[Parameter]], SetParametersResult]:
-    """A set-parameters callback that validates gain changes at run time."""
+def gains_callback(
+    spec: RunSpec, apply: Callable[[Gains], None]
+) -> Callable[[list[Parameter]], SetParametersResult]:
+    """Set-parameters callback: validate gain changes, refuse run-defining ones.
+
+    A valid change is passed to ``apply``; an invalid one is refused with the
+    reason (shown by ``ros2 param set``).
+    """
+    current = {"gains": spec.gains}
 
     def callback(params: list[Parameter]) -> SetParametersResult:
-        spec = spec_holder.get("spec")
+        merged = current["gains"].as_dict()
+        changed = False
         for param in params:
-            if param.name in GAIN_NAMES and spec is not None:
-                try:
-                    Gains.from_mapping({**spec.gains.as_dict(), param.name: list(param.value or [])},
-                                       len(spec.gains.kp), spec.controller)
-                except InvalidInputError as exc:
-                    return SetParametersResult(successful=False, reason=str(exc))
-            elif param.name in RUN_PARAMETERS and spec is not None:
+            if param.name in GAIN_NAMES:
+                merged[param.name] = list(param.value or [])
+                changed = True
+            elif param.name in RUN_PARAMETERS:
                 return SetParametersResult(
                     successful=False,
                     reason=f"{param.name} defines the run and cannot change while it runs",
                 )
+        if not changed:
+            return SetParametersResult(successful=True)
+        try:
+            gains = Gains.from_mapping(
+                {k: v for k, v in merged.items() if v}, len(spec.gains.kp), spec.controller
+            )
+        except InvalidInputError as exc:
+            return SetParametersResult(successful=False, reason=str(exc))
+        current["gains"] = gains
+        apply(gains)
         return SetParametersResult(successful=True)
 
     return callback
@@ -181,6 +238,11 @@ def description_json(spec: RunSpec, mode: str) -> str:
     data = spec.describe()
     data["mode"] = mode
     return json.dumps(data, sort_keys=True)
+
+
+def decimation(rate: float, target: float) -> int:
+    """Publish every ``decimation`` steps so a ``rate`` Hz loop emits at most ``target`` Hz."""
+    return max(1, int(round(rate / target)))
 
 
 def stamp_to_step(sec: int, nanosec: int, rate: float) -> int:
@@ -229,14 +291,29 @@ def run_node(
         except InvalidInputError as exc:
             print(f"{name}: error: {exc}", file=sys.stderr, flush=True)
             return EXIT_BAD_INPUT
+        except (ParameterException, InvalidParameterTypeException, ValueError, TypeError) as exc:
+            print(f"{name}: error: {exc}", file=sys.stderr, flush=True)
+            return EXIT_BAD_INPUT
         except PdsmcError as exc:
             print(f"{name}: error: {exc}", file=sys.stderr, flush=True)
             return EXIT_FAILURE
-        executor = SingleThreadedExecutor()
+        # Lockstep is event-driven: the EventsExecutor roughly doubles its step rate;
+        # its spin_once without a timeout never blocks in this wheel (NOTES.md), so it
+        # always gets a finite one. Its timers fire far too often (measured 35x the
+        # period), so real-time nodes are paced here instead of by rclpy timers: the
+        # loop calls tick() on a wall-clock schedule and drains messages in between.
+        period = getattr(wrapper, "period", None)
+        # The paced loop needs sub-millisecond waits, which this wheel's EventsExecutor
+        # does not honour (it returns without delivering events); the default
+        # executor's wait set does, and without rclpy timers nothing starves.
+        executor = SingleThreadedExecutor() if period else EventsExecutor()
         executor.add_node(wrapper.node)
         _install_signal_handlers(wrapper)
-        while rclpy.ok() and not wrapper.done:
-            executor.spin_once(timeout_sec=0.05)
+        if period:
+            _paced_loop(executor, wrapper, period)
+        else:
+            while rclpy.ok() and not wrapper.done:
+                executor.spin_once(timeout_sec=0.05)
         code = wrapper.exit_code
     except (KeyboardInterrupt, ExternalShutdownException):
         code = getattr(wrapper, "exit_code", EXIT_OK) if wrapper is not None else EXIT_OK
@@ -249,6 +326,25 @@ def run_node(
         exit_watchdog()
         rclpy.try_shutdown()
     return code
+
+
+def _paced_loop(executor: SingleThreadedExecutor, wrapper: Any, period: float) -> None:
+    """Call ``wrapper.tick()`` every ``period`` seconds of wall-clock time.
+
+    Late ticks are run at once (no burst catch-up beyond one period); the
+    wrapper may count ``missed`` deadlines from the lateness passed to tick().
+    """
+    next_tick = time.perf_counter() + period
+    while rclpy.ok() and not wrapper.done:
+        now = time.perf_counter()
+        if now >= next_tick:
+            lateness = now - next_tick
+            wrapper.tick(lateness)
+            next_tick += period
+            if now - next_tick > period:  # more than a period behind: resynchronise
+                next_tick = now + period
+            continue
+        executor.spin_once(timeout_sec=min(next_tick - now, 0.05))
 
 
 def _install_signal_handlers(wrapper: Any) -> None:

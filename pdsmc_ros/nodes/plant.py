@@ -1,8 +1,11 @@
 """Plant simulator node: integrates Eq. (4.1) one control period per effort command.
 
-Publishes ``/joint_states`` (position, velocity and, in ``effort``, the torque
-applied over the period that ended at the stamp; passive joints of the
-five-bar too), the actual end-effector point, and in lockstep mode ``/clock``.
+Publishes ``/joint_states`` every control step (position, velocity and, in
+``effort``, the torque applied over the period that ended at the stamp; passive
+joints of the five-bar too), the actual end-effector point at the statistics
+rate, and in lockstep mode ``/clock`` at ``clock_rate`` (default 1 kHz of sim
+time: every node's time source needs no more, and each /clock message fans out
+to every node).
 
 Lockstep: state ``k`` is published, the plant waits for the effort of step
 ``k`` (``layout.data_offset == k``), integrates one period with it held and
@@ -25,11 +28,13 @@ from std_msgs.msg import Float64MultiArray
 
 from ..simulator import PlantStepper, control_steps
 from .common import (
+    STEADY_CLOCK,
     EXIT_OK,
     LOCKSTEP_QOS,
     TOPIC_EE_ACTUAL,
     TOPIC_EFFORT,
     TOPIC_JOINT_STATES,
+    decimation,
     declare_run_parameters,
     run_node,
     run_spec_from_parameters,
@@ -60,6 +65,8 @@ class PlantNode:
         self.exit_code = EXIT_OK
         self.rejected = 0
         self.started = False
+        self.clock_every = decimation(self.spec.rate, node.get_parameter("clock_rate").value)
+        self.ee_every = self.spec.sample_every
 
         self.pub_state = node.create_publisher(JointState, TOPIC_JOINT_STATES, LOCKSTEP_QOS)
         self.pub_ee = node.create_publisher(PointStamped, TOPIC_EE_ACTUAL, LOCKSTEP_QOS)
@@ -67,9 +74,9 @@ class PlantNode:
         node.create_subscription(Float64MultiArray, TOPIC_EFFORT, self.on_effort, LOCKSTEP_QOS)
 
         if self.mode == "lockstep":
-            self.timer = node.create_timer(0.01, self.try_start)
+            self.timer = node.create_timer(0.01, self.try_start, clock=STEADY_CLOCK)
         else:
-            self.timer = node.create_timer(1.0 / self.spec.rate, self.on_tick)
+            self.period = 1.0 / self.spec.rate  # run_node paces tick() at this period
         node.get_logger().info(
             f"{self.spec.robot} plant, {self.mode}, {self.spec.rate:g} Hz, "
             f"{self.last_step} steps, payload {self.spec.payload:g} kg"
@@ -77,9 +84,10 @@ class PlantNode:
 
     # -- publishing --------------------------------------------------------- #
     def publish_state(self) -> None:
-        sec, nanosec = step_stamp(self.plant.steps, self.spec.rate)
+        step = self.plant.steps
+        sec, nanosec = step_stamp(step, self.spec.rate)
         stamp = Time(sec=sec, nanosec=nanosec)
-        if self.mode == "lockstep":
+        if self.mode == "lockstep" and step % self.clock_every == 0:
             self.pub_clock.publish(Clock(clock=stamp))
         msg = JointState()
         msg.header.stamp = stamp
@@ -90,6 +98,8 @@ class PlantNode:
         msg.velocity = qd.tolist() + passive_qd.tolist()
         msg.effort = self.applied.tolist() + [0.0] * len(passive_q)
         self.pub_state.publish(msg)
+        if step % self.ee_every and step != self.last_step:
+            return  # the end-effector point goes out at the statistics rate
         x, y = self.robot.position(q)
         ee = PointStamped()
         ee.header.stamp = stamp
@@ -102,6 +112,7 @@ class PlantNode:
             return
         if (
             self.pub_state.get_subscription_count() >= self.expected
+            and self.pub_ee.get_subscription_count() >= 1
             and self.node.count_publishers(TOPIC_EFFORT) >= 1
         ):
             self.started = True
@@ -126,6 +137,7 @@ class PlantNode:
             return
         if self.mode == "realtime":
             self.latest_effort = tau
+            self.started = True
             return
         step = int(msg.layout.data_offset)
         if step != self.plant.steps:
@@ -141,12 +153,18 @@ class PlantNode:
         self.applied = tau
         self.publish_state()
 
-    def on_tick(self) -> None:
-        """Real time: integrate one period with the latest effort."""
+    def tick(self, lateness: float) -> None:  # noqa: ARG002
+        """Real time: publish the state, then integrate one period with the latest effort.
+
+        Until the first effort arrives the arm is held at its initial state (the
+        controller may still be starting), so the run begins under control.
+        """
+        self.publish_state()
+        if not self.started:
+            return
         if self.plant.steps >= self.last_step:
             self.done = True
             return
-        self.publish_state()
         self.applied = self.latest_effort
         self.plant.step(self.applied)
 

@@ -1,15 +1,16 @@
 """Trajectory generator node: joint references and the desired end-effector point.
 
-Publishes ``/reference`` (``trajectory_msgs/JointTrajectory`` with one point:
-positions, velocities, accelerations; stamped with the control instant) and
-``/end_effector/desired``. The references of every control instant are
+Publishes ``/reference`` every control step (``trajectory_msgs/JointTrajectory``
+with one point: positions, velocities, accelerations; stamped with the control
+instant) and ``/end_effector/desired`` at the statistics rate. The references of every control instant are
 computed once at start with the same vectorised call as the in-process
 simulator, so both see bit-identical references.
 
 Lockstep: reference ``0`` is published once its subscribers listen, then
 reference ``k + 1`` as soon as joint state ``k`` arrives (one step ahead, so
-the controller never waits for it). Real time: a wall-clock timer publishes
-the reference of the current instant.
+the controller never waits for it). Real time: a wall-clock timer at the
+control rate publishes the reference one step ahead of the latest plant state,
+so the reference follows the plant's clock.
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from ..simulator import control_steps
 from .common import (
+    STEADY_CLOCK,
     EXIT_OK,
     LOCKSTEP_QOS,
     TOPIC_EE_DESIRED,
@@ -58,6 +60,8 @@ class TrajectoryNode:
         self.task = reference.contour.task(t).p
         self.names = list(self.robot.joint_names)
         self.next_step = 0
+        self.state_step = -1
+        self.started = False
         self.done = False
         self.exit_code = EXIT_OK
 
@@ -65,10 +69,9 @@ class TrajectoryNode:
         self.pub_ee = node.create_publisher(PointStamped, TOPIC_EE_DESIRED, LOCKSTEP_QOS)
         node.create_subscription(JointState, TOPIC_JOINT_STATES, self.on_state, LOCKSTEP_QOS)
         if self.mode == "lockstep":
-            self.timer = node.create_timer(0.01, self.try_start)
+            self.timer = node.create_timer(0.01, self.try_start, clock=STEADY_CLOCK)
         else:
-            self.start_ns = node.get_clock().now().nanoseconds
-            self.timer = node.create_timer(1.0 / self.spec.rate, self.on_tick)
+            self.period = 1.0 / self.spec.rate  # run_node paces tick() at this period
         node.get_logger().info(
             f"{self.spec.contour} for {self.spec.robot}: {reference.duration:g} s, "
             f"{self.last_step + 1} references"
@@ -87,32 +90,43 @@ class TrajectoryNode:
         point.time_from_start = Duration(sec=0, nanosec=0)
         msg.points = [point]
         self.pub_ref.publish(msg)
+        if step % self.spec.sample_every and step != self.last_step:
+            return  # the desired end-effector point goes out at the statistics rate
         ee = PointStamped()
         ee.header.stamp = stamp
         ee.point.x, ee.point.y = float(self.task[step, 0]), float(self.task[step, 1])
         self.pub_ee.publish(ee)
 
     def try_start(self) -> None:
-        if self.next_step == 0 and self.pub_ref.get_subscription_count() >= self.expected:
+        if (
+            self.pub_ref.get_subscription_count() >= self.expected
+            and self.pub_ee.get_subscription_count() >= 1
+        ):
             self.timer.cancel()
-            self.publish(0)
-            self.next_step = 1
+            self.started = True
+            self.advance()
 
-    def on_state(self, msg: JointState) -> None:
-        if self.mode != "lockstep":
-            return
-        step = stamp_to_step(msg.header.stamp.sec, msg.header.stamp.nanosec, self.spec.rate)
-        if step + 1 == self.next_step and self.next_step <= self.last_step:
+    def advance(self) -> None:
+        """Publish every reference up to one step ahead of the latest state."""
+        while self.next_step <= min(self.state_step + 1, self.last_step):
             self.publish(self.next_step)
             self.next_step += 1
+
+    def on_state(self, msg: JointState) -> None:
+        step = stamp_to_step(msg.header.stamp.sec, msg.header.stamp.nanosec, self.spec.rate)
+        self.state_step = max(self.state_step, step)
+        if self.mode != "lockstep":
+            return
+        if self.started:
+            self.advance()
         if step >= self.last_step:
             self.done = True
 
-    def on_tick(self) -> None:
-        elapsed = (self.node.get_clock().now().nanoseconds - self.start_ns) * 1e-9
-        step = min(int(elapsed * self.spec.rate), self.last_step)
-        self.publish(step)
-        if step >= self.last_step:
+    def tick(self, lateness: float) -> None:  # noqa: ARG002
+        """Real time: at the control rate, the reference one step ahead of the plant."""
+        step = min(self.state_step + 1, self.last_step)
+        self.publish(max(step, 0))
+        if self.state_step >= self.last_step:
             self.done = True
 
 

@@ -1,0 +1,160 @@
+"""Controller node: PD, SMC or PD-SMC, selected with ``-p type:=pd|smc|pdsmc``.
+
+Subscribes to ``/joint_states`` and ``/reference`` and publishes
+``std_msgs/Float64MultiArray`` torques on ``/effort_controller/commands`` like
+ros2_control's forward command controller (``layout.data_offset`` carries the
+control step in lockstep mode). It also publishes the run description
+(JSON, latched) on ``/pdsmc/run_description``. The law itself is
+:class:`pdsmc_ros.simulator.ControlLaw`.
+
+Lockstep: the torque of step ``k`` is computed once the state and the
+reference of step ``k`` are both in. Real time: a wall-clock timer computes
+with the latest state and reference and publishes the achieved period on
+``/pdsmc/controller_timing``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import sys
+import time
+from collections.abc import Sequence
+
+import numpy as np
+from rclpy.node import Node
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray, String
+from trajectory_msgs.msg import JointTrajectory
+
+from ..presets import Gains
+from ..simulator import ControlLaw, control_steps
+from ..stability import check_rate
+from .common import (
+    EXIT_OK,
+    LATCHED_QOS,
+    LOCKSTEP_QOS,
+    TOPIC_DESCRIPTION,
+    TOPIC_EFFORT,
+    TOPIC_JOINT_STATES,
+    TOPIC_REFERENCE,
+    TOPIC_TIMING,
+    declare_run_parameters,
+    description_json,
+    gains_callback,
+    run_node,
+    run_spec_from_parameters,
+    stamp_to_step,
+)
+
+
+class ControllerNode:
+    """Thin wrapper around :class:`~pdsmc_ros.simulator.ControlLaw`."""
+
+    def __init__(self) -> None:
+        self.node = Node("controller")
+        node = self.node
+        declare_run_parameters(node, gains=True)
+        self.spec = run_spec_from_parameters(node)
+        node.add_on_set_parameters_callback(gains_callback(self.spec, self.apply_gains))
+        self.mode = node.get_parameter("mode").value
+        check_rate(self.spec, self.spec.reference())  # refuse gains unstable at this rate
+        self.law = ControlLaw(self.spec)
+        self.n = self.law.n
+        self.last_step = control_steps(self.spec.contour_model().duration, self.spec.rate)
+        self.state: tuple[int, np.ndarray, np.ndarray] | None = None
+        self.refs: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+        self.latest_ref: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+        self.done = False
+        self.exit_code = EXIT_OK
+        self.last_tick: float | None = None
+
+        self.pub_effort = node.create_publisher(Float64MultiArray, TOPIC_EFFORT, LOCKSTEP_QOS)
+        self.pub_desc = node.create_publisher(String, TOPIC_DESCRIPTION, LATCHED_QOS)
+        self.pub_timing = node.create_publisher(Float64MultiArray, TOPIC_TIMING, LOCKSTEP_QOS)
+        node.create_subscription(JointState, TOPIC_JOINT_STATES, self.on_state, LOCKSTEP_QOS)
+        node.create_subscription(JointTrajectory, TOPIC_REFERENCE, self.on_reference, LOCKSTEP_QOS)
+        self.pub_desc.publish(String(data=description_json(self.spec, self.mode)))
+        if self.mode == "realtime":
+            self.period = 1.0 / self.spec.rate  # run_node paces tick() at this period
+            self.missed = 0
+        node.get_logger().info(
+            f"{self.spec.controller} controller for {self.spec.robot}/{self.spec.contour}, "
+            f"{self.mode}, {self.spec.rate:g} Hz"
+        )
+
+    def apply_gains(self, gains: Gains) -> None:
+        """Validated run-time gain change (set-parameters callback)."""
+        self.spec = dataclasses.replace(self.spec, gains=gains)
+        self.law = ControlLaw(self.spec)
+        self.node.get_logger().info(f"gains changed: {gains.as_dict()}")
+
+    def on_state(self, msg: JointState) -> None:
+        step = stamp_to_step(msg.header.stamp.sec, msg.header.stamp.nanosec, self.spec.rate)
+        q = np.asarray(msg.position[: self.n], dtype=float)
+        qd = np.asarray(msg.velocity[: self.n], dtype=float)
+        self.state = (step, q, qd)
+        if self.mode == "lockstep":
+            self.try_compute()
+
+    def on_reference(self, msg: JointTrajectory) -> None:
+        if not msg.points:
+            return
+        point = msg.points[0]
+        ref = (
+            np.asarray(point.positions, dtype=float),
+            np.asarray(point.velocities, dtype=float),
+            np.asarray(point.accelerations, dtype=float),
+        )
+        self.latest_ref = ref
+        if self.mode == "lockstep":
+            step = stamp_to_step(msg.header.stamp.sec, msg.header.stamp.nanosec, self.spec.rate)
+            self.refs[step] = ref
+            self.try_compute()
+
+    def try_compute(self) -> None:
+        if self.state is None:
+            return
+        step, q, qd = self.state
+        ref = self.refs.pop(step, None)
+        if ref is None:
+            return
+        self.publish(self.law.torque(q, qd, *ref), step)
+        self.state = None
+        if step >= self.last_step:
+            self.done = True
+
+    def publish(self, tau: np.ndarray, step: int) -> None:
+        msg = Float64MultiArray()
+        msg.layout.data_offset = step
+        msg.data = tau.tolist()
+        self.pub_effort.publish(msg)
+
+    def tick(self, lateness: float) -> None:
+        """Real time: torque from the latest state and reference; timing recorded.
+
+        Publishes ``[wall time (s), achieved period (s), compute time (s),
+        lateness (s), missed deadlines so far]`` on ``/pdsmc/controller_timing``.
+        """
+        now = time.perf_counter()
+        if lateness > self.period:
+            self.missed += 1
+        if self.state is None or self.latest_ref is None:
+            self.last_tick = now
+            return
+        step, q, qd = self.state
+        self.publish(self.law.torque(q, qd, *self.latest_ref), step)
+        period = 0.0 if self.last_tick is None else now - self.last_tick
+        self.last_tick = now
+        timing = Float64MultiArray()
+        timing.data = [time.time(), period, time.perf_counter() - now, lateness, float(self.missed)]
+        self.pub_timing.publish(timing)
+        if step >= self.last_step:
+            self.done = True
+
+
+def main(args: Sequence[str] | None = None) -> int:
+    return run_node("controller", ControllerNode, args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

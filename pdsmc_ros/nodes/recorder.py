@@ -1,0 +1,146 @@
+"""Recorder node: writes every run topic into a rosbag2 MCAP bag.
+
+Serialized (raw) subscriptions are written as they arrive with rosbags'
+writer in MCAP mode, so the bag holds exactly the CDR bytes that crossed DDS.
+The run description (robot, contour, controller, gains, rates, scenario,
+package version) is stored twice: as the latched ``/pdsmc/run_description``
+message and in ``metadata.yaml``'s custom data, so analysis needs nothing
+else. The bag is closed cleanly on completion, SIGINT or SIGTERM.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from collections.abc import Sequence
+from pathlib import Path
+
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import PointStamped
+from rclpy.node import Node
+from rclpy.serialization import deserialize_message
+from rosbags.rosbag2 import StoragePlugin, Writer
+from rosbags.typesys import Stores, get_typestore
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray, String
+from trajectory_msgs.msg import JointTrajectory
+
+from ..bagio import DESCRIPTION_KEY, effort_step, header_step
+from ..errors import BagError, ConfigError
+from ..simulator import control_steps
+from .common import (
+    EXIT_FAILURE,
+    EXIT_OK,
+    LATCHED_QOS,
+    LOCKSTEP_QOS,
+    TOPIC_DESCRIPTION,
+    TOPIC_DIAGNOSTICS,
+    TOPIC_EE_ACTUAL,
+    TOPIC_EE_DESIRED,
+    TOPIC_EFFORT,
+    TOPIC_JOINT_STATES,
+    TOPIC_REFERENCE,
+    TOPIC_TIMING,
+    declare_run_parameters,
+    run_node,
+    run_spec_from_parameters,
+)
+
+# topic -> (rclpy type, ROS type name, QoS)
+RECORDED = {
+    TOPIC_JOINT_STATES: (JointState, "sensor_msgs/msg/JointState", LOCKSTEP_QOS),
+    TOPIC_REFERENCE: (JointTrajectory, "trajectory_msgs/msg/JointTrajectory", LOCKSTEP_QOS),
+    TOPIC_EFFORT: (Float64MultiArray, "std_msgs/msg/Float64MultiArray", LOCKSTEP_QOS),
+    TOPIC_EE_DESIRED: (PointStamped, "geometry_msgs/msg/PointStamped", LOCKSTEP_QOS),
+    TOPIC_EE_ACTUAL: (PointStamped, "geometry_msgs/msg/PointStamped", LOCKSTEP_QOS),
+    TOPIC_TIMING: (Float64MultiArray, "std_msgs/msg/Float64MultiArray", LOCKSTEP_QOS),
+    TOPIC_DIAGNOSTICS: (DiagnosticArray, "diagnostic_msgs/msg/DiagnosticArray", LOCKSTEP_QOS),
+    TOPIC_DESCRIPTION: (String, "std_msgs/msg/String", LATCHED_QOS),
+}
+STEPPED = (TOPIC_JOINT_STATES, TOPIC_REFERENCE, TOPIC_EFFORT, TOPIC_EE_DESIRED, TOPIC_EE_ACTUAL)
+"""Topics with one message per control step; the run is complete when each has its last."""
+
+
+class RecorderNode:
+    """Thin wrapper: raw subscriptions into a rosbags MCAP writer."""
+
+    def __init__(self) -> None:
+        self.node = Node("recorder")
+        node = self.node
+        declare_run_parameters(node)
+        node.declare_parameter("output", "")
+        self.spec = run_spec_from_parameters(node)
+        output = str(node.get_parameter("output").value)
+        if not output:
+            raise ConfigError("parameter output: the bag directory to write is required")
+        self.path = Path(output)
+        if self.path.exists():
+            raise ConfigError(f"parameter output: {output!r} already exists; choose a new bag directory")
+        try:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise ConfigError(f"parameter output: cannot create {str(self.path.parent)!r}: {exc.strerror}") from None
+        self.last_step = control_steps(self.spec.contour_model().duration, self.spec.rate)
+        self.done = False
+        self.exit_code = EXIT_OK
+        self.description: str | None = None
+        self.seen = {topic: -1 for topic in STEPPED}
+        self.counts = dict.fromkeys(RECORDED, 0)
+        typestore = get_typestore(Stores.ROS2_JAZZY)
+        self.writer = Writer(self.path, version=9, storage_plugin=StoragePlugin.MCAP)
+        try:
+            self.writer.open()
+        except OSError as exc:
+            raise BagError(f"cannot open bag {output!r} for writing: {exc}") from None
+        self.connections = {}
+        for topic, (msg_type, type_name, qos) in RECORDED.items():
+            name = "/" + topic
+            self.connections[topic] = self.writer.add_connection(name, type_name, typestore=typestore)
+            node.create_subscription(msg_type, topic, self._callback(topic), qos, raw=True)
+        node.get_logger().info(f"recording {len(RECORDED)} topics into {self.path}")
+
+    def _callback(self, topic: str):  # noqa: ANN202
+        connection = self.connections[topic]
+        stepped = topic in STEPPED
+
+        def callback(data: bytes) -> None:
+            try:
+                self.writer.write(connection, time.time_ns(), data)
+            except OSError as exc:
+                self.node.get_logger().error(f"write to {self.path} failed: {exc}")
+                self.exit_code = EXIT_FAILURE
+                self.done = True
+                return
+            self.counts[topic] += 1
+            if topic == TOPIC_DESCRIPTION:
+                self.description = deserialize_message(data, String).data
+            if stepped:
+                step = effort_step(data) if topic == TOPIC_EFFORT else header_step(data, self.spec.rate)
+                self.seen[topic] = max(self.seen[topic], step)
+                if all(v >= self.last_step for v in self.seen.values()):
+                    self.done = True
+
+        return callback
+
+    def close(self) -> None:
+        """Finish the bag (metadata and MCAP summary); idempotent."""
+        if self.writer is None:
+            return
+        if self.description is not None:
+            self.writer.set_custom_data(DESCRIPTION_KEY, self.description)
+        try:
+            self.writer.close()
+        except OSError as exc:
+            self.node.get_logger().error(f"closing {self.path} failed: {exc}")
+            self.exit_code = EXIT_FAILURE
+        self.writer = None
+        summary = ", ".join(f"/{t} {c}" for t, c in self.counts.items() if c)
+        print(f"recorder: wrote {self.path}: {summary}", flush=True)
+
+
+def main(args: Sequence[str] | None = None) -> int:
+    return run_node("recorder", RecorderNode, args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,132 @@
+#!/usr/bin/env bash
+# Run one closed-loop experiment over DDS: recorder, controller, trajectory and plant nodes.
+#
+# usage: run_experiment.sh --robot R --contour C --controller K --out bags/NAME
+#                          [--scenario S] [--mode lockstep|realtime] [--rate HZ]
+#                          [--duration-factor F] [--smc-reading NAME] [--timeout SECONDS]
+#                          [--param NAME:=VALUE ...]
+#
+# Starts the four nodes (each with `ros2 run pdsmc_ros ...`), waits for the end of the
+# trajectory, and exits non-zero naming any node that failed. On timeout or Ctrl-C it
+# stops the nodes it started, by PID, recorder last. Node logs go to OUT.logs/.
+set -uo pipefail
+
+usage() { sed -n '2,11p' "$0" | sed 's/^# \{0,1\}//'; }
+die() { echo "run_experiment.sh: error: $*" >&2; exit 2; }
+
+ROBOT="" CONTOUR="" CONTROLLER="" OUT="" SCENARIO="nominal" MODE="lockstep" RATE=""
+FACTOR="" SMC_READING="" TIMEOUT="600"
+EXTRA=()
+while [[ $# -gt 0 ]]; do
+  case "$1" in
+    --robot) ROBOT="${2:-}"; shift 2 ;;
+    --contour) CONTOUR="${2:-}"; shift 2 ;;
+    --controller) CONTROLLER="${2:-}"; shift 2 ;;
+    --out) OUT="${2:-}"; shift 2 ;;
+    --scenario) SCENARIO="${2:-}"; shift 2 ;;
+    --mode) MODE="${2:-}"; shift 2 ;;
+    --rate) RATE="${2:-}"; shift 2 ;;
+    --duration-factor) FACTOR="${2:-}"; shift 2 ;;
+    --smc-reading) SMC_READING="${2:-}"; shift 2 ;;
+    --timeout) TIMEOUT="${2:-}"; shift 2 ;;
+    --param) EXTRA+=(-p "${2:-}"); shift 2 ;;
+    -h|--help) usage; exit 0 ;;
+    *) die "unknown argument '$1' (see --help)" ;;
+  esac
+done
+[[ -n "$ROBOT" ]] || die "--robot is required (serial_3r or parallel_5r)"
+[[ -n "$CONTOUR" ]] || die "--contour is required"
+[[ -n "$CONTROLLER" ]] || die "--controller is required (pd, smc or pdsmc)"
+[[ -n "$OUT" ]] || die "--out is required (a new bag directory, e.g. bags/run1)"
+[[ "$MODE" == lockstep || "$MODE" == realtime ]] || die "--mode must be lockstep or realtime, got '$MODE'"
+[[ "$TIMEOUT" =~ ^[0-9]+$ && "$TIMEOUT" -gt 0 ]] || die "--timeout must be a whole number of seconds > 0, got '$TIMEOUT'"
+[[ -e "$OUT" ]] && die "--out '$OUT' already exists; choose a new bag directory"
+
+HERE="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
+if command -v ros2 >/dev/null 2>&1; then
+  ROS2=(ros2)
+elif [[ -x "$HERE/../.venv/bin/ros2" ]]; then
+  ROS2=("$HERE/../.venv/bin/ros2")
+  export AMENT_PREFIX_PATH="${AMENT_PREFIX_PATH:-$(cd "$HERE/../.venv" && pwd)}"
+else
+  die "no ros2 command found: activate the venv (source .venv/bin/activate) or run make setup"
+fi
+
+# Keep concurrent runs apart: a DDS domain of our own unless the caller chose one.
+export ROS_DOMAIN_ID="${ROS_DOMAIN_ID:-$(( ($$ % 100) + 100 ))}"
+export ROS_AUTOMATIC_DISCOVERY_RANGE="${ROS_AUTOMATIC_DISCOVERY_RANGE:-LOCALHOST}"
+
+PARAMS=(-p "robot:=$ROBOT" -p "contour:=$CONTOUR" -p "type:=$CONTROLLER" -p "scenario:=$SCENARIO" -p "mode:=$MODE")
+[[ -n "$RATE" ]] && PARAMS+=(-p "rate:=$RATE")
+[[ -n "$FACTOR" ]] && PARAMS+=(-p "duration_factor:=$FACTOR")
+[[ -n "$SMC_READING" ]] && PARAMS+=(-p "smc_reading:=$SMC_READING")
+if [[ "$MODE" == lockstep ]]; then PARAMS+=(-p "use_sim_time:=true"); fi
+PARAMS+=("${EXTRA[@]}")
+
+LOGS="$OUT.logs"
+mkdir -p "$LOGS" || die "cannot create log directory '$LOGS'"
+
+declare -A PIDS=()
+ORDER=(recorder controller trajectory plant)
+start_node() {
+  local name="$1"; shift
+  "${ROS2[@]}" run pdsmc_ros "$name" --ros-args "${PARAMS[@]}" "$@" >"$LOGS/$name.log" 2>&1 &
+  PIDS[$name]=$!
+}
+
+stop_all() {
+  # stop what we started, by PID: the plant first, the recorder last so it loses nothing
+  local name pid
+  for name in plant trajectory controller recorder; do
+    pid="${PIDS[$name]:-}"
+    [[ -n "$pid" ]] && kill -0 "$pid" 2>/dev/null || continue
+    kill -INT "$pid" 2>/dev/null
+    for _ in $(seq 1 50); do kill -0 "$pid" 2>/dev/null || break; sleep 0.1; done
+    kill -0 "$pid" 2>/dev/null && kill -KILL "$pid" 2>/dev/null
+  done
+}
+trap 'echo "run_experiment.sh: interrupted, stopping nodes" >&2; stop_all; exit 130' INT TERM
+
+start_node recorder -p "output:=$OUT"
+start_node controller
+start_node trajectory
+start_node plant
+
+START=$SECONDS
+declare -A CODES=()
+FAILED=()
+while :; do
+  running=0
+  for name in "${ORDER[@]}"; do
+    [[ -n "${CODES[$name]:-}" ]] && continue
+    pid="${PIDS[$name]}"
+    if kill -0 "$pid" 2>/dev/null; then
+      running=$((running + 1))
+    else
+      wait "$pid"; CODES[$name]=$?
+      if [[ "${CODES[$name]}" -ne 0 ]]; then
+        FAILED+=("$name")
+        echo "run_experiment.sh: node '$name' failed (exit ${CODES[$name]}): $(tail -n 1 "$LOGS/$name.log" 2>/dev/null)" >&2
+      fi
+    fi
+  done
+  [[ $running -eq 0 ]] && break
+  if [[ ${#FAILED[@]} -gt 0 ]]; then
+    stop_all
+    for name in "${ORDER[@]}"; do [[ -n "${CODES[$name]:-}" ]] || { wait "${PIDS[$name]}" 2>/dev/null; CODES[$name]=$?; }; done
+    break
+  fi
+  if (( SECONDS - START > TIMEOUT )); then
+    echo "run_experiment.sh: timeout after ${TIMEOUT} s; stopping nodes" >&2
+    stop_all
+    for name in "${ORDER[@]}"; do [[ -n "${CODES[$name]:-}" ]] || { wait "${PIDS[$name]}" 2>/dev/null; CODES[$name]=$?; }; done
+    exit 1
+  fi
+  sleep 0.05
+done
+
+if [[ ${#FAILED[@]} -gt 0 ]]; then
+  echo "run_experiment.sh: failed nodes: ${FAILED[*]} (logs in $LOGS/)" >&2
+  exit 1
+fi
+echo "run_experiment.sh: $ROBOT/$CONTOUR/$CONTROLLER ($MODE) recorded to $OUT in $((SECONDS - START)) s"

@@ -1,0 +1,33 @@
+"""Shared fixtures: locating the installed ROS entry points for end-to-end tests."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+@pytest.fixture(scope="session")
+def ros_env() -> dict[str, str]:
+    """Environment in which `ros2 run pdsmc_ros ...` and the orchestration work.
+
+    Skips the test when rclpy or the installed executables are missing (the
+    core tests never need them).
+    """
+    pytest.importorskip("rclpy")
+    prefix = Path(sys.prefix)
+    ros2 = prefix / "bin" / "ros2"
+    if not ros2.exists() or not (prefix / "lib" / "pdsmc_ros" / "plant").exists():
+        pytest.skip("pdsmc_ros is not installed in this environment (run `make setup`)")
+    env = dict(os.environ)
+    env["PATH"] = f"{prefix / 'bin'}{os.pathsep}{env.get('PATH', '')}"
+    env["AMENT_PREFIX_PATH"] = str(prefix)
+    env.setdefault("NUMBA_CACHE_DIR", str(prefix / "numba-cache"))
+    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    assert shutil.which("ros2", path=env["PATH"])
+    return env

@@ -1,0 +1,114 @@
+"""End-to-end runs over DDS through scripts/run_experiment.sh (ROS nodes, MCAP bags)."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from pdsmc_ros.bagio import read_run, run_metrics
+from pdsmc_ros.simulator import simulate
+
+ROOT = Path(__file__).resolve().parent.parent
+SCRIPT = ROOT / "scripts" / "run_experiment.sh"
+
+
+def run_experiment(env: dict, out: Path, *args: str, timeout: float = 240) -> subprocess.CompletedProcess:
+    """Run the orchestration in its own process group; on timeout stop only that group."""
+    proc = subprocess.Popen(
+        ["bash", str(SCRIPT), *args, "--out", str(out), "--timeout", str(int(timeout - 20))],
+        env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True,
+    )
+    try:
+        stdout, stderr = proc.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, signal.SIGKILL)
+        stdout, stderr = proc.communicate()
+        pytest.fail(f"orchestration timed out:\n{stderr}")
+    return subprocess.CompletedProcess(proc.args, proc.returncode, stdout, stderr)
+
+
+@pytest.mark.timeout(300)
+def test_lockstep_run_equals_in_process_simulation(ros_env: dict, tmp_path: Path) -> None:
+    out = tmp_path / "serial_pdsmc"
+    proc = run_experiment(ros_env, out, "--robot", "serial_3r", "--contour", "circle",
+                          "--controller", "pdsmc", "--duration-factor", "0.05")
+    assert proc.returncode == 0, proc.stderr
+    run = read_run(out)
+    steps = run.steps
+    assert steps == 2500  # 0.25 s at 10 kHz
+    # exactly one message per step on every stepped topic, nothing lost
+    assert run.counts == {"/joint_states": steps + 1, "/reference": steps + 1,
+                          "/effort_controller/commands": steps + 1}
+    assert run.complete
+    sim = simulate(run.spec)
+    every = run.spec.sample_every
+    assert np.max(np.abs(run.q[::every] - sim.samples.q)) <= 1e-9
+    assert np.max(np.abs(run.tau[::every] - sim.samples.tau)) <= 1e-9
+    assert run_metrics(run).contour_mean == pytest.approx(sim.metrics.contour_mean, rel=1e-9)
+    # the description in the bag is the whole run
+    assert run.description["controller"] == "pdsmc" and run.description["gains"]["ks"] == [55.0, 35.0, 25.0]
+    # the bag opens with the mcap reader as well, with ros2msg schemas
+    from mcap.reader import make_reader
+
+    with (out / f"{out.name}.mcap").open("rb") as handle:
+        summary = make_reader(handle).get_summary()
+    topics = {c.topic: c for c in summary.channels.values()}
+    assert topics["/joint_states"].message_encoding == "cdr"
+    assert summary.schemas[topics["/joint_states"].schema_id].encoding == "ros2msg"
+    assert summary.statistics.channel_message_counts[topics["/joint_states"].id] == steps + 1
+    assert "pdsmc_ros.run_description" in (out / "metadata.yaml").read_text()
+
+
+@pytest.mark.timeout(300)
+def test_realtime_smoke_run(ros_env: dict, tmp_path: Path) -> None:
+    """Wall-clock timers at a modest rate with gains stable there (parallel arm, 200 Hz)."""
+    out = tmp_path / "realtime"
+    proc = run_experiment(ros_env, out, "--robot", "parallel_5r", "--contour", "ellipse_vertical",
+                          "--controller", "pd", "--mode", "realtime", "--rate", "1000",
+                          "--duration-factor", "0.5", "--param", "sample_rate:=1000.0")
+    assert proc.returncode == 0, proc.stderr
+    run = read_run(out)
+    assert run.counts["/joint_states"] > 0.8 * 2000
+    metrics = run_metrics(run)
+    assert metrics.contour_mean < 1e-3  # tracks the 2 cm x 6 cm ellipse
+    timing_topics = read_timing(out)
+    assert len(timing_topics) > 100
+
+
+def read_timing(out: Path) -> np.ndarray:
+    from rosbags.highlevel import AnyReader
+    from rosbags.typesys import Stores, get_typestore
+
+    rows = []
+    with AnyReader([out], default_typestore=get_typestore(Stores.ROS2_JAZZY)) as reader:
+        conns = [c for c in reader.connections if c.topic == "/pdsmc/controller_timing"]
+        for conn, _, raw in reader.messages(connections=conns):
+            rows.append(reader.deserialize(raw, conn.msgtype).data)
+    return np.asarray(rows)
+
+
+@pytest.mark.timeout(120)
+def test_orchestration_reports_failed_node(ros_env: dict, tmp_path: Path) -> None:
+    proc = run_experiment(ros_env, tmp_path / "bad", "--robot", "serial_3r", "--contour", "circle",
+                          "--controller", "lqr", timeout=100)
+    assert proc.returncode != 0
+    assert "node 'controller' failed (exit 2)" in proc.stderr
+    assert "unknown controller 'lqr'" in proc.stderr
+
+
+@pytest.mark.timeout(60)
+def test_ros2_run_shim(ros_env: dict) -> None:
+    proc = subprocess.run(["ros2", "topic", "list"], env=ros_env, capture_output=True, text=True, timeout=30)
+    assert proc.returncode == 2 and "implements only `run`" in proc.stderr
+    proc = subprocess.run(["ros2", "run", "pdsmc_ros", "nope"], env=ros_env, capture_output=True,
+                          text=True, timeout=30)
+    assert proc.returncode == 2 and "available: controller, plant, recorder, trajectory" in proc.stderr
+    proc = subprocess.run(["ros2", "run", "pdsmc_ros", "controller", "--ros-args", "-p", "type:=lqr"],
+                          env=ros_env, capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 2
+    assert proc.stderr.strip().splitlines()[-1].startswith("controller: error: parameters: unknown controller 'lqr'")
