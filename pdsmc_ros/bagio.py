@@ -102,11 +102,13 @@ def read_run(path: str | Path) -> RecordedRun:
     q_ref = np.full((steps + 1, n), np.nan)
     tau = np.full((steps + 1, n), np.nan)
     counts = {}
+    applied = np.full((steps + 1, n), np.nan)  # torque held over the period ending at k
     for raw, msg in by_topic.get("/joint_states", []):
         k = header_step(raw, rate)
         if 0 <= k <= steps:
             q[k] = msg.position[:n]
             qd[k] = msg.velocity[:n]
+            applied[k] = msg.effort[:n]
     for raw, msg in by_topic.get("/reference", []):
         k = header_step(raw, rate)
         if 0 <= k <= steps and len(msg.points):
@@ -115,6 +117,15 @@ def read_run(path: str | Path) -> RecordedRun:
         k = effort_step(raw)
         if 0 <= k <= steps:
             tau[k] = msg.data
+    if description.get("mode") == "realtime":
+        # In real time the controller's commands are tagged with the state it last saw and
+        # the plant applies whichever is newest at its tick: the torque actually applied
+        # over [k, k+1] is the effort the plant reports with state k+1. The reference is
+        # recomputed from the run description (the trajectory node publishes the same
+        # values, but not necessarily for every plant step).
+        tau = np.vstack([applied[1:], np.full((1, n), np.nan)])
+        tau[-1] = tau[-2]
+        q_ref = spec.reference().sample(np.arange(steps + 1) / rate).q
     for topic, items in by_topic.items():
         counts[topic] = len(items)
     missing = {

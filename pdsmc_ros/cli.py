@@ -89,6 +89,11 @@ def build_parser() -> argparse.ArgumentParser:
                      help="skip the comparison of SMC readings")
     rep.add_argument("--quiet", action="store_true", help="no progress lines")
 
+    ana = sub.add_parser("analyze", help="statistics of recorded bags, compared thesis-style")
+    ana.add_argument("bags", nargs="+", help="bag directories written by the recorder")
+    ana.add_argument("--out", default=None, help="also write analysis.json and analysis.csv here")
+    ana.add_argument("--json", action="store_true", help="print JSON instead of the table")
+
     chk = sub.add_parser("check-gains", help="discrete-rate stability of a run's gains")
     _add_run_arguments(chk)
     return parser
@@ -183,7 +188,31 @@ def cmd_check_gains(args: argparse.Namespace) -> int:
     return 0 if check.stable else EXIT_FAILURE
 
 
-COMMANDS = {"simulate": cmd_simulate, "reproduce": cmd_reproduce, "check-gains": cmd_check_gains}
+def cmd_analyze(args: argparse.Namespace) -> int:
+    from .analysis import analyze_bag, comparison_table, write_outputs
+
+    bags = [analyze_bag(path) for path in args.bags]
+    if args.json:
+        print(json.dumps([b.as_dict() for b in bags]))
+    else:
+        print(comparison_table(bags))
+    if args.out:
+        for path in write_outputs(bags, Path(args.out)):
+            print(f"wrote {path}", file=sys.stderr)
+    incomplete = [str(b.path) for b in bags if not b.run.complete and b.run.description.get("mode") != "realtime"]
+    if incomplete:
+        print(f"pdsmc analyze: warning: incomplete bag(s), statistics of the readable steps only: "
+              f"{', '.join(incomplete)}", file=sys.stderr)
+        return EXIT_FAILURE
+    return 0
+
+
+COMMANDS = {
+    "simulate": cmd_simulate,
+    "reproduce": cmd_reproduce,
+    "analyze": cmd_analyze,
+    "check-gains": cmd_check_gains,
+}
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -111,6 +111,20 @@ while :; do
     fi
   done
   [[ $running -eq 0 ]] && break
+  # real time: once the plant has finished the motion, give the others a moment, then
+  # stop them (recorder last) -- they cannot know the plant's last message was its last
+  if [[ "$MODE" == realtime && "${CODES[plant]:-}" == 0 ]]; then
+    PLANT_DONE="${PLANT_DONE:-$SECONDS}"
+    if (( SECONDS - PLANT_DONE >= 5 )); then
+      stop_all
+      for name in "${ORDER[@]}"; do [[ -n "${CODES[$name]:-}" ]] || { wait "${PIDS[$name]}" 2>/dev/null; CODES[$name]=$?; }; done
+      # a node stopped by SIGINT after the motion exits 0; anything else is a failure
+      for name in "${ORDER[@]}"; do
+        if [[ "${CODES[$name]}" -ne 0 ]]; then FAILED+=("$name"); fi
+      done
+      break
+    fi
+  fi
   if [[ ${#FAILED[@]} -gt 0 ]]; then
     stop_all
     for name in "${ORDER[@]}"; do [[ -n "${CODES[$name]:-}" ]] || { wait "${PIDS[$name]}" 2>/dev/null; CODES[$name]=$?; }; done

@@ -66,18 +66,22 @@ def test_lockstep_run_equals_in_process_simulation(ros_env: dict, tmp_path: Path
 
 @pytest.mark.timeout(300)
 def test_realtime_smoke_run(ros_env: dict, tmp_path: Path) -> None:
-    """Wall-clock timers at a modest rate with gains stable there (parallel arm, 200 Hz)."""
+    """Paced wall-clock loops at a modest rate with gains stable there (parallel arm, 250 Hz)."""
     out = tmp_path / "realtime"
     proc = run_experiment(ros_env, out, "--robot", "parallel_5r", "--contour", "ellipse_vertical",
-                          "--controller", "pd", "--mode", "realtime", "--rate", "1000",
-                          "--duration-factor", "0.5", "--param", "sample_rate:=1000.0")
+                          "--controller", "pd", "--mode", "realtime", "--rate", "250",
+                          "--duration-factor", "0.5", "--param", "sample_rate:=250.0",
+                          "--param", "kp:=[60.0, 70.0]", "--param", "kd:=[7.0, 9.0]")
     assert proc.returncode == 0, proc.stderr
     run = read_run(out)
-    assert run.counts["/joint_states"] > 0.8 * 2000
+    assert run.description["mode"] == "realtime" and run.spec.gains.kp == (60.0, 70.0)
+    assert run.missing["joint_states"] == 0  # the plant published every one of its steps
     metrics = run_metrics(run)
-    assert metrics.contour_mean < 1e-3  # tracks the 2 cm x 6 cm ellipse
-    timing_topics = read_timing(out)
-    assert len(timing_topics) > 100
+    assert metrics.samples > 0.95 * 501
+    assert metrics.contour_mean < 1e-3  # it tracks the 2 cm x 6 cm ellipse (no divergence)
+    timing = read_timing(out)
+    assert len(timing) > 200
+    assert np.median(timing[1:, 1]) == pytest.approx(1 / 250, rel=0.2)  # achieved period
 
 
 def read_timing(out: Path) -> np.ndarray:

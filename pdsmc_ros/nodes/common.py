@@ -59,6 +59,20 @@ LOCKSTEP_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_ALL,
     durability=DurabilityPolicy.VOLATILE,
 )
+# Real time: a controller acts on the newest sample; a queue of old ones is only delay.
+LATEST_QOS = QoSProfile(
+    reliability=ReliabilityPolicy.RELIABLE,
+    history=HistoryPolicy.KEEP_LAST,
+    depth=1,
+    durability=DurabilityPolicy.VOLATILE,
+)
+
+
+def control_qos(mode: str) -> QoSProfile:
+    """Subscription QoS of the control loop: every sample in lockstep, the latest in real time."""
+    return LOCKSTEP_QOS if mode == "lockstep" else LATEST_QOS
+
+
 # The run description is published once and must reach late joiners.
 LATCHED_QOS = QoSProfile(
     reliability=ReliabilityPolicy.RELIABLE,
@@ -315,6 +329,8 @@ def run_node(
             while rclpy.ok() and not wrapper.done:
                 executor.spin_once(timeout_sec=0.05)
         code = wrapper.exit_code
+        if not getattr(wrapper, "stopped_by_signal", None):
+            _linger(executor, 0.3)  # let reliable DDS deliver the last messages
     except (KeyboardInterrupt, ExternalShutdownException):
         code = getattr(wrapper, "exit_code", EXIT_OK) if wrapper is not None else EXIT_OK
     finally:
@@ -345,6 +361,13 @@ def _paced_loop(executor: SingleThreadedExecutor, wrapper: Any, period: float) -
                 next_tick = now + period
             continue
         executor.spin_once(timeout_sec=min(next_tick - now, 0.05))
+
+
+def _linger(executor: Any, seconds: float) -> None:
+    """Keep serving the node briefly after its work is done (final deliveries, acks)."""
+    end = time.perf_counter() + seconds
+    while rclpy.ok() and time.perf_counter() < end:
+        executor.spin_once(timeout_sec=0.02)
 
 
 def _install_signal_handlers(wrapper: Any) -> None:

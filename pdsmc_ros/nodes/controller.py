@@ -30,6 +30,7 @@ from ..presets import Gains
 from ..simulator import ControlLaw, control_steps
 from ..stability import check_rate
 from .common import (
+    control_qos,
     EXIT_OK,
     LATCHED_QOS,
     LOCKSTEP_QOS,
@@ -71,12 +72,13 @@ class ControllerNode:
         self.pub_effort = node.create_publisher(Float64MultiArray, TOPIC_EFFORT, LOCKSTEP_QOS)
         self.pub_desc = node.create_publisher(String, TOPIC_DESCRIPTION, LATCHED_QOS)
         self.pub_timing = node.create_publisher(Float64MultiArray, TOPIC_TIMING, LOCKSTEP_QOS)
-        node.create_subscription(JointState, TOPIC_JOINT_STATES, self.on_state, LOCKSTEP_QOS)
-        node.create_subscription(JointTrajectory, TOPIC_REFERENCE, self.on_reference, LOCKSTEP_QOS)
+        node.create_subscription(JointState, TOPIC_JOINT_STATES, self.on_state, control_qos(self.mode))
+        node.create_subscription(JointTrajectory, TOPIC_REFERENCE, self.on_reference, control_qos(self.mode))
         self.pub_desc.publish(String(data=description_json(self.spec, self.mode)))
         if self.mode == "realtime":
             self.period = 1.0 / self.spec.rate  # run_node paces tick() at this period
             self.missed = 0
+            self.deadline: float | None = None
         node.get_logger().info(
             f"{self.spec.controller} controller for {self.spec.robot}/{self.spec.contour}, "
             f"{self.mode}, {self.spec.rate:g} Hz"
@@ -141,6 +143,11 @@ class ControllerNode:
         if self.state is None or self.latest_ref is None:
             self.last_tick = now
             return
+        if self.deadline is None:
+            # the plant's clock runs at wall speed: the run is over a few seconds after T
+            self.deadline = now + self.last_step / self.spec.rate + 5.0
+        elif now > self.deadline:
+            self.done = True
         step, q, qd = self.state
         self.publish(self.law.torque(q, qd, *self.latest_ref), step)
         period = 0.0 if self.last_tick is None else now - self.last_tick

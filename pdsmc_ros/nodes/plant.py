@@ -28,6 +28,7 @@ from std_msgs.msg import Float64MultiArray
 
 from ..simulator import PlantStepper, control_steps
 from .common import (
+    control_qos,
     STEADY_CLOCK,
     EXIT_OK,
     LOCKSTEP_QOS,
@@ -71,7 +72,7 @@ class PlantNode:
         self.pub_state = node.create_publisher(JointState, TOPIC_JOINT_STATES, LOCKSTEP_QOS)
         self.pub_ee = node.create_publisher(PointStamped, TOPIC_EE_ACTUAL, LOCKSTEP_QOS)
         self.pub_clock = node.create_publisher(Clock, "/clock", LOCKSTEP_QOS)
-        node.create_subscription(Float64MultiArray, TOPIC_EFFORT, self.on_effort, LOCKSTEP_QOS)
+        node.create_subscription(Float64MultiArray, TOPIC_EFFORT, self.on_effort, control_qos(self.mode))
 
         if self.mode == "lockstep":
             self.timer = node.create_timer(0.01, self.try_start, clock=STEADY_CLOCK)

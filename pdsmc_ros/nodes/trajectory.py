@@ -27,6 +27,7 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from ..simulator import control_steps
 from .common import (
+    control_qos,
     STEADY_CLOCK,
     EXIT_OK,
     LOCKSTEP_QOS,
@@ -67,7 +68,7 @@ class TrajectoryNode:
 
         self.pub_ref = node.create_publisher(JointTrajectory, TOPIC_REFERENCE, LOCKSTEP_QOS)
         self.pub_ee = node.create_publisher(PointStamped, TOPIC_EE_DESIRED, LOCKSTEP_QOS)
-        node.create_subscription(JointState, TOPIC_JOINT_STATES, self.on_state, LOCKSTEP_QOS)
+        node.create_subscription(JointState, TOPIC_JOINT_STATES, self.on_state, control_qos(self.mode))
         if self.mode == "lockstep":
             self.timer = node.create_timer(0.01, self.try_start, clock=STEADY_CLOCK)
         else:
