@@ -32,6 +32,7 @@ setup(
             "trajectory = pdsmc_ros.nodes.trajectory:main",
             "controller = pdsmc_ros.nodes.controller:main",
             "recorder = pdsmc_ros.nodes.recorder:main",
+            "composed = pdsmc_ros.nodes.composed:main",
         ],
     },
 )

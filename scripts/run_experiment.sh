@@ -4,10 +4,10 @@
 # usage: run_experiment.sh --robot R --contour C --controller K --out bags/NAME
 #                          [--scenario S] [--mode lockstep|realtime] [--rate HZ]
 #                          [--duration-factor F] [--smc-reading NAME] [--timeout SECONDS]
-#                          [--param NAME:=VALUE ...]
+#                          [--param NAME:=VALUE ...] [--composed]
 #
-# Starts the four nodes (each with `ros2 run pdsmc_ros ...`), waits for the end of the
-# trajectory, and exits non-zero naming any node that failed. On timeout or Ctrl-C it
+# Starts the four nodes (each with `ros2 run pdsmc_ros ...`; with --composed, all four in one
+# process), waits for the end of the trajectory, and exits non-zero naming any node that failed. On timeout or Ctrl-C it
 # stops the nodes it started, by PID, recorder last. Node logs go to OUT.logs/.
 set -uo pipefail
 
@@ -15,7 +15,7 @@ usage() { sed -n '2,11p' "$0" | sed 's/^# \{0,1\}//'; }
 die() { echo "run_experiment.sh: error: $*" >&2; exit 2; }
 
 ROBOT="" CONTOUR="" CONTROLLER="" OUT="" SCENARIO="nominal" MODE="lockstep" RATE=""
-FACTOR="" SMC_READING="" TIMEOUT="600"
+FACTOR="" SMC_READING="" TIMEOUT="600" COMPOSED=0
 EXTRA=()
 while [[ $# -gt 0 ]]; do
   case "$1" in
@@ -30,6 +30,7 @@ while [[ $# -gt 0 ]]; do
     --smc-reading) SMC_READING="${2:-}"; shift 2 ;;
     --timeout) TIMEOUT="${2:-}"; shift 2 ;;
     --param) EXTRA+=(-p "${2:-}"); shift 2 ;;
+    --composed) COMPOSED=1; shift ;;
     -h|--help) usage; exit 0 ;;
     *) die "unknown argument '$1' (see --help)" ;;
   esac
@@ -77,7 +78,7 @@ start_node() {
 stop_all() {
   # stop what we started, by PID: the plant first, the recorder last so it loses nothing
   local name pid
-  for name in plant trajectory controller recorder; do
+  for name in plant trajectory controller composed recorder; do
     pid="${PIDS[$name]:-}"
     [[ -n "$pid" ]] && kill -0 "$pid" 2>/dev/null || continue
     kill -INT "$pid" 2>/dev/null
@@ -87,10 +88,15 @@ stop_all() {
 }
 trap 'echo "run_experiment.sh: interrupted, stopping nodes" >&2; stop_all; exit 130' INT TERM
 
-start_node recorder -p "output:=$OUT"
-start_node controller
-start_node trajectory
-start_node plant
+if [[ $COMPOSED -eq 1 ]]; then
+  ORDER=(composed)
+  start_node composed -p "output:=$OUT"
+else
+  start_node recorder -p "output:=$OUT"
+  start_node controller
+  start_node trajectory
+  start_node plant
+fi
 
 START=$SECONDS
 declare -A CODES=()
@@ -113,7 +119,7 @@ while :; do
   [[ $running -eq 0 ]] && break
   # real time: once the plant has finished the motion, give the others a moment, then
   # stop them (recorder last) -- they cannot know the plant's last message was its last
-  if [[ "$MODE" == realtime && "${CODES[plant]:-}" == 0 ]]; then
+  if [[ "$MODE" == realtime && $COMPOSED -eq 0 && "${CODES[plant]:-}" == 0 ]]; then
     PLANT_DONE="${PLANT_DONE:-$SECONDS}"
     if (( SECONDS - PLANT_DONE >= 5 )); then
       stop_all

@@ -294,14 +294,29 @@ def run_node(
     ``factory`` builds the node after ``rclpy.init``; a ConfigError or
     InvalidInputError while building it is one line on stderr and exit 2.
     The node object must offer ``node`` (the rclpy Node), ``done`` and
-    ``exit_code`` attributes and may define ``close()``.
+    ``exit_code`` attributes and may define ``close()``, ``period`` and ``tick()``.
+    """
+    return run_nodes(name, [factory], args)
+
+
+def run_nodes(
+    name: str,
+    factories: Sequence[Callable[[], Any]],
+    args: Sequence[str] | None,
+) -> int:
+    """Run one or several node wrappers in this process with one executor.
+
+    Several wrappers make the composed mode (the nodes stay separate rclpy
+    nodes, as in a component container). They are closed in reverse order of
+    creation, so a recorder created first is closed last.
     """
     rclpy.init(args=args)
-    wrapper = None
+    wrappers: list[Any] = []
     code = EXIT_OK
     try:
         try:
-            wrapper = factory()
+            for factory in factories:
+                wrappers.append(factory())
         except InvalidInputError as exc:
             print(f"{name}: error: {exc}", file=sys.stderr, flush=True)
             return EXIT_BAD_INPUT
@@ -311,30 +326,31 @@ def run_node(
         except PdsmcError as exc:
             print(f"{name}: error: {exc}", file=sys.stderr, flush=True)
             return EXIT_FAILURE
+        group = _Group(wrappers)
+        period = group.period
         # Lockstep is event-driven: the EventsExecutor roughly doubles its step rate;
         # its spin_once without a timeout never blocks in this wheel (NOTES.md), so it
         # always gets a finite one. Its timers fire far too often (measured 35x the
         # period), so real-time nodes are paced here instead of by rclpy timers: the
         # loop calls tick() on a wall-clock schedule and drains messages in between.
-        period = getattr(wrapper, "period", None)
-        # The paced loop needs sub-millisecond waits, which this wheel's EventsExecutor
-        # does not honour (it returns without delivering events); the default
-        # executor's wait set does, and without rclpy timers nothing starves.
+        # That needs sub-millisecond waits, which this EventsExecutor does not honour
+        # (it returns without delivering events); the default executor's wait set does.
         executor = SingleThreadedExecutor() if period else EventsExecutor()
-        executor.add_node(wrapper.node)
-        _install_signal_handlers(wrapper)
+        for wrapper in wrappers:
+            executor.add_node(wrapper.node)
+        _install_signal_handlers(group)
         if period:
-            _paced_loop(executor, wrapper, period)
+            _paced_loop(executor, group, period)
         else:
-            while rclpy.ok() and not wrapper.done:
+            while rclpy.ok() and not group.done:
                 executor.spin_once(timeout_sec=0.05)
-        code = wrapper.exit_code
-        if not getattr(wrapper, "stopped_by_signal", None):
+        code = group.exit_code
+        if not group.stopped_by_signal:
             _linger(executor, 0.3)  # let reliable DDS deliver the last messages
     except (KeyboardInterrupt, ExternalShutdownException):
-        code = getattr(wrapper, "exit_code", EXIT_OK) if wrapper is not None else EXIT_OK
+        code = max((getattr(w, "exit_code", EXIT_OK) for w in wrappers), default=EXIT_OK)
     finally:
-        if wrapper is not None:
+        for wrapper in reversed(wrappers):
             close = getattr(wrapper, "close", None)
             if close is not None:
                 close()
@@ -342,6 +358,34 @@ def run_node(
         exit_watchdog()
         rclpy.try_shutdown()
     return code
+
+
+class _Group:
+    """Several node wrappers seen as one: done when all are, failed if any is."""
+
+    def __init__(self, wrappers: Sequence[Any]) -> None:
+        self.wrappers = list(wrappers)
+        self.stopped_by_signal: str | None = None
+        periods = {getattr(w, "period", None) for w in self.wrappers} - {None}
+        self.period = min(periods) if periods else None
+
+    @property
+    def done(self) -> bool:
+        return all(w.done for w in self.wrappers)
+
+    @done.setter
+    def done(self, value: bool) -> None:  # set by the signal handler
+        for w in self.wrappers:
+            w.done = value
+
+    @property
+    def exit_code(self) -> int:
+        return max(w.exit_code for w in self.wrappers)
+
+    def tick(self, lateness: float) -> None:
+        for w in self.wrappers:
+            if getattr(w, "period", None) and not w.done:
+                w.tick(lateness)
 
 
 def _paced_loop(executor: SingleThreadedExecutor, wrapper: Any, period: float) -> None:

@@ -1,0 +1,133 @@
+"""Benchmark: lockstep closed-loop steps per wall second over DDS.
+
+Runs the real four-node system (plant with the serial arm's dynamics,
+trajectory, controller type:=pdsmc, recorder) through scripts/run_experiment.sh
+on a time-scaled serial circle at 10 kHz, in the multi-process default and in
+the composed mode, and -- in the same run -- a plain two-process rclpy
+publish/echo round trip with default executors. Steps per second are taken
+from the recorder's receive times of /joint_states (start-up excluded).
+
+Last line: ``lockstep_steps_per_s=N rclpy_roundtrips_per_s=M`` (N: multi-process).
+
+Usage: python bench/lockstep.py [--steps 20000]   (run inside the venv, after make setup)
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def echo_main(seconds: float) -> None:
+    """The echo side of the round trip: republish every /ping on /pong."""
+    import rclpy
+    from rclpy.node import Node
+    from std_msgs.msg import Float64MultiArray
+
+    rclpy.init()
+    node = Node("bench_echo")
+    pub = node.create_publisher(Float64MultiArray, "bench/pong", 10)
+    node.create_subscription(Float64MultiArray, "bench/ping", pub.publish, 10)
+    from rclpy.executors import ExternalShutdownException
+
+    end = time.monotonic() + seconds
+    try:
+        while time.monotonic() < end:
+            rclpy.spin_once(node, timeout_sec=0.1)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+
+
+def roundtrips_per_s(seconds: float = 4.0) -> float:
+    """Plain rclpy round trips (publish, echo in another process, receive), default executors."""
+    import rclpy
+    from rclpy.node import Node
+    from std_msgs.msg import Float64MultiArray
+
+    echo = subprocess.Popen([sys.executable, __file__, "--echo", str(seconds + 8)])
+    try:
+        rclpy.init()
+        node = Node("bench_ping")
+        pub = node.create_publisher(Float64MultiArray, "bench/ping", 10)
+        got = {"n": 0}
+        node.create_subscription(Float64MultiArray, "bench/pong", lambda _m: got.__setitem__("n", got["n"] + 1), 10)
+        deadline = time.monotonic() + 20
+        while (pub.get_subscription_count() < 1 or node.count_publishers("bench/pong") < 1) and time.monotonic() < deadline:
+            rclpy.spin_once(node, timeout_sec=0.05)
+        time.sleep(0.5)
+        msg = Float64MultiArray(data=[0.0, 0.0, 0.0])
+        count = 0
+        start = time.perf_counter()
+        while time.perf_counter() - start < seconds:
+            expected = got["n"] + 1
+            pub.publish(msg)
+            while got["n"] < expected:
+                rclpy.spin_once(node, timeout_sec=1.0)
+            count += 1
+        rate = count / (time.perf_counter() - start)
+        node.destroy_node()
+        rclpy.try_shutdown()
+        return rate
+    finally:
+        echo.send_signal(__import__("signal").SIGINT)
+        echo.wait(timeout=10)
+
+
+def lockstep_steps_per_s(steps: int, composed: bool) -> tuple[float, int]:
+    """Steps per second of one lockstep run; returns (rate, messages lost)."""
+    from rosbags.highlevel import AnyReader
+    from rosbags.typesys import Stores, get_typestore
+
+    factor = steps / 50000.0  # the serial circle is 5 s = 50,000 steps at 10 kHz
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "bench"
+        cmd = ["bash", str(ROOT / "scripts" / "run_experiment.sh"), "--robot", "serial_3r",
+               "--contour", "circle", "--controller", "pdsmc", "--duration-factor", f"{factor:g}",
+               "--out", str(out), "--timeout", "900"]
+        if composed:
+            cmd.append("--composed")
+        subprocess.run(cmd, check=True, env=os.environ.copy())
+        stamps = []
+        with AnyReader([out], default_typestore=get_typestore(Stores.ROS2_JAZZY)) as reader:
+            conns = [c for c in reader.connections if c.topic == "/joint_states"]
+            for _conn, t, _raw in reader.messages(connections=conns):
+                stamps.append(t)
+            counts = {c.topic: c.msgcount for c in reader.connections}
+    stamps = np.asarray(stamps)
+    expected = steps + 1
+    lost = sum(expected - counts[t] for t in ("/joint_states", "/reference", "/effort_controller/commands"))
+    return (len(stamps) - 1) / ((stamps[-1] - stamps[0]) * 1e-9), lost
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--steps", type=int, default=20000)
+    parser.add_argument("--echo", type=float, default=None, help=argparse.SUPPRESS)
+    args = parser.parse_args()
+    if args.echo is not None:
+        echo_main(args.echo)
+        return 0
+    multi, lost_multi = lockstep_steps_per_s(args.steps, composed=False)
+    print(f"lockstep, 4 processes: {multi:,.0f} steps/s ({args.steps} steps, {lost_multi} messages lost)")
+    comp, lost_comp = lockstep_steps_per_s(args.steps, composed=True)
+    print(f"lockstep, composed (1 process): {comp:,.0f} steps/s ({lost_comp} messages lost)")
+    rt = roundtrips_per_s()
+    print(f"plain rclpy publish/echo round trip, default executors: {rt:,.0f} round trips/s")
+    print(f"lockstep_steps_per_s={multi:.0f} rclpy_roundtrips_per_s={rt:.0f}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
