@@ -55,6 +55,7 @@ def main() -> int:
     print()
     print(comparison_table([analyze_bag(b) for b in bags]))
     print()
+    print("(SMC with the thesis_fit model reading; see docs/REPRODUCTION.md.)")
     print("Thesis (Table 4.27): contour mean PD 1.133e-4, SMC 1.244e-4, PD-SMC 9.422e-5 m; "
           "PD-SMC 16.8 % smaller than PD, 24.3 % smaller than SMC.")
     print(f"Bags: {out_dir}/  (analyse again with: pdsmc analyze {out_dir}/*)")

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import re
 import signal
 import subprocess
 from pathlib import Path
@@ -101,8 +102,10 @@ def test_orchestration_reports_failed_node(ros_env: dict, tmp_path: Path) -> Non
     proc = run_experiment(ros_env, tmp_path / "bad", "--robot", "serial_3r", "--contour", "circle",
                           "--controller", "lqr", timeout=100)
     assert proc.returncode != 0
-    assert "node 'controller' failed (exit 2)" in proc.stderr
-    assert "unknown controller 'lqr'" in proc.stderr
+    # every node validates its parameters; the first to refuse is named and the rest stopped
+    assert re.search(r"node '(plant|trajectory|controller|recorder)' failed \(exit 2\)", proc.stderr)
+    assert "unknown controller 'lqr'; choose one of: pd, smc, pdsmc" in proc.stderr
+    assert "failed nodes:" in proc.stderr
 
 
 @pytest.mark.timeout(60)
@@ -111,8 +114,47 @@ def test_ros2_run_shim(ros_env: dict) -> None:
     assert proc.returncode == 2 and "implements only `run`" in proc.stderr
     proc = subprocess.run(["ros2", "run", "pdsmc_ros", "nope"], env=ros_env, capture_output=True,
                           text=True, timeout=30)
-    assert proc.returncode == 2 and "available: controller, plant, recorder, trajectory" in proc.stderr
+    assert proc.returncode == 2 and "available: composed, controller, plant, recorder, trajectory" in proc.stderr
     proc = subprocess.run(["ros2", "run", "pdsmc_ros", "controller", "--ros-args", "-p", "type:=lqr"],
                           env=ros_env, capture_output=True, text=True, timeout=60)
     assert proc.returncode == 2
     assert proc.stderr.strip().splitlines()[-1].startswith("controller: error: parameters: unknown controller 'lqr'")
+
+
+@pytest.mark.timeout(300)
+def test_composed_mode_equals_multi_process(ros_env: dict, tmp_path: Path) -> None:
+    out = tmp_path / "composed"
+    proc = run_experiment(ros_env, out, "--robot", "parallel_5r", "--contour", "ellipse_vertical",
+                          "--controller", "smc", "--duration-factor", "0.1", "--composed")
+    assert proc.returncode == 0, proc.stderr
+    run = read_run(out)
+    assert run.complete and run.steps == 2000
+    sim = simulate(run.spec)
+    assert np.max(np.abs(run.q[:: run.spec.sample_every] - sim.samples.q)) <= 1e-9
+
+
+@pytest.mark.timeout(60)
+def test_params_file_and_bad_parameter(ros_env: dict) -> None:
+    params = ROOT / "config" / "pdsmc_params.yaml"
+    proc = subprocess.run(
+        ["ros2", "run", "pdsmc_ros", "plant", "--ros-args", "--params-file", str(params), "-p", "rate:=-5.0"],
+        env=ros_env, capture_output=True, text=True, timeout=60,
+    )
+    assert proc.returncode == 2
+    assert "Parameter rate out of range Min: 0.0, Max: 1000000.0, value: -5.0" in proc.stderr
+    assert len(proc.stderr.strip().splitlines()) == 1
+
+
+def test_analyze_cli_on_missing_and_corrupt_bags(tmp_path: Path) -> None:
+    import sys
+
+    missing = subprocess.run([sys.executable, "-m", "pdsmc_ros.cli", "analyze", str(tmp_path / "nope")],
+                             capture_output=True, text=True, timeout=120)
+    assert missing.returncode == 1 and "does not exist" in missing.stderr
+    bad = tmp_path / "bad"
+    bad.mkdir()
+    (bad / "metadata.yaml").write_text("not: [a bag")
+    corrupt = subprocess.run([sys.executable, "-m", "pdsmc_ros.cli", "analyze", str(bad)],
+                             capture_output=True, text=True, timeout=120)
+    assert corrupt.returncode == 1 and "cannot read bag" in corrupt.stderr
+    assert "Traceback" not in corrupt.stderr

@@ -66,6 +66,7 @@ class PlantNode:
         self.exit_code = EXIT_OK
         self.rejected = 0
         self.started = False
+        self.effort_received = False
         self.clock_every = decimation(self.spec.rate, node.get_parameter("clock_rate").value)
         self.ee_every = self.spec.sample_every
 
@@ -107,15 +108,18 @@ class PlantNode:
         ee.point.x, ee.point.y = float(x), float(y)
         self.pub_ee.publish(ee)
 
+    def listeners_ready(self) -> bool:
+        return (
+            self.pub_state.get_subscription_count() >= self.expected
+            and self.pub_ee.get_subscription_count() >= 1
+            and self.node.count_publishers(TOPIC_EFFORT) >= 1
+        )
+
     def try_start(self) -> None:
         """Lockstep: publish state 0 once every participant is listening."""
         if self.started:
             return
-        if (
-            self.pub_state.get_subscription_count() >= self.expected
-            and self.pub_ee.get_subscription_count() >= 1
-            and self.node.count_publishers(TOPIC_EFFORT) >= 1
-        ):
+        if self.listeners_ready():
             self.started = True
             self.timer.cancel()
             self.publish_state()
@@ -138,7 +142,7 @@ class PlantNode:
             return
         if self.mode == "realtime":
             self.latest_effort = tau
-            self.started = True
+            self.effort_received = True
             return
         step = int(msg.layout.data_offset)
         if step != self.plant.steps:
@@ -162,6 +166,8 @@ class PlantNode:
         """
         self.publish_state()
         if not self.started:
+            # start once everyone listens (the recorder too) and the controller answers
+            self.started = self.effort_received and self.listeners_ready()
             return
         if self.plant.steps >= self.last_step:
             self.done = True
