@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from .errors import BagError
-from .metrics import Metrics, compute_metrics
+from .metrics import Metrics, Samples, compute_metrics
 from .models import FloatArray
 from .presets import RunSpec
 
@@ -137,8 +137,8 @@ def read_run(path: str | Path) -> RecordedRun:
                        complete=not any(missing.values()))
 
 
-def run_metrics(run: RecordedRun) -> Metrics:
-    """Thesis statistics of a recorded run, sampled at the thesis's analysis rate."""
+def run_samples(run: RecordedRun) -> Samples:
+    """Signals of a recorded run at the thesis's analysis instants (complete steps only)."""
     from .simulator import build_samples
 
     every = run.spec.sample_every
@@ -148,5 +148,9 @@ def run_metrics(run: RecordedRun) -> Metrics:
     ok = ~(np.isnan(run.q[idx, 0]) | np.isnan(run.q_ref[idx, 0]) | np.isnan(run.tau[idx, 0]))
     idx = idx[ok]
     t = idx / run.spec.rate
-    samples = build_samples(run.spec, robot, contour, t, run.q[idx], run.q_ref[idx], run.tau[idx])
-    return compute_metrics(samples, run.spec.bound)
+    return build_samples(run.spec, robot, contour, t, run.q[idx], run.q_ref[idx], run.tau[idx])
+
+
+def run_metrics(run: RecordedRun) -> Metrics:
+    """Thesis statistics of a recorded run, sampled at the thesis's analysis rate."""
+    return compute_metrics(run_samples(run), run.spec.bound)

@@ -49,6 +49,16 @@ def positive_int(text: str) -> int:
     return value
 
 
+def value_list(text: str) -> list[float]:
+    try:
+        values = [float(v) for v in text.split(",") if v.strip()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected comma-separated numbers, got {text!r}") from None
+    if not values or any(not np.isfinite(v) or v < 0 for v in values):
+        raise argparse.ArgumentTypeError(f"expected comma-separated numbers >= 0, got {text!r}")
+    return values
+
+
 def _add_run_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--robot", required=True, choices=("serial_3r", "parallel_5r"))
     p.add_argument(
@@ -93,6 +103,16 @@ def build_parser() -> argparse.ArgumentParser:
     ana.add_argument("bags", nargs="+", help="bag directories written by the recorder")
     ana.add_argument("--out", default=None, help="also write analysis.json and analysis.csv here")
     ana.add_argument("--json", action="store_true", help="print JSON instead of the table")
+    ana.add_argument("--plots", action="store_true", help="write PNG figures into --out (default: analysis/)")
+
+    swp = sub.add_parser("sweep", help="vary one PD-SMC parameter (Section 4.2.3, Table 4.15)")
+    swp.add_argument("--param", required=True, choices=("kp", "kd", "ks", "lambda"))
+    swp.add_argument("--robot", required=True, choices=("serial_3r", "parallel_5r"))
+    swp.add_argument("--contour", required=True)
+    swp.add_argument("--out", default=None, help="write sweep_<param>.csv and .png here")
+    swp.add_argument("--workers", type=positive_int, default=None)
+    swp.add_argument("--values", type=value_list, default=None,
+                     help="comma-separated values instead of the thesis's (e.g. 1,10,100)")
 
     chk = sub.add_parser("check-gains", help="discrete-rate stability of a run's gains")
     _add_run_arguments(chk)
@@ -175,23 +195,45 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
 
 
 def cmd_check_gains(args: argparse.Namespace) -> int:
+    from .lyapunov import theorem_conditions
     from .stability import rate_margin
 
     spec = _spec_from_args(args)
+    print(f"{spec.robot} / {spec.contour} / {spec.controller} / {spec.scenario}: gains "
+          + ", ".join(f"{k}={v}" for k, v in spec.gains.as_dict().items()))
+    if spec.controller != "pdsmc":
+        print("note: Eq. 3.19 is the theorem for the PD-SMC law; shown for these gains anyway")
+    print("Lyapunov conditions of Eq. 3.19 along the desired motion (worst instant):")
+    ok = True
+    for c in theorem_conditions(spec):
+        ok &= c.holds
+        margin = "inf" if c.margin == float("inf") else f"x{c.margin:.3g}"
+        print(f"  {'holds' if c.holds else 'FAILS':5s}  {c.name:52s} {c.lhs:12.5g} > {c.rhs:<12.5g} margin {margin}")
     check = rate_margin(spec, spec.reference())
-    verdict = "holds" if check.stable else "FAILS"
+    ok &= check.stable
     print(
-        f"discrete-rate condition at {spec.rate:g} Hz {verdict}: largest pole radius "
-        f"{check.spectral_radius:.4f} (joint {check.worst_joint}); lowest stable rate "
+        f"discrete-rate condition at {spec.rate:g} Hz {'holds' if check.stable else 'FAILS'}: largest "
+        f"pole radius {check.spectral_radius:.4f} (joint {check.worst_joint}); lowest stable rate "
         f"{check.lowest_stable_rate:,.0f} Hz (margin x{spec.rate / check.lowest_stable_rate:.2f})"
     )
-    return 0 if check.stable else EXIT_FAILURE
+    return 0 if ok else EXIT_FAILURE
 
 
 def cmd_analyze(args: argparse.Namespace) -> int:
     from .analysis import analyze_bag, comparison_table, write_outputs
 
     bags = [analyze_bag(path) for path in args.bags]
+    if args.plots:
+        from .bagio import run_samples
+        from .plots import plot_comparison, plot_run
+
+        out = Path(args.out or "analysis")
+        written = []
+        for b in bags:
+            written += plot_run(run_samples(b.run), b.run.spec.robot, b.path.name, out)
+        written.append(plot_comparison([b.label for b in bags], [b.metrics.contour_mean for b in bags],
+                                       out / "contour_mean_comparison.png", "mean contour error"))
+        print(f"wrote {len(written)} figures into {out}/", file=sys.stderr)
     if args.json:
         print(json.dumps([b.as_dict() for b in bags]))
     else:
@@ -207,7 +249,44 @@ def cmd_analyze(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_sweep(args: argparse.Namespace) -> int:
+    from .sweep import run_sweep
+
+    def progress(done: int, total: int, _res: object) -> None:
+        print(f"[{done}/{total}]", end="\r", file=sys.stderr, flush=True)
+
+    param, points = run_sweep(args.param, args.robot, args.contour, values=args.values,
+                              workers=args.workers, progress=progress)
+    label = "lambda" if param == "lam" else param
+    print(f"PD-SMC, {args.robot} / {args.contour}: {label} varied, others at Kp=5000, Kd=1000, Ks=5, "
+          "lambda=10, phi=0.5 (Section 4.2.3)")
+    print(f"{label:>8s} {'rate (Hz)':>10s} {'mean (m)':>11s} {'S.D. (m)':>11s} {'max (m)':>11s} {'within':>8s}")
+    for p in points:
+        flag = "  diverged" if p.diverged else ""
+        print(f"{p.value:8g} {p.rate:10g} {p.contour_mean:11.4e} {p.contour_sd:11.4e} {p.contour_max:11.4e} "
+              f"{p.within_pct:7.2f}%{flag}")
+    if args.out:
+        import csv
+
+        from .plots import plot_sweep
+
+        out = Path(args.out)
+        out.mkdir(parents=True, exist_ok=True)
+        with (out / f"sweep_{label}.csv").open("w", newline="") as handle:
+            writer = csv.writer(handle)
+            writer.writerow([label, "rate_hz", "contour_mean", "contour_sd", "contour_max", "within_pct", "diverged"])
+            for p in points:
+                writer.writerow([p.value, p.rate, p.contour_mean, p.contour_sd, p.contour_max, p.within_pct, p.diverged])
+        ok = [p for p in points if not p.diverged]
+        plot_sweep(label, np.array([p.value for p in ok]), np.array([p.contour_mean for p in ok]),
+                   np.array([p.contour_sd for p in ok]), np.array([p.contour_max for p in ok]),
+                   out / f"sweep_{label}.png", f"PD-SMC {args.robot}/{args.contour}: {label}")
+        print(f"wrote {out}/sweep_{label}.csv and .png", file=sys.stderr)
+    return 0
+
+
 COMMANDS = {
+    "sweep": cmd_sweep,
     "simulate": cmd_simulate,
     "reproduce": cmd_reproduce,
     "analyze": cmd_analyze,
