@@ -1,8 +1,12 @@
-"""Reading recorded runs back from rosbag2 MCAP bags (rosbags; no rclpy needed).
+"""Reading recorded runs back from rosbag2 MCAP bags (no rclpy needed).
 
 The recorder writes the CDR bytes it received; this module turns a bag into
 per-step arrays and a :class:`~pdsmc_ros.presets.RunSpec`, and computes the
-thesis statistics with the same code as the in-process simulator.
+thesis statistics with the same code as the in-process simulator. Messages
+are read with :mod:`pdsmc_ros.mcapscan` (about 3x faster than a generic MCAP
+reader, and it reads a bag whose recorder was killed up to its last complete
+chunk) and decoded in bulk with numpy; the bags stay standard rosbag2/MCAP
+files that rosbags' ``AnyReader``, the ``mcap`` reader and Foxglove open.
 """
 
 from __future__ import annotations
@@ -24,6 +28,12 @@ DESCRIPTION_KEY = "pdsmc_ros.run_description"
 _CDR_HEADER = 4
 
 
+def _cdr_string(data: bytes) -> str:
+    """The single string of a CDR ``std_msgs/String``."""
+    (length,) = struct.unpack_from("<I", data, _CDR_HEADER)
+    return data[_CDR_HEADER + 4 : _CDR_HEADER + 4 + length].rstrip(b"\x00").decode("utf-8")
+
+
 def header_step(data: bytes, rate: float) -> int:
     """Control step of a CDR message that starts with ``std_msgs/Header``."""
     sec, nanosec = struct.unpack_from("<iI", data, _CDR_HEADER)
@@ -39,6 +49,88 @@ def effort_step(data: bytes) -> int:
     return int(offset)
 
 
+# --------------------------------------------------------------------------- #
+# CDR layouts (offsets relative to the byte after the 4-byte encapsulation)
+# --------------------------------------------------------------------------- #
+def _align(offset: int, size: int) -> int:
+    return (offset + size - 1) // size * size
+
+
+def _skip_string(data: bytes, offset: int) -> int:
+    offset = _align(offset, 4)
+    (length,) = struct.unpack_from("<I", data, _CDR_HEADER + offset)
+    return offset + 4 + length
+
+
+def _skip_strings(data: bytes, offset: int) -> int:
+    offset = _align(offset, 4)
+    (count,) = struct.unpack_from("<I", data, _CDR_HEADER + offset)
+    offset += 4
+    for _ in range(count):
+        offset = _skip_string(data, offset)
+    return offset
+
+
+def _double_seq(data: bytes, offset: int) -> tuple[tuple[int, int], int]:
+    """((absolute byte offset of the doubles, count), offset after the sequence)."""
+    offset = _align(offset, 4)
+    (count,) = struct.unpack_from("<I", data, _CDR_HEADER + offset)
+    offset += 4
+    if count:
+        offset = _align(offset, 8)
+    return (_CDR_HEADER + offset, count), offset + 8 * count
+
+
+def joint_state_layout(data: bytes) -> dict[str, tuple[int, int]]:
+    """Byte offsets of position, velocity and effort in a CDR ``sensor_msgs/JointState``."""
+    off = _skip_string(data, 8)  # stamp, frame_id
+    off = _skip_strings(data, off)  # name
+    layout = {}
+    for field in ("position", "velocity", "effort"):
+        layout[field], off = _double_seq(data, off)
+    return layout
+
+
+def joint_trajectory_layout(data: bytes) -> dict[str, tuple[int, int]]:
+    """Byte offsets of the first point's positions, velocities, accelerations."""
+    off = _skip_string(data, 8)
+    off = _skip_strings(data, off)  # joint_names
+    off = _align(off, 4) + 4  # number of points
+    layout = {}
+    for field in ("positions", "velocities", "accelerations"):
+        layout[field], off = _double_seq(data, off)
+    return layout
+
+
+def multi_array_layout(data: bytes) -> dict[str, tuple[int, int]]:
+    """Byte offset of ``data`` in a CDR ``std_msgs/Float64MultiArray`` without dimensions."""
+    (dims,) = struct.unpack_from("<I", data, _CDR_HEADER)
+    if dims != 0:
+        raise BagError("effort messages with layout dimensions are not produced by pdsmc_ros")
+    layout, _ = _double_seq(data, 8)
+    return {"data": layout}
+
+
+def decode_fixed(raws: list[bytes], layout: dict[str, tuple[int, int]]) -> dict[str, np.ndarray]:
+    """Vectorised decoding of messages that share one byte layout (same length).
+
+    Returns each double field as an ``(len(raws), count)`` array, plus the
+    header ``stamp`` in seconds (NaN where the message has no header).
+    """
+    size = len(raws[0])
+    if any(len(r) != size for r in raws):
+        raise BagError("messages of one topic differ in layout")
+    block = np.frombuffer(b"".join(raws), dtype=np.uint8).reshape(len(raws), size)
+    out = {}
+    for field, (start, count) in layout.items():
+        chunk = np.ascontiguousarray(block[:, start : start + 8 * count])
+        out[field] = chunk.view("<f8").reshape(len(raws), count)
+    sec = np.ascontiguousarray(block[:, 4:8]).view("<i4")[:, 0]
+    nsec = np.ascontiguousarray(block[:, 8:12]).view("<u4")[:, 0]
+    out["stamp"] = sec.astype(float) + nsec.astype(float) * 1e-9
+    return out
+
+
 @dataclass
 class RecordedRun:
     """Per-step signals of a lockstep bag (row ``k`` = control step ``k``)."""
@@ -52,6 +144,7 @@ class RecordedRun:
     counts: dict[str, int]
     missing: dict[str, int]
     complete: bool
+    truncated: bool = False
 
     @property
     def steps(self) -> int:
@@ -66,33 +159,25 @@ def read_run(path: str | Path) -> RecordedRun:
     BagError
         If the path is not a readable bag or holds no run description.
     """
-    from rosbags.highlevel import AnyReader
-    from rosbags.typesys import Stores, get_typestore
+    from .mcapscan import scan
 
     path = Path(path)
     if not path.exists():
         raise BagError(f"bag {str(path)!r} does not exist")
-    typestore = get_typestore(Stores.ROS2_JAZZY)
-    try:
-        reader = AnyReader([path], default_typestore=typestore)
-        reader.open()
-    except Exception as exc:  # noqa: BLE001 - rosbags raises several unrelated types
-        raise BagError(f"cannot read bag {str(path)!r}: {exc}") from None
-    try:
-        by_topic: dict[str, list[tuple[int, Any]]] = {}
-        description: dict[str, Any] | None = None
-        for connection, _timestamp, raw in reader.messages():
-            topic = connection.topic
-            if topic == "/pdsmc/run_description":
-                msg = reader.deserialize(raw, connection.msgtype)
-                description = json.loads(msg.data)
-                continue
-            if topic in ("/joint_states", "/reference", "/effort_controller/commands"):
-                by_topic.setdefault(topic, []).append((raw, reader.deserialize(raw, connection.msgtype)))
-    finally:
-        reader.close()
-    if description is None:
+    files = sorted(path.glob("*.mcap")) if path.is_dir() else [path]
+    if not files:
+        raise BagError(f"cannot read bag {str(path)!r}: no .mcap file in it")
+    topics = ("/pdsmc/run_description", "/joint_states", "/reference", "/effort_controller/commands")
+    raw_by_topic: dict[str, list[bytes]] = {t: [] for t in topics}
+    truncated = False
+    for file in files:
+        result = scan(file, topics)
+        truncated |= not result.complete
+        for topic in topics:
+            raw_by_topic[topic] += result.messages[topic]
+    if not raw_by_topic["/pdsmc/run_description"]:
         raise BagError(f"bag {str(path)!r} holds no /pdsmc/run_description: not a pdsmc_ros run")
+    description: dict[str, Any] = json.loads(_cdr_string(raw_by_topic.pop("/pdsmc/run_description")[0]))
     spec = RunSpec.from_description(description)
     n = len(spec.gains.kp)
     rate = spec.rate
@@ -101,22 +186,28 @@ def read_run(path: str | Path) -> RecordedRun:
     qd = np.full((steps + 1, n), np.nan)
     q_ref = np.full((steps + 1, n), np.nan)
     tau = np.full((steps + 1, n), np.nan)
-    counts = {}
     applied = np.full((steps + 1, n), np.nan)  # torque held over the period ending at k
-    for raw, msg in by_topic.get("/joint_states", []):
-        k = header_step(raw, rate)
-        if 0 <= k <= steps:
-            q[k] = msg.position[:n]
-            qd[k] = msg.velocity[:n]
-            applied[k] = msg.effort[:n]
-    for raw, msg in by_topic.get("/reference", []):
-        k = header_step(raw, rate)
-        if 0 <= k <= steps and len(msg.points):
-            q_ref[k] = msg.points[0].positions
-    for raw, msg in by_topic.get("/effort_controller/commands", []):
-        k = effort_step(raw)
-        if 0 <= k <= steps:
-            tau[k] = msg.data
+    counts = {topic: len(items) for topic, items in raw_by_topic.items() if items}
+    states = raw_by_topic.get("/joint_states", [])
+    if states:
+        dec = decode_fixed(states, joint_state_layout(states[0]))
+        k = np.rint(dec["stamp"] * rate).astype(np.int64)
+        ok = (k >= 0) & (k <= steps)
+        q[k[ok]] = dec["position"][ok, :n]
+        qd[k[ok]] = dec["velocity"][ok, :n]
+        applied[k[ok]] = dec["effort"][ok, :n]
+    refs = raw_by_topic.get("/reference", [])
+    if refs:
+        dec = decode_fixed(refs, joint_trajectory_layout(refs[0]))
+        k = np.rint(dec["stamp"] * rate).astype(np.int64)
+        ok = (k >= 0) & (k <= steps)
+        q_ref[k[ok]] = dec["positions"][ok, :n]
+    efforts = raw_by_topic.get("/effort_controller/commands", [])
+    if efforts:
+        dec = decode_fixed(efforts, multi_array_layout(efforts[0]))
+        k = np.array([effort_step(r) for r in efforts], dtype=np.int64)
+        ok = (k >= 0) & (k <= steps)
+        tau[k[ok]] = dec["data"][ok, :n]
     if description.get("mode") == "realtime":
         # In real time the controller's commands are tagged with the state it last saw and
         # the plant applies whichever is newest at its tick: the torque actually applied
@@ -126,15 +217,13 @@ def read_run(path: str | Path) -> RecordedRun:
         tau = np.vstack([applied[1:], np.full((1, n), np.nan)])
         tau[-1] = tau[-2]
         q_ref = spec.reference().sample(np.arange(steps + 1) / rate).q
-    for topic, items in by_topic.items():
-        counts[topic] = len(items)
     missing = {
         "joint_states": int(np.sum(np.isnan(q[:, 0]))),
         "reference": int(np.sum(np.isnan(q_ref[:, 0]))),
         "effort": int(np.sum(np.isnan(tau[:, 0]))),
     }
     return RecordedRun(spec, description, q, qd, q_ref, tau, counts, missing,
-                       complete=not any(missing.values()))
+                       complete=not any(missing.values()) and not truncated, truncated=truncated)
 
 
 def run_samples(run: RecordedRun) -> Samples:

@@ -241,10 +241,13 @@ def cmd_analyze(args: argparse.Namespace) -> int:
     if args.out:
         for path in write_outputs(bags, Path(args.out)):
             print(f"wrote {path}", file=sys.stderr)
-    incomplete = [str(b.path) for b in bags if not b.run.complete and b.run.description.get("mode") != "realtime"]
-    if incomplete:
-        print(f"pdsmc analyze: warning: incomplete bag(s), statistics of the readable steps only: "
-              f"{', '.join(incomplete)}", file=sys.stderr)
+    bad = [b for b in bags if b.run.truncated or (not b.run.complete and b.run.description.get("mode") != "realtime")]
+    for b in bags:
+        if b in bad:
+            what = "truncated (recorder stopped without closing it)" if b.run.truncated else "incomplete"
+            print(f"pdsmc analyze: {b.path}: {what}: statistics of the {b.metrics.samples} readable samples "
+                  f"only; missing steps {b.run.missing}", file=sys.stderr)
+    if bad:
         return EXIT_FAILURE
     return 0
 
