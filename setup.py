@@ -33,6 +33,7 @@ setup(
             "controller = pdsmc_ros.nodes.controller:main",
             "recorder = pdsmc_ros.nodes.recorder:main",
             "composed = pdsmc_ros.nodes.composed:main",
+            "analyze = pdsmc_ros.cli:analyze_main",
         ],
     },
 )

@@ -98,6 +98,11 @@ def build_parser() -> argparse.ArgumentParser:
     rep.add_argument("--no-readings", action="store_true",
                      help="skip the comparison of SMC readings")
     rep.add_argument("--quiet", action="store_true", help="no progress lines")
+    rep.add_argument("--ros", action="store_true",
+                     help="run every case over DDS (lockstep, composed nodes) and analyse the bags")
+    rep.add_argument("--bags", default="bags/reproduce", help="where --ros records its bags")
+    rep.add_argument("--only", default=None,
+                     help="glob over robot/contour/scenario/controller, e.g. 'serial_3r/circle/*/*'")
 
     ana = sub.add_parser("analyze", help="statistics of recorded bags, compared thesis-style")
     ana.add_argument("bags", nargs="+", help="bag directories written by the recorder")
@@ -178,8 +183,10 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
     rep = run_reproduction(
         smc=args.smc_reading,
         workers=args.workers,
-        readings=not args.no_readings,
+        readings=not args.no_readings and not args.only,
         progress=None if args.quiet else progress,
+        only=args.only,
+        ros_bags=Path(args.bags) if args.ros else None,
     )
     paths = write_report(rep, Path(args.out))
     main = summarize(c for c in rep.cells if c.controller != "smc")
@@ -311,6 +318,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"pdsmc {args.command}: interrupted", file=sys.stderr)
         return 130
+
+
+def analyze_main(argv: Sequence[str] | None = None) -> int:
+    """``ros2 run pdsmc_ros analyze BAG ...``: the same as ``pdsmc analyze``."""
+    return main(["analyze", *(sys.argv[1:] if argv is None else argv)])
 
 
 if __name__ == "__main__":

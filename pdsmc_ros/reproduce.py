@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import fnmatch
 import json
 import os
 import time
@@ -21,7 +22,7 @@ from typing import Any
 import numpy as np
 
 from . import __version__
-from .errors import ConfigError
+from .errors import BagError, ConfigError
 from .presets import CONTROLLER_NAMES, RunSpec, choice, load_config, make_run
 from .simulator import RunResult, simulate_many
 
@@ -158,16 +159,39 @@ class Reproduction:
     readings: dict[str, dict[str, float]]
 
 
+def run_key(spec: RunSpec) -> str:
+    """``robot/contour/scenario/controller`` (what ``--only`` patterns match)."""
+    return f"{spec.robot}/{spec.contour}/{spec.scenario}/{spec.controller}"
+
+
+def select(specs: list[RunSpec], only: str | None) -> list[RunSpec]:
+    if not only:
+        return specs
+    chosen = [s for s in specs if fnmatch.fnmatch(run_key(s), only)]
+    if not chosen:
+        raise ConfigError(f"--only {only!r} matches no run; runs are named robot/contour/scenario/controller, "
+                          "e.g. 'parallel_5r/ellipse_vertical/*/pdsmc'")
+    return chosen
+
+
 def run_reproduction(
     *,
     smc: str = "thesis_fit",
     workers: int | None = None,
     readings: bool = True,
     progress: Callable[[str], None] | None = None,
+    only: str | None = None,
+    ros_bags: Path | None = None,
 ) -> Reproduction:
-    """Simulate the whole matrix (and, optionally, every SMC reading on the nominal rows)."""
+    """Simulate the whole matrix (and, optionally, every SMC reading on the nominal rows).
+
+    With ``ros_bags``, every run is executed over DDS through
+    ``scripts/run_experiment.sh`` (lockstep, composed), recorded into that
+    directory and analysed from its bag; each bag is checked against the
+    in-process simulation of the same run (1e-9).
+    """
     start = time.perf_counter()
-    specs = matrix_specs(smc)
+    specs = select(matrix_specs(smc), only)
     extra: dict[str, list[RunSpec]] = {}
     if readings:
         for name in load_config("smc_readings"):
@@ -194,7 +218,11 @@ def run_reproduction(
             f"{100 * (ours - thesis) / thesis:+6.1f} %)  {res.wall_s:5.2f} s"
         )
 
-    results = simulate_many(everything, workers=workers, progress=report)
+    if ros_bags is not None:
+        results = [_ros_result(spec, ros_bags, i, len(specs), report) for i, spec in enumerate(specs)]
+        results += simulate_many(everything[len(specs):], workers=workers) if len(everything) > len(specs) else []
+    else:
+        results = simulate_many(everything, workers=workers, progress=report)
     main = results[: len(specs)]
     cells = compare(main)
     summary_by_reading = {smc: summarize(c for c in cells if c.controller == "smc" and c.scenario == "nominal")}
@@ -204,6 +232,44 @@ def run_reproduction(
         offset += len(group)
         summary_by_reading[name] = summarize(compare(chunk))
     return Reproduction(cells, main, smc, time.perf_counter() - start, summary_by_reading)
+
+
+def _ros_result(
+    spec: RunSpec, bags: Path, index: int, total: int, report: Callable[[int, int, RunResult], None]
+) -> RunResult:
+    """One run over DDS, analysed from its bag and checked against the in-process loop."""
+    import subprocess
+
+    from .bagio import read_run, run_samples
+    from .metrics import compute_metrics
+    from .simulator import simulate
+
+    start = time.perf_counter()
+    out = bags / run_key(spec).replace("/", "-")
+    script = Path(__file__).resolve().parent.parent / "scripts" / "run_experiment.sh"
+    if not script.is_file():
+        from .presets import config_dir
+
+        script = config_dir().parent / "scripts" / "run_experiment.sh"
+    reading = "thesis_fit" if spec.smc_model == smc_reading("thesis_fit") else "literal"
+    cmd = ["bash", str(script), "--robot", spec.robot, "--contour", spec.contour, "--controller",
+           spec.controller, "--scenario", spec.scenario, "--smc-reading", reading, "--composed",
+           "--out", str(out), "--timeout", "3600"]
+    proc = subprocess.run(cmd, capture_output=True, text=True)
+    if proc.returncode != 0:
+        raise BagError(f"{run_key(spec)} over DDS failed: {proc.stderr.strip().splitlines()[-1:]}")
+    run = read_run(out)
+    run = dataclasses.replace(run, spec=dataclasses.replace(run.spec, bound=spec.bound))
+    samples = run_samples(run)
+    reference = simulate(spec)
+    gap = float(np.max(np.abs(samples.q - reference.samples.q)))
+    if not run.complete or gap > 1e-9:
+        raise BagError(f"{run_key(spec)}: the DDS run differs from the in-process one "
+                       f"(max |dq| {gap:.3g}, complete={run.complete})")
+    result = RunResult(spec, samples, compute_metrics(samples, spec.bound), run.steps,
+                       time.perf_counter() - start)
+    report(index + 1, total, result)
+    return result
 
 
 # --------------------------------------------------------------------------- #

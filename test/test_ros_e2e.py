@@ -158,3 +158,24 @@ def test_analyze_cli_on_missing_and_corrupt_bags(tmp_path: Path) -> None:
                              capture_output=True, text=True, timeout=120)
     assert corrupt.returncode == 1 and "cannot read bag" in corrupt.stderr
     assert "Traceback" not in corrupt.stderr
+
+
+@pytest.mark.timeout(300)
+def test_reproduce_over_dds_matches_in_process_report(ros_env: dict, tmp_path: Path) -> None:
+    import json
+    import sys
+
+    base = [sys.executable, "-m", "pdsmc_ros.cli", "reproduce", "--only",
+            "parallel_5r/ellipse_vertical/high_speed/pd", "--quiet"]
+    ros = subprocess.run([*base, "--ros", "--out", str(tmp_path / "ros"), "--bags", str(tmp_path / "bags")],
+                         env=ros_env, capture_output=True, text=True, timeout=280, cwd=ROOT)
+    assert ros.returncode == 0, ros.stderr
+    local = subprocess.run([*base, "--out", str(tmp_path / "local")], env=ros_env, capture_output=True,
+                           text=True, timeout=120, cwd=ROOT)
+    assert local.returncode == 0, local.stderr
+    a = json.loads((tmp_path / "ros" / "reproduction.json").read_text())["cells"]
+    b = json.loads((tmp_path / "local" / "reproduction.json").read_text())["cells"]
+    assert len(a) == len(b) == 3
+    for x, y in zip(a, b, strict=True):
+        assert x["metric"] == y["metric"] and abs(x["ours"] - y["ours"]) <= 1e-9 * max(1.0, abs(y["ours"]))
+    assert (tmp_path / "bags" / "parallel_5r-ellipse_vertical-high_speed-pd" / "metadata.yaml").exists()
