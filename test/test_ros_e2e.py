@@ -67,19 +67,24 @@ def test_lockstep_run_equals_in_process_simulation(ros_env: dict, tmp_path: Path
 
 @pytest.mark.timeout(300)
 def test_realtime_smoke_run(ros_env: dict, tmp_path: Path) -> None:
-    """Paced wall-clock loops at a modest rate with gains stable there (parallel arm, 250 Hz)."""
+    """Paced wall-clock loops at a modest rate with gains stable there (parallel arm, 250 Hz).
+
+    The gains are chosen so the loop stays stable with up to 4 periods of transport and
+    scheduling delay (checked in-process), since a loaded 2-core machine delays ticks.
+    """
     out = tmp_path / "realtime"
     proc = run_experiment(ros_env, out, "--robot", "parallel_5r", "--contour", "ellipse_vertical",
                           "--controller", "pd", "--mode", "realtime", "--rate", "250",
                           "--duration-factor", "0.5", "--param", "sample_rate:=250.0",
-                          "--param", "kp:=[60.0, 70.0]", "--param", "kd:=[7.0, 9.0]")
+                          "--param", "kp:=[40.0, 45.0]", "--param", "kd:=[3.0, 4.0]")
     assert proc.returncode == 0, proc.stderr
     run = read_run(out)
-    assert run.description["mode"] == "realtime" and run.spec.gains.kp == (60.0, 70.0)
+    assert run.description["mode"] == "realtime" and run.spec.gains.kp == (40.0, 45.0)
     assert run.missing["joint_states"] == 0  # the plant published every one of its steps
     metrics = run_metrics(run)
     assert metrics.samples > 0.95 * 501
-    assert metrics.contour_mean < 1e-3  # it tracks the 2 cm x 6 cm ellipse (no divergence)
+    assert metrics.contour_mean < 5e-3  # it follows the 2 cm x 6 cm ellipse (no divergence)
+    assert max(metrics.max_torque) < 10.0  # no unstable torque spikes (about 2 N m expected)
     timing = read_timing(out)
     assert len(timing) > 200
     assert np.median(timing[1:, 1]) == pytest.approx(1 / 250, rel=0.2)  # achieved period
@@ -114,7 +119,7 @@ def test_ros2_run_shim(ros_env: dict) -> None:
     assert proc.returncode == 2 and "implements only `run`" in proc.stderr
     proc = subprocess.run(["ros2", "run", "pdsmc_ros", "nope"], env=ros_env, capture_output=True,
                           text=True, timeout=30)
-    assert proc.returncode == 2 and "available: composed, controller, plant, recorder, trajectory" in proc.stderr
+    assert proc.returncode == 2 and "available: analyze, composed, controller, plant, recorder, trajectory" in proc.stderr
     proc = subprocess.run(["ros2", "run", "pdsmc_ros", "controller", "--ros-args", "-p", "type:=lqr"],
                           env=ros_env, capture_output=True, text=True, timeout=60)
     assert proc.returncode == 2

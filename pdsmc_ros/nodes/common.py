@@ -15,6 +15,7 @@ import time
 from collections.abc import Callable, Sequence
 from typing import Any
 
+import numpy as np
 import rclpy
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
 from rclpy.clock import Clock, ClockType
@@ -30,6 +31,7 @@ from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from ..errors import ConfigError, InvalidInputError, PdsmcError
+from ..safety import SafetyConfig
 from ..presets import (
     CONTROLLER_NAMES,
     GAIN_NAMES,
@@ -124,6 +126,50 @@ GAIN_DESCRIPTIONS = {
     "lam": "sliding-surface slopes lambda, one per joint (empty: preset)",
     "phi": "boundary layers phi > 0, one per joint (empty: preset)",
 }
+
+
+SAFETY_PARAMETERS: dict[str, tuple[Any, ParameterDescriptor]] = {
+    "watchdog_timeout": (2.0, _descriptor("lockstep: wall-clock seconds without effort before safe mode", lo=0.01, hi=3600.0)),
+    "watchdog_periods": (20, _descriptor("real time: control periods without effort before safe mode")),
+    "safe_mode": ("damp", _descriptor("safe mode", constraints="damp (braking only) or hold (hold position)")),
+    "safe_damping": (5.0, _descriptor("safe-mode braking gain in N m s/rad", lo=0.0, hi=1.0e6)),
+    "safe_stiffness": (200.0, _descriptor("hold-mode stiffness in N m/rad", lo=0.0, hi=1.0e7)),
+    "on_controller_loss": ("resume", _descriptor("after safe mode", constraints="resume or end")),
+}
+
+
+def declare_safety_parameters(node: Node) -> None:
+    for name, (default, desc) in SAFETY_PARAMETERS.items():
+        node.declare_parameter(name, default, desc)
+
+
+def safety_from_parameters(node: Node) -> SafetyConfig:
+    """The plant's SafetyConfig, validated (ConfigError naming the parameter)."""
+    values = {name: node.get_parameter(name).value for name in SAFETY_PARAMETERS}
+    for name in ("watchdog_timeout", "safe_damping", "safe_stiffness"):
+        if isinstance(values[name], bool) or not isinstance(values[name], (int, float)):
+            raise ConfigError(f"parameter {name} must be a number, got {values[name]!r}")
+    if isinstance(values["watchdog_periods"], bool) or not isinstance(values["watchdog_periods"], int) \
+            or values["watchdog_periods"] < 1:
+        raise ConfigError(f"parameter watchdog_periods must be a whole number >= 1, got {values['watchdog_periods']!r}")
+    try:
+        return SafetyConfig(mode=values["safe_mode"], damping=float(values["safe_damping"]),
+                            stiffness=float(values["safe_stiffness"]), on_loss=values["on_controller_loss"])
+    except InvalidInputError as exc:
+        raise ConfigError(f"parameter {exc}") from None
+
+
+def torque_limit_from_parameters(node: Node, n: int) -> np.ndarray | None:
+    """``torque_limit`` (one positive number per joint, or unset), validated."""
+    value = node.get_parameter("torque_limit").value
+    if value is None or (not isinstance(value, str) and len(value) == 0):
+        return None
+    if isinstance(value, str) or not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value):
+        raise ConfigError(f"parameter torque_limit must be a list of {n} numbers, got {value!r}")
+    limit = np.asarray(value, dtype=float)
+    if limit.shape != (n,) or not np.all(np.isfinite(limit)) or np.any(limit <= 0):
+        raise ConfigError(f"parameter torque_limit needs {n} finite values > 0 (N m), got {list(value)}")
+    return limit
 
 
 def _range_of(name: str) -> tuple[float, float]:

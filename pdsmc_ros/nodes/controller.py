@@ -21,12 +21,14 @@ import time
 from collections.abc import Sequence
 
 import numpy as np
+from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray, String
 from trajectory_msgs.msg import JointTrajectory
 
 from ..presets import Gains
+from ..safety import limit_torque
 from ..simulator import ControlLaw, control_steps
 from ..stability import check_rate
 from .common import (
@@ -45,6 +47,7 @@ from .common import (
     run_node,
     run_spec_from_parameters,
     stamp_to_step,
+    torque_limit_from_parameters,
 )
 
 
@@ -55,7 +58,16 @@ class ControllerNode:
         self.node = Node("controller")
         node = self.node
         declare_run_parameters(node, gains=True)
+        node.declare_parameter("torque_limit", None, ParameterDescriptor(
+            description="optional per-joint torque limits in N m (empty: none)", dynamic_typing=True))
+        node.declare_parameter("stale_periods", 20, ParameterDescriptor(
+            description="real time: periods after which a state or reference is stale", dynamic_typing=True))
         self.spec = run_spec_from_parameters(node)
+        self.torque_limit = torque_limit_from_parameters(node, len(self.spec.gains.kp))
+        self.stale_periods = int(node.get_parameter("stale_periods").value)
+        self.non_finite = 0
+        self.clamped = 0
+        self.stale = False
         node.add_on_set_parameters_callback(gains_callback(self.spec, self.apply_gains))
         self.mode = node.get_parameter("mode").value
         check_rate(self.spec, self.spec.reference())  # refuse gains unstable at this rate
@@ -68,6 +80,8 @@ class ControllerNode:
         self.done = False
         self.exit_code = EXIT_OK
         self.last_tick: float | None = None
+        self.state_time = 0.0
+        self.ref_time = 0.0
 
         self.pub_effort = node.create_publisher(Float64MultiArray, TOPIC_EFFORT, LOCKSTEP_QOS)
         self.pub_desc = node.create_publisher(String, TOPIC_DESCRIPTION, LATCHED_QOS)
@@ -95,6 +109,7 @@ class ControllerNode:
         q = np.asarray(msg.position[: self.n], dtype=float)
         qd = np.asarray(msg.velocity[: self.n], dtype=float)
         self.state = (step, q, qd)
+        self.state_time = time.perf_counter()
         if self.mode == "lockstep":
             self.try_compute()
 
@@ -108,6 +123,7 @@ class ControllerNode:
             np.asarray(point.accelerations, dtype=float),
         )
         self.latest_ref = ref
+        self.ref_time = time.perf_counter()
         if self.mode == "lockstep":
             step = stamp_to_step(msg.header.stamp.sec, msg.header.stamp.nanosec, self.spec.rate)
             self.refs[step] = ref
@@ -126,6 +142,19 @@ class ControllerNode:
             self.done = True
 
     def publish(self, tau: np.ndarray, step: int) -> None:
+        """Publish a torque -- never a non-finite one; clamp to the limits if set."""
+        if not np.all(np.isfinite(tau)):
+            self.non_finite += 1
+            if self.non_finite <= 5 or self.non_finite % 1000 == 0:
+                self.node.get_logger().error(
+                    f"non-finite torque {tau.tolist()} at step {step} not published "
+                    f"({self.non_finite} so far)")
+            return
+        tau, clamped = limit_torque(tau, self.torque_limit)
+        if clamped:
+            self.clamped += 1
+            if self.clamped <= 5 or self.clamped % 1000 == 0:
+                self.node.get_logger().warn(f"torque limited at step {step} ({self.clamped} so far)")
         msg = Float64MultiArray()
         msg.layout.data_offset = step
         msg.data = tau.tolist()
@@ -149,6 +178,18 @@ class ControllerNode:
         elif now > self.deadline:
             self.done = True
         step, q, qd = self.state
+        stale = now - self.state_time > self.stale_periods * self.period or \
+            now - self.ref_time > self.stale_periods * self.period
+        if stale:
+            if not self.stale:
+                self.node.get_logger().error(
+                    f"state or reference older than {self.stale_periods} periods: output stopped")
+            self.stale = True
+            self.last_tick = now
+            return
+        if self.stale:
+            self.node.get_logger().info("fresh state and reference again: output resumed")
+            self.stale = False
         self.publish(self.law.torque(q, qd, *self.latest_ref), step)
         period = 0.0 if self.last_tick is None else now - self.last_tick
         self.last_tick = now

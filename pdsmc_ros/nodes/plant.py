@@ -16,16 +16,19 @@ latest effort at the control rate.
 from __future__ import annotations
 
 import sys
+import time
 from collections.abc import Sequence
 
 import numpy as np
 from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PointStamped
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
+from ..safety import check_effort, safe_torque
 from ..simulator import PlantStepper, control_steps
 from .common import (
     control_qos,
@@ -33,12 +36,15 @@ from .common import (
     EXIT_OK,
     LOCKSTEP_QOS,
     TOPIC_EE_ACTUAL,
+    TOPIC_DIAGNOSTICS,
     TOPIC_EFFORT,
     TOPIC_JOINT_STATES,
     decimation,
     declare_run_parameters,
+    declare_safety_parameters,
     run_node,
     run_spec_from_parameters,
+    safety_from_parameters,
     step_stamp,
 )
 
@@ -51,7 +57,11 @@ class PlantNode:
         node = self.node
         declare_run_parameters(node)
         node.declare_parameter("expected_subscribers", 3)  # trajectory, controller, recorder
+        declare_safety_parameters(node)
         self.spec = run_spec_from_parameters(node)
+        self.safety = safety_from_parameters(node)
+        self.watchdog_timeout = float(node.get_parameter("watchdog_timeout").value)
+        self.watchdog_periods = int(node.get_parameter("watchdog_periods").value)
         self.mode = node.get_parameter("mode").value
         self.expected = int(node.get_parameter("expected_subscribers").value)
         reference = self.spec.reference()
@@ -67,16 +77,24 @@ class PlantNode:
         self.rejected = 0
         self.started = False
         self.effort_received = False
+        self.safe = False
+        self.awaiting_resume = False
+        self.q_hold = self.plant.q.copy()
+        self.last_progress = time.monotonic()
+        self.ticks_since_effort = 0
+        self.rejected_reasons: dict[str, int] = {}
         self.clock_every = decimation(self.spec.rate, node.get_parameter("clock_rate").value)
         self.ee_every = self.spec.sample_every
 
         self.pub_state = node.create_publisher(JointState, TOPIC_JOINT_STATES, LOCKSTEP_QOS)
         self.pub_ee = node.create_publisher(PointStamped, TOPIC_EE_ACTUAL, LOCKSTEP_QOS)
         self.pub_clock = node.create_publisher(Clock, "/clock", LOCKSTEP_QOS)
+        self.pub_diag = node.create_publisher(DiagnosticArray, TOPIC_DIAGNOSTICS, LOCKSTEP_QOS)
         node.create_subscription(Float64MultiArray, TOPIC_EFFORT, self.on_effort, control_qos(self.mode))
 
         if self.mode == "lockstep":
             self.timer = node.create_timer(0.01, self.try_start, clock=STEADY_CLOCK)
+            self.watchdog = node.create_timer(0.01, self.check_watchdog, clock=STEADY_CLOCK)
         else:
             self.period = 1.0 / self.spec.rate  # run_node paces tick() at this period
         node.get_logger().info(
@@ -125,38 +143,99 @@ class PlantNode:
             self.publish_state()
 
     # -- effort ------------------------------------------------------------- #
-    def validate(self, msg: Float64MultiArray) -> np.ndarray | None:
-        tau = np.asarray(msg.data, dtype=float)
-        if tau.shape != (self.robot.n,) or not np.all(np.isfinite(tau)):
-            self.rejected += 1
+    def reject(self, reason: str) -> None:
+        """Count a refused effort command; log the first few and then every 1000th."""
+        self.rejected += 1
+        key = reason.split(" (")[0]
+        self.rejected_reasons[key] = self.rejected_reasons.get(key, 0) + 1
+        if self.rejected <= 5 or self.rejected % 1000 == 0:
             self.node.get_logger().warn(
-                f"rejected effort command (needs {self.robot.n} finite values, got "
-                f"{list(msg.data)}); {self.rejected} rejected so far"
+                f"rejected effort command: {reason}; {self.rejected} rejected so far {self.rejected_reasons}"
             )
-            return None
-        return tau
+            self.diagnose(DiagnosticStatus.WARN, f"rejected effort command: {reason}")
+
+    def diagnose(self, level: bytes, message: str) -> None:
+        """Publish the plant's status on /diagnostics (recorded in the bag)."""
+        status = DiagnosticStatus(level=level, name="pdsmc_ros/plant", message=message, hardware_id=self.spec.robot)
+        status.values = [
+            KeyValue(key="step", value=str(self.plant.steps)),
+            KeyValue(key="safe_mode", value=self.safety.mode if self.safe else "off"),
+            KeyValue(key="rejected_commands", value=str(self.rejected)),
+        ]
+        msg = DiagnosticArray(status=[status])
+        sec, nanosec = step_stamp(self.plant.steps, self.spec.rate)
+        msg.header.stamp = Time(sec=sec, nanosec=nanosec)
+        self.pub_diag.publish(msg)
 
     def on_effort(self, msg: Float64MultiArray) -> None:
-        tau = self.validate(msg)
+        step = int(msg.layout.data_offset)
+        lockstep = self.mode == "lockstep"
+        tau, reason = check_effort(msg.data, self.robot.n)
         if tau is None:
+            self.reject(reason)
             return
-        if self.mode == "realtime":
+        if not lockstep:
             self.latest_effort = tau
             self.effort_received = True
+            self.ticks_since_effort = 0
+            if self.safe:
+                self.leave_safe_mode()
             return
-        step = int(msg.layout.data_offset)
         if step != self.plant.steps:
-            self.rejected += 1
-            self.node.get_logger().warn(
-                f"rejected effort for step {step} while at step {self.plant.steps}"
-            )
+            if self.safe and not self.awaiting_resume:
+                # a controller is back: stop stepping alone and offer it the current state
+                self.awaiting_resume = True
+                self.publish_state()
+            self.reject(f"out of order (step {step}, expected {self.plant.steps})")
             return
+        if self.safe:
+            self.leave_safe_mode()
         if step >= self.last_step:
             self.done = True  # the controller's effort for t = T closes the run
             return
         self.plant.step(tau)
         self.applied = tau
+        self.last_progress = time.monotonic()
         self.publish_state()
+
+    # -- watchdog and safe mode ---------------------------------------------- #
+    def check_watchdog(self) -> None:
+        """Lockstep: no effort within ``watchdog_timeout`` s of wall time -> safe mode."""
+        if not self.started or self.done:
+            return
+        if not self.safe and time.monotonic() - self.last_progress > self.watchdog_timeout:
+            self.enter_safe_mode(f"no effort for step {self.plant.steps} within {self.watchdog_timeout:g} s")
+        elif self.safe and not self.awaiting_resume:
+            # advance in real-time pace with the safe torque so the arm is supervised
+            for _ in range(max(1, int(round(0.01 * self.spec.rate)))):
+                if self.plant.steps >= self.last_step:
+                    self.done = True
+                    return
+                self.safe_step()
+
+    def safe_step(self) -> None:
+        tau = safe_torque(self.safety, self.plant.q, self.plant.qd, self.q_hold)
+        self.plant.step(tau)
+        self.applied = tau
+        self.publish_state()
+
+    def enter_safe_mode(self, why: str) -> None:
+        self.safe = True
+        self.awaiting_resume = False
+        self.q_hold = self.plant.q.copy()
+        text = f"controller lost: {why}; safe mode '{self.safety.mode}'"
+        self.node.get_logger().error(text)
+        self.diagnose(DiagnosticStatus.ERROR, text)
+        if self.safety.on_loss == "end":
+            self.node.get_logger().error("ending the run (on_controller_loss:=end)")
+            self.done = True
+
+    def leave_safe_mode(self) -> None:
+        self.safe = False
+        self.awaiting_resume = False
+        text = f"controller back at step {self.plant.steps}: safe mode off"
+        self.node.get_logger().info(text)
+        self.diagnose(DiagnosticStatus.OK, text)
 
     def tick(self, lateness: float) -> None:  # noqa: ARG002
         """Real time: publish the state, then integrate one period with the latest effort.
@@ -172,7 +251,15 @@ class PlantNode:
         if self.plant.steps >= self.last_step:
             self.done = True
             return
-        self.applied = self.latest_effort
+        self.ticks_since_effort += 1
+        if not self.safe and self.ticks_since_effort > self.watchdog_periods:
+            self.enter_safe_mode(f"no effort for {self.watchdog_periods} periods")
+            if self.done:
+                return
+        if self.safe:
+            self.applied = safe_torque(self.safety, self.plant.q, self.plant.qd, self.q_hold)
+        else:
+            self.applied = self.latest_effort
         self.plant.step(self.applied)
 
 

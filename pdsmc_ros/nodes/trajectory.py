@@ -115,10 +115,16 @@ class TrajectoryNode:
 
     def on_state(self, msg: JointState) -> None:
         step = stamp_to_step(msg.header.stamp.sec, msg.header.stamp.nanosec, self.spec.rate)
+        repeated = step == self.state_step
         self.state_step = max(self.state_step, step)
         if self.mode != "lockstep":
             return
         if self.started:
+            if repeated and step < self.next_step:
+                # the plant offers this state again (a controller came back after safe
+                # mode): a new controller has not seen its reference, so send it again
+                for k in range(step, min(step + 1, self.last_step) + 1):
+                    self.publish(k)
             self.advance()
         if step >= self.last_step:
             self.done = True
