@@ -17,7 +17,7 @@ export NUMBA_CACHE_DIR := $(abspath $(VENV))/numba-cache
 
 setup: $(STAMP)
 
-SOURCES := setup.py setup.cfg package.xml $(wildcard config/*.yaml) $(wildcard scripts/*.sh) \
+SOURCES := setup.py setup.cfg package.xml $(wildcard config/*.yaml config/*.xml) $(wildcard scripts/*.sh) \
 	$(wildcard pdsmc_ros/*.py pdsmc_ros/*/*.py)
 DEPS_STAMP := $(VENV)/.pdsmc-deps
 

@@ -14,7 +14,7 @@ setup(
     data_files=[
         ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
         (f"share/{PACKAGE}", ["package.xml"]),
-        (f"share/{PACKAGE}/config", sorted(glob("config/*.yaml"))),
+        (f"share/{PACKAGE}/config", sorted(glob("config/*.yaml")) + sorted(glob("config/*.xml"))),
         (f"share/{PACKAGE}/scripts", sorted(glob("scripts/*.sh"))),
     ],
     install_requires=["setuptools", "numpy", "PyYAML", "numba", "rosbags", "mcap"],

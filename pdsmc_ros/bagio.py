@@ -28,6 +28,27 @@ DESCRIPTION_KEY = "pdsmc_ros.run_description"
 _CDR_HEADER = 4
 
 
+def decode_topic(raws: list[bytes], layout_of) -> list[tuple[np.ndarray, dict[str, np.ndarray]]]:  # noqa: ANN001
+    """Decode messages grouped by byte length (a foreign publisher may send other shapes).
+
+    Returns ``(indices into raws, decoded fields)`` per group.
+    """
+    groups: dict[int, list[int]] = {}
+    for i, raw in enumerate(raws):
+        groups.setdefault(len(raw), []).append(i)
+    out = []
+    for indices in groups.values():
+        members = [raws[i] for i in indices]
+        try:
+            layout = layout_of(members[0])
+        except (struct.error, BagError):
+            continue  # not a message of the expected kind: skip it
+        if any(start + 8 * count > len(members[0]) for start, count in layout.values()):
+            continue
+        out.append((np.asarray(indices), decode_fixed(members, layout)))
+    return out
+
+
 def _cdr_string(data: bytes) -> str:
     """The single string of a CDR ``std_msgs/String``."""
     (length,) = struct.unpack_from("<I", data, _CDR_HEADER)
@@ -115,11 +136,9 @@ def decode_fixed(raws: list[bytes], layout: dict[str, tuple[int, int]]) -> dict[
     """Vectorised decoding of messages that share one byte layout (same length).
 
     Returns each double field as an ``(len(raws), count)`` array, plus the
-    header ``stamp`` in seconds (NaN where the message has no header).
+    header ``stamp`` in seconds (meaningless for header-less messages).
     """
     size = len(raws[0])
-    if any(len(r) != size for r in raws):
-        raise BagError("messages of one topic differ in layout")
     block = np.frombuffer(b"".join(raws), dtype=np.uint8).reshape(len(raws), size)
     out = {}
     for field, (start, count) in layout.items():
@@ -188,26 +207,28 @@ def read_run(path: str | Path) -> RecordedRun:
     tau = np.full((steps + 1, n), np.nan)
     applied = np.full((steps + 1, n), np.nan)  # torque held over the period ending at k
     counts = {topic: len(items) for topic, items in raw_by_topic.items() if items}
-    states = raw_by_topic.get("/joint_states", [])
-    if states:
-        dec = decode_fixed(states, joint_state_layout(states[0]))
+    for _idx, dec in decode_topic(raw_by_topic.get("/joint_states", []), joint_state_layout):
+        if dec["position"].shape[1] < n:
+            continue
         k = np.rint(dec["stamp"] * rate).astype(np.int64)
         ok = (k >= 0) & (k <= steps)
         q[k[ok]] = dec["position"][ok, :n]
         qd[k[ok]] = dec["velocity"][ok, :n]
         applied[k[ok]] = dec["effort"][ok, :n]
-    refs = raw_by_topic.get("/reference", [])
-    if refs:
-        dec = decode_fixed(refs, joint_trajectory_layout(refs[0]))
+    for _idx, dec in decode_topic(raw_by_topic.get("/reference", []), joint_trajectory_layout):
+        if dec["positions"].shape[1] != n:
+            continue
         k = np.rint(dec["stamp"] * rate).astype(np.int64)
         ok = (k >= 0) & (k <= steps)
         q_ref[k[ok]] = dec["positions"][ok, :n]
     efforts = raw_by_topic.get("/effort_controller/commands", [])
-    if efforts:
-        dec = decode_fixed(efforts, multi_array_layout(efforts[0]))
-        k = np.array([effort_step(r) for r in efforts], dtype=np.int64)
-        ok = (k >= 0) & (k <= steps)
-        tau[k[ok]] = dec["data"][ok, :n]
+    for idx, dec in decode_topic(efforts, multi_array_layout):
+        # only what the plant would apply: n finite values for a step of this run
+        if dec["data"].shape[1] != n:
+            continue
+        k = np.array([effort_step(efforts[i]) for i in idx], dtype=np.int64)
+        ok = (k >= 0) & (k <= steps) & np.all(np.isfinite(dec["data"]), axis=1)
+        tau[k[ok]] = dec["data"][ok]
     if description.get("mode") == "realtime":
         # In real time the controller's commands are tagged with the state it last saw and
         # the plant applies whichever is newest at its tick: the torque actually applied

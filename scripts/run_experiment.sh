@@ -4,18 +4,20 @@
 # usage: run_experiment.sh --robot R --contour C --controller K --out bags/NAME
 #                          [--scenario S] [--mode lockstep|realtime] [--rate HZ]
 #                          [--duration-factor F] [--smc-reading NAME] [--timeout SECONDS]
-#                          [--param NAME:=VALUE ...] [--composed]
+#                          [--param NAME:=VALUE ...] [--composed] [--keep-going]
 #
 # Starts the four nodes (each with `ros2 run pdsmc_ros ...`; with --composed, all four in one
 # process), waits for the end of the trajectory, and exits non-zero naming any node that failed. On timeout or Ctrl-C it
 # stops the nodes it started, by PID, recorder last. Node logs go to OUT.logs/.
+# When a node dies the others get 3 s (the plant's watchdog acts and the recorder records it)
+# before they are stopped; with --keep-going they run on (e.g. for a restarted controller).
 set -uo pipefail
 
 usage() { sed -n '2,11p' "$0" | sed 's/^# \{0,1\}//'; }
 die() { echo "run_experiment.sh: error: $*" >&2; exit 2; }
 
 ROBOT="" CONTOUR="" CONTROLLER="" OUT="" SCENARIO="nominal" MODE="lockstep" RATE=""
-FACTOR="" SMC_READING="" TIMEOUT="600" COMPOSED=0
+FACTOR="" SMC_READING="" TIMEOUT="600" COMPOSED=0 KEEP_GOING=0
 EXTRA=()
 while [[ $# -gt 0 ]]; do
   case "$1" in
@@ -31,6 +33,7 @@ while [[ $# -gt 0 ]]; do
     --timeout) TIMEOUT="${2:-}"; shift 2 ;;
     --param) EXTRA+=(-p "${2:-}"); shift 2 ;;
     --composed) COMPOSED=1; shift ;;
+    --keep-going) KEEP_GOING=1; shift ;;
     -h|--help) usage; exit 0 ;;
     *) die "unknown argument '$1' (see --help)" ;;
   esac
@@ -56,6 +59,10 @@ fi
 # Keep concurrent runs apart: a DDS domain of our own unless the caller chose one.
 export ROS_DOMAIN_ID="${ROS_DOMAIN_ID:-$(( ($$ % 100) + 100 ))}"
 export ROS_AUTOMATIC_DISCOVERY_RANGE="${ROS_AUTOMATIC_DISCOVERY_RANGE:-LOCALHOST}"
+# Fast DDS: drop dead participants after 2 s (config/fastdds_profile.xml)
+if [[ -z "${FASTRTPS_DEFAULT_PROFILES_FILE:-}" && -f "$HERE/../config/fastdds_profile.xml" ]]; then
+  export FASTRTPS_DEFAULT_PROFILES_FILE="$(cd "$HERE/../config" && pwd)/fastdds_profile.xml"
+fi
 
 PARAMS=(-p "robot:=$ROBOT" -p "contour:=$CONTOUR" -p "type:=$CONTROLLER" -p "scenario:=$SCENARIO" -p "mode:=$MODE")
 [[ -n "$RATE" ]] && PARAMS+=(-p "rate:=$RATE")
@@ -131,7 +138,9 @@ while :; do
       break
     fi
   fi
-  if [[ ${#FAILED[@]} -gt 0 ]]; then
+  if [[ ${#FAILED[@]} -gt 0 && $KEEP_GOING -eq 0 ]]; then
+    FAIL_AT="${FAIL_AT:-$SECONDS}"
+    if (( SECONDS - FAIL_AT < 3 )); then sleep 0.05; continue; fi
     stop_all
     for name in "${ORDER[@]}"; do [[ -n "${CODES[$name]:-}" ]] || { wait "${PIDS[$name]}" 2>/dev/null; CODES[$name]=$?; }; done
     break

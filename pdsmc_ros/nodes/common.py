@@ -26,6 +26,7 @@ from rclpy.exceptions import (
 )
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.experimental import EventsExecutor
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy_impl
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -292,6 +293,33 @@ def gains_callback(
         return SetParametersResult(successful=True)
 
     return callback
+
+
+RCLError = _rclpy_impl.RCLError
+
+
+class GuardedPublisher:
+    """A publisher whose failures (e.g. a dead reliable subscriber not yet dropped)
+    are logged, throttled, and counted instead of killing the node."""
+
+    def __init__(self, publisher: Any, node: Node) -> None:
+        self.publisher = publisher
+        self.node = node
+        self.failures = 0
+
+    def publish(self, msg: Any) -> bool:
+        try:
+            self.publisher.publish(msg)
+            return True
+        except RCLError as exc:
+            self.failures += 1
+            if self.failures <= 5 or self.failures % 1000 == 0:
+                self.node.get_logger().error(
+                    f"publish on {self.publisher.topic_name} failed ({self.failures} so far): {exc}")
+            return False
+
+    def get_subscription_count(self) -> int:
+        return self.publisher.get_subscription_count()
 
 
 def description_json(spec: RunSpec, mode: str) -> str:

@@ -32,6 +32,7 @@ from ..safety import limit_torque
 from ..simulator import ControlLaw, control_steps
 from ..stability import check_rate
 from .common import (
+    GuardedPublisher,
     control_qos,
     EXIT_OK,
     LATCHED_QOS,
@@ -83,9 +84,9 @@ class ControllerNode:
         self.state_time = 0.0
         self.ref_time = 0.0
 
-        self.pub_effort = node.create_publisher(Float64MultiArray, TOPIC_EFFORT, LOCKSTEP_QOS)
+        self.pub_effort = GuardedPublisher(node.create_publisher(Float64MultiArray, TOPIC_EFFORT, LOCKSTEP_QOS), node)
         self.pub_desc = node.create_publisher(String, TOPIC_DESCRIPTION, LATCHED_QOS)
-        self.pub_timing = node.create_publisher(Float64MultiArray, TOPIC_TIMING, LOCKSTEP_QOS)
+        self.pub_timing = GuardedPublisher(node.create_publisher(Float64MultiArray, TOPIC_TIMING, LOCKSTEP_QOS), node)
         node.create_subscription(JointState, TOPIC_JOINT_STATES, self.on_state, control_qos(self.mode))
         node.create_subscription(JointTrajectory, TOPIC_REFERENCE, self.on_reference, control_qos(self.mode))
         self.pub_desc.publish(String(data=description_json(self.spec, self.mode)))
@@ -136,6 +137,8 @@ class ControllerNode:
         ref = self.refs.pop(step, None)
         if ref is None:
             return
+        for old in [k for k in self.refs if k < step]:
+            del self.refs[old]  # references of states that will not come (safe mode)
         self.publish(self.law.torque(q, qd, *ref), step)
         self.state = None
         if step >= self.last_step:

@@ -31,6 +31,7 @@ from std_msgs.msg import Float64MultiArray
 from ..safety import check_effort, safe_torque
 from ..simulator import PlantStepper, control_steps
 from .common import (
+    GuardedPublisher,
     control_qos,
     STEADY_CLOCK,
     EXIT_OK,
@@ -86,10 +87,10 @@ class PlantNode:
         self.clock_every = decimation(self.spec.rate, node.get_parameter("clock_rate").value)
         self.ee_every = self.spec.sample_every
 
-        self.pub_state = node.create_publisher(JointState, TOPIC_JOINT_STATES, LOCKSTEP_QOS)
-        self.pub_ee = node.create_publisher(PointStamped, TOPIC_EE_ACTUAL, LOCKSTEP_QOS)
-        self.pub_clock = node.create_publisher(Clock, "/clock", LOCKSTEP_QOS)
-        self.pub_diag = node.create_publisher(DiagnosticArray, TOPIC_DIAGNOSTICS, LOCKSTEP_QOS)
+        self.pub_state = GuardedPublisher(node.create_publisher(JointState, TOPIC_JOINT_STATES, LOCKSTEP_QOS), node)
+        self.pub_ee = GuardedPublisher(node.create_publisher(PointStamped, TOPIC_EE_ACTUAL, LOCKSTEP_QOS), node)
+        self.pub_clock = GuardedPublisher(node.create_publisher(Clock, "/clock", LOCKSTEP_QOS), node)
+        self.pub_diag = GuardedPublisher(node.create_publisher(DiagnosticArray, TOPIC_DIAGNOSTICS, LOCKSTEP_QOS), node)
         node.create_subscription(Float64MultiArray, TOPIC_EFFORT, self.on_effort, control_qos(self.mode))
 
         if self.mode == "lockstep":
@@ -190,6 +191,7 @@ class PlantNode:
             return
         if self.safe:
             self.leave_safe_mode()
+        self.effort_received = True
         if step >= self.last_step:
             self.done = True  # the controller's effort for t = T closes the run
             return
@@ -201,8 +203,8 @@ class PlantNode:
     # -- watchdog and safe mode ---------------------------------------------- #
     def check_watchdog(self) -> None:
         """Lockstep: no effort within ``watchdog_timeout`` s of wall time -> safe mode."""
-        if not self.started or self.done:
-            return
+        if not self.started or self.done or not self.effort_received:
+            return  # armed once a controller has answered (start-up may take seconds)
         if not self.safe and time.monotonic() - self.last_progress > self.watchdog_timeout:
             self.enter_safe_mode(f"no effort for step {self.plant.steps} within {self.watchdog_timeout:g} s")
         elif self.safe and not self.awaiting_resume:

@@ -27,6 +27,7 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from ..simulator import control_steps
 from .common import (
+    GuardedPublisher,
     control_qos,
     STEADY_CLOCK,
     EXIT_OK,
@@ -66,8 +67,8 @@ class TrajectoryNode:
         self.done = False
         self.exit_code = EXIT_OK
 
-        self.pub_ref = node.create_publisher(JointTrajectory, TOPIC_REFERENCE, LOCKSTEP_QOS)
-        self.pub_ee = node.create_publisher(PointStamped, TOPIC_EE_DESIRED, LOCKSTEP_QOS)
+        self.pub_ref = GuardedPublisher(node.create_publisher(JointTrajectory, TOPIC_REFERENCE, LOCKSTEP_QOS), node)
+        self.pub_ee = GuardedPublisher(node.create_publisher(PointStamped, TOPIC_EE_DESIRED, LOCKSTEP_QOS), node)
         node.create_subscription(JointState, TOPIC_JOINT_STATES, self.on_state, control_qos(self.mode))
         if self.mode == "lockstep":
             self.timer = node.create_timer(0.01, self.try_start, clock=STEADY_CLOCK)

@@ -1,0 +1,233 @@
+"""Faults and bad input: dead nodes, killed recorder, rogue publishers, fuzzed validation."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from pdsmc_ros.bagio import read_run
+from pdsmc_ros.errors import InvalidInputError
+from pdsmc_ros.mcapscan import scan
+from pdsmc_ros.presets import Gains
+from pdsmc_ros.safety import SafetyConfig, check_effort, limit_torque, safe_torque
+from pdsmc_ros.simulator import simulate
+
+ROOT = Path(__file__).resolve().parent.parent
+SCRIPT = ROOT / "scripts" / "run_experiment.sh"
+
+
+# --------------------------------------------------------------------------- #
+# Core validation, fuzzed
+# --------------------------------------------------------------------------- #
+floats = st.floats(allow_nan=True, allow_infinity=True, width=64)
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(floats, min_size=0, max_size=6), st.integers(0, 5), st.integers(0, 5))
+def test_effort_validation_accepts_only_finite_right_length_in_order(data, step, expected) -> None:  # noqa: ANN001
+    tau, reason = check_effort(data, 3, step, expected)
+    ok = len(data) == 3 and all(np.isfinite(data)) and step == expected
+    assert (tau is not None) == ok
+    if ok:
+        assert reason == "" and np.array_equal(tau, np.asarray(data))
+    else:
+        assert reason and tau is None
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.dictionaries(st.sampled_from(["kp", "kd", "ks", "lam", "phi", "kq"]),
+                       st.one_of(st.lists(floats, max_size=4), floats, st.text(max_size=3)), max_size=5))
+def test_gain_validation_never_crashes(data) -> None:  # noqa: ANN001
+    try:
+        gains = Gains.from_mapping(data, 3, "pdsmc")
+    except InvalidInputError as exc:
+        assert str(exc)  # a message naming what is wrong
+    else:
+        m = gains.matrix()
+        assert m.shape == (5, 3) and np.all(np.isfinite(m)) and np.all(m >= 0) and np.all(m[4] > 0)
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.sampled_from(["damp", "hold", "stop", ""]), floats, floats, st.sampled_from(["resume", "end", "x"]))
+def test_safety_config_validation(mode, damping, stiffness, on_loss) -> None:  # noqa: ANN001
+    try:
+        cfg = SafetyConfig(mode=mode, damping=damping, stiffness=stiffness, on_loss=on_loss)
+    except InvalidInputError as exc:
+        assert "must be" in str(exc)
+    else:
+        q = np.array([0.1, -0.2])
+        tau = safe_torque(cfg, q, np.array([1.0, -1.0]), np.zeros(2))
+        assert np.all(np.isfinite(tau))
+        # braking opposes the motion in both modes at the hold point
+        at_hold = safe_torque(cfg, np.zeros(2), np.array([1.0, -1.0]), np.zeros(2))
+        assert at_hold[0] <= 0.0 <= at_hold[1]
+
+
+def test_torque_limit() -> None:
+    tau, clamped = limit_torque(np.array([3.0, -9.0]), np.array([5.0, 5.0]))
+    assert clamped and tau.tolist() == [3.0, -5.0]
+    assert limit_torque(np.array([1.0]), None) == (pytest.approx(np.array([1.0])), False)
+
+
+# --------------------------------------------------------------------------- #
+# Faults through the orchestration
+# --------------------------------------------------------------------------- #
+_DOMAINS = iter(range(160 + os.getpid() % 40 * 2, 10**6))
+
+
+def run_env(ros_env: dict, out: Path) -> dict:
+    """An environment of its own DDS domain (shared by every process of this test run)."""
+    return dict(ros_env, PDSMC_TEST_RUN=str(out), ROS_DOMAIN_ID=str(next(_DOMAINS) % 230),
+                FASTRTPS_DEFAULT_PROFILES_FILE=str(ROOT / "config" / "fastdds_profile.xml"))
+
+
+def start_experiment(env: dict, out: Path, *args: str) -> subprocess.Popen:
+    return subprocess.Popen(
+        ["bash", str(SCRIPT), "--robot", "serial_3r", "--contour", "circle", "--controller", "pdsmc",
+         "--out", str(out), "--timeout", "200", *args],
+        env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True,
+    )
+
+
+def wait_finish(proc: subprocess.Popen, timeout: float = 240) -> tuple[str, str]:
+    try:
+        return proc.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, signal.SIGKILL)
+        out, err = proc.communicate()
+        pytest.fail(f"orchestration timed out: {err}")
+
+
+def node_pid(out: Path, name: str, timeout: float = 60) -> int:
+    """PID of a node started by this test's orchestration (matched by its bag path)."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        found = subprocess.run(["pgrep", "-f", f"lib/pdsmc_ros/{name} .*"], capture_output=True, text=True)
+        for pid in found.stdout.split():
+            try:
+                cmdline = Path(f"/proc/{pid}/cmdline").read_bytes().decode(errors="replace")
+                environ = Path(f"/proc/{pid}/environ").read_bytes().decode(errors="replace")
+            except OSError:
+                continue
+            if str(out) in cmdline or f"PDSMC_TEST_RUN={out}" in environ:
+                return int(pid)
+        time.sleep(0.2)
+    pytest.fail(f"node {name} of {out} not found")
+
+
+def wait_steps(out: Path, steps: int, timeout: float = 120) -> None:
+    """Wait until the recorder log says the run is going (the bag grows)."""
+    deadline = time.monotonic() + timeout
+    mcap = out / f"{out.name}.mcap"
+    while time.monotonic() < deadline:
+        if mcap.exists() and mcap.stat().st_size > steps * 300:
+            return
+        time.sleep(0.2)
+    pytest.fail("the run did not start")
+
+
+@pytest.mark.timeout(300)
+def test_killed_controller_puts_plant_in_safe_mode_and_run_fails_clearly(ros_env: dict, tmp_path: Path) -> None:
+    out = tmp_path / "killctl"
+    env = run_env(ros_env, out)
+    proc = start_experiment(env, out, "--duration-factor", "0.4", "--param", "watchdog_timeout:=0.5")
+    wait_steps(out, 3000)
+    os.kill(node_pid(out, "controller"), signal.SIGKILL)
+    _, err = wait_finish(proc)
+    assert proc.returncode != 0
+    assert "node 'controller' failed (exit 137)" in err or "node 'controller' failed (exit -9)" in err
+    run = read_run(out)  # closed cleanly by the orchestration (recorder last)
+    assert not run.truncated
+    diag = scan(out / f"{out.name}.mcap", ["/diagnostics"]).messages["/diagnostics"]
+    assert any(b"controller lost" in m and b"safe mode 'damp'" in m for m in diag)
+
+
+@pytest.mark.timeout(300)
+def test_killed_recorder_loses_at_most_a_second(ros_env: dict, tmp_path: Path) -> None:
+    out = tmp_path / "killrec"
+    env = run_env(ros_env, out)
+    proc = start_experiment(env, out, "--duration-factor", "0.4")
+    wait_steps(out, 6000)
+    pid = node_pid(out, "recorder")
+    os.kill(pid, signal.SIGKILL)
+    killed_at = time.time_ns()
+    wait_finish(proc)
+    assert proc.returncode != 0
+    run = read_run(out)
+    assert run.truncated and not (out / "metadata.yaml").exists()
+    recovered = scan(out / f"{out.name}.mcap", ["/joint_states"])
+    last_logged = max(recovered.log_times["/joint_states"])
+    lost_s = (killed_at - last_logged) * 1e-9
+    assert 0.0 <= lost_s <= 1.0, lost_s
+    assert run.counts["/joint_states"] > 1000
+    # what was recovered is exactly the in-process run
+    every = run.spec.sample_every
+    sim = simulate(run.spec)
+    seen = ~np.isnan(run.q[::every, 0])
+    assert np.max(np.abs(run.q[::every][seen] - sim.samples.q[seen])) <= 1e-9
+
+
+ROGUE = r"""
+import sys, time, math
+import rclpy
+from rclpy.node import Node
+from rclpy.qos import QoSProfile, ReliabilityPolicy, HistoryPolicy
+from std_msgs.msg import Float64MultiArray
+rclpy.init()
+node = Node("rogue")
+pub = node.create_publisher(Float64MultiArray, "effort_controller/commands",
+                            QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_ALL))
+bad = [[1.0, 2.0], [math.nan, 0.0, 0.0], [math.inf, 1.0, 1.0], [1.0, 2.0, 3.0, 4.0], [5.0, 5.0, 5.0]]
+end = time.monotonic() + float(sys.argv[1])
+i = 0
+while time.monotonic() < end:
+    msg = Float64MultiArray(data=bad[i % len(bad)])
+    msg.layout.data_offset = 10**6 + i  # never the current step
+    pub.publish(msg)
+    i += 1
+    rclpy.spin_once(node, timeout_sec=0.002)
+print(i)
+"""
+
+
+@pytest.mark.timeout(300)
+def test_rogue_efforts_are_rejected_and_the_run_is_unchanged(ros_env: dict, tmp_path: Path) -> None:
+    out = tmp_path / "rogue"
+    env = run_env(ros_env, out)
+    env["ROS_DOMAIN_ID"] = str(150 + os.getpid() % 50)  # the rogue joins the run's DDS domain
+    rogue = subprocess.Popen([sys.executable, "-c", ROGUE, "25"], env=env, stdout=subprocess.PIPE,
+                             stderr=subprocess.PIPE, text=True, start_new_session=True)
+    proc = start_experiment(env, out, "--duration-factor", "0.1")
+    _, err = wait_finish(proc)
+    sent = rogue.communicate(timeout=60)[0]
+    assert proc.returncode == 0, err
+    assert int(sent.strip() or 0) > 100
+    log = (Path(f"{out}.logs") / "plant.log").read_text()
+    assert "rejected effort command" in log
+    run = read_run(out)
+    sim = simulate(run.spec)
+    assert run.complete
+    assert np.max(np.abs(run.q[:: run.spec.sample_every] - sim.samples.q)) <= 1e-9
+
+
+@pytest.mark.timeout(300)
+def test_two_lockstep_runs_give_identical_payloads(ros_env: dict, tmp_path: Path) -> None:
+    payloads = []
+    for name in ("a", "b"):
+        out = tmp_path / name
+        proc = start_experiment(ros_env, out, "--duration-factor", "0.04")
+        _, err = wait_finish(proc)
+        assert proc.returncode == 0, err
+        topics = ["/joint_states", "/reference", "/effort_controller/commands"]
+        payloads.append(scan(out / f"{out.name}.mcap", topics).messages)
+    for topic in payloads[0]:
+        assert payloads[0][topic] == payloads[1][topic], topic
