@@ -219,7 +219,18 @@ def run_reproduction(
         )
 
     if ros_bags is not None:
-        results = [_ros_result(spec, ros_bags, i, len(specs), report) for i, spec in enumerate(specs)]
+        # each case is its own process group and DDS domain: run them on all cores
+        from concurrent.futures import ThreadPoolExecutor
+
+        done = iter(range(1, len(specs) + 1))
+
+        def one(spec: RunSpec) -> RunResult:
+            return _ros_result(spec, ros_bags, lambda r: report(next(done), len(specs), r))
+
+        order = sorted(range(len(specs)), key=lambda i: -specs[i].contour_model().duration)
+        with ThreadPoolExecutor(max_workers=workers or os.cpu_count() or 1) as pool:
+            futures = {i: pool.submit(one, specs[i]) for i in order}
+            results = [futures[i].result() for i in range(len(specs))]
         results += simulate_many(everything[len(specs):], workers=workers) if len(everything) > len(specs) else []
     else:
         results = simulate_many(everything, workers=workers, progress=report)
@@ -234,9 +245,7 @@ def run_reproduction(
     return Reproduction(cells, main, smc, time.perf_counter() - start, summary_by_reading)
 
 
-def _ros_result(
-    spec: RunSpec, bags: Path, index: int, total: int, report: Callable[[int, int, RunResult], None]
-) -> RunResult:
+def _ros_result(spec: RunSpec, bags: Path, report: Callable[[RunResult], None]) -> RunResult:
     """One run over DDS, analysed from its bag and checked against the in-process loop."""
     import subprocess
 
@@ -268,7 +277,7 @@ def _ros_result(
                        f"(max |dq| {gap:.3g}, complete={run.complete})")
     result = RunResult(spec, samples, compute_metrics(samples, spec.bound), run.steps,
                        time.perf_counter() - start)
-    report(index + 1, total, result)
+    report(result)
     return result
 
 

@@ -184,3 +184,51 @@ def test_reproduce_over_dds_matches_in_process_report(ros_env: dict, tmp_path: P
     for x, y in zip(a, b, strict=True):
         assert x["metric"] == y["metric"] and abs(x["ours"] - y["ours"]) <= 1e-9 * max(1.0, abs(y["ours"]))
     assert (tmp_path / "bags" / "parallel_5r-ellipse_vertical-high_speed-pd" / "metadata.yaml").exists()
+
+
+SET_PARAMS = r"""
+import sys, json
+import rclpy
+from rclpy.node import Node
+from rcl_interfaces.srv import SetParameters
+from rclpy.parameter import Parameter
+rclpy.init()
+node = Node("param_setter")
+out = {}
+for target, name, value in json.loads(sys.argv[1]):
+    client = node.create_client(SetParameters, f"/{target}/set_parameters")
+    if not client.wait_for_service(timeout_sec=60):
+        out[f"{target}.{name}"] = "no service"
+        continue
+    req = SetParameters.Request(parameters=[Parameter(name, value=value).to_parameter_msg()])
+    future = client.call_async(req)
+    rclpy.spin_until_future_complete(node, future, timeout_sec=30)
+    res = future.result().results[0]
+    out[f"{target}.{name}"] = [res.successful, res.reason]
+print(json.dumps(out))
+"""
+
+
+@pytest.mark.timeout(180)
+def test_parameters_are_validated_at_run_time(ros_env: dict) -> None:
+    import json
+    import sys
+
+    env = dict(ros_env, ROS_DOMAIN_ID=str(200 + os.getpid() % 30))
+    nodes = [subprocess.Popen(["ros2", "run", "pdsmc_ros", name, "--ros-args", "-p", "type:=pdsmc"],
+                              env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                              start_new_session=True) for name in ("controller", "plant")]
+    try:
+        changes = [["controller", "kp", [1.0, 2.0]], ["controller", "kd", [2000.0, 1500.0, 1300.0]],
+                   ["controller", "robot", "parallel_5r"], ["plant", "rate", 20000.0]]
+        proc = subprocess.run([sys.executable, "-c", SET_PARAMS, json.dumps(changes)], env=env,
+                              capture_output=True, text=True, timeout=150)
+        result = json.loads(proc.stdout.strip().splitlines()[-1])
+    finally:
+        for p in nodes:
+            os.killpg(p.pid, signal.SIGINT)
+            p.wait(timeout=30)
+    assert result["controller.kp"][0] is False and "kp needs 3 values" in result["controller.kp"][1]
+    assert result["controller.kd"] == [True, ""]
+    assert result["controller.robot"][0] is False and "cannot change while it runs" in result["controller.robot"][1]
+    assert result["plant.rate"][0] is False and "cannot change while it runs" in result["plant.rate"][1]

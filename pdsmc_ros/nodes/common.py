@@ -139,6 +139,17 @@ SAFETY_PARAMETERS: dict[str, tuple[Any, ParameterDescriptor]] = {
 }
 
 
+def refuse_run_changes(params: list[Parameter]) -> SetParametersResult:
+    """Set-parameters callback of the plant, trajectory and recorder: a run's definition
+    is fixed while it runs."""
+    for param in params:
+        if param.name in RUN_PARAMETERS or param.name in SAFETY_PARAMETERS or param.name == "output":
+            return SetParametersResult(
+                successful=False, reason=f"{param.name} defines the run and cannot change while it runs"
+            )
+    return SetParametersResult(successful=True)
+
+
 def declare_safety_parameters(node: Node) -> None:
     for name, (default, desc) in SAFETY_PARAMETERS.items():
         node.declare_parameter(name, default, desc)

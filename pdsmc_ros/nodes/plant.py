@@ -44,6 +44,7 @@ from .common import (
     declare_run_parameters,
     declare_safety_parameters,
     run_node,
+    refuse_run_changes,
     run_spec_from_parameters,
     safety_from_parameters,
     step_stamp,
@@ -61,6 +62,7 @@ class PlantNode:
         declare_safety_parameters(node)
         self.spec = run_spec_from_parameters(node)
         self.safety = safety_from_parameters(node)
+        node.add_on_set_parameters_callback(refuse_run_changes)
         self.watchdog_timeout = float(node.get_parameter("watchdog_timeout").value)
         self.watchdog_periods = int(node.get_parameter("watchdog_periods").value)
         self.mode = node.get_parameter("mode").value

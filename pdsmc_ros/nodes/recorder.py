@@ -44,6 +44,7 @@ from .common import (
     TOPIC_TIMING,
     declare_run_parameters,
     run_node,
+    refuse_run_changes,
     run_spec_from_parameters,
 )
 
@@ -72,6 +73,7 @@ class RecorderNode:
         declare_run_parameters(node)
         node.declare_parameter("output", "")
         self.spec = run_spec_from_parameters(node)
+        node.add_on_set_parameters_callback(refuse_run_changes)
         output = str(node.get_parameter("output").value)
         if not output:
             raise ConfigError("parameter output: the bag directory to write is required")

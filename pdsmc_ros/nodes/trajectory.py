@@ -37,6 +37,7 @@ from .common import (
     TOPIC_REFERENCE,
     declare_run_parameters,
     run_node,
+    refuse_run_changes,
     run_spec_from_parameters,
     stamp_to_step,
     step_stamp,
@@ -52,6 +53,7 @@ class TrajectoryNode:
         declare_run_parameters(node)
         node.declare_parameter("expected_subscribers", 2)  # controller, recorder
         self.spec = run_spec_from_parameters(node)
+        node.add_on_set_parameters_callback(refuse_run_changes)
         self.mode = node.get_parameter("mode").value
         self.expected = int(node.get_parameter("expected_subscribers").value)
         reference = self.spec.reference()
