@@ -55,10 +55,15 @@ def _cdr_string(data: bytes) -> str:
     return data[_CDR_HEADER + 4 : _CDR_HEADER + 4 + length].rstrip(b"\x00").decode("utf-8")
 
 
+def stamp_step(sec: int, nanosec: int, rate: float) -> int:
+    """Control step of a header stamp (stamps are ``k / rate``)."""
+    return int(round((sec + nanosec * 1e-9) * rate))
+
+
 def header_step(data: bytes, rate: float) -> int:
     """Control step of a CDR message that starts with ``std_msgs/Header``."""
     sec, nanosec = struct.unpack_from("<iI", data, _CDR_HEADER)
-    return int(round((sec + nanosec * 1e-9) * rate))
+    return stamp_step(sec, nanosec, rate)
 
 
 def effort_step(data: bytes) -> int:

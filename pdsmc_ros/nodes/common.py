@@ -6,6 +6,7 @@ parameters into a :class:`~pdsmc_ros.presets.RunSpec` and wires messages.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import signal
@@ -31,6 +32,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
+from ..bagio import stamp_step
 from ..errors import ConfigError, InvalidInputError, PdsmcError
 from ..safety import SafetyConfig
 from ..presets import (
@@ -242,8 +244,6 @@ def run_spec_from_parameters(node: Node) -> RunSpec:
     except ConfigError as exc:
         raise ConfigError(f"parameters: {exc}") from None
     if p["duration_factor"] != 1.0:
-        import dataclasses
-
         spec = dataclasses.replace(spec, duration_factor=spec.duration_factor * p["duration_factor"])
     overrides = {}
     for name in GAIN_NAMES:
@@ -260,8 +260,6 @@ def run_spec_from_parameters(node: Node) -> RunSpec:
                 raise ConfigError(f"parameter {name} must be a list of numbers, got {value!r}")
             overrides[name] = [float(v) for v in value]
     if overrides:
-        import dataclasses
-
         merged = {**spec.gains.as_dict(), **overrides}
         n = len(spec.gains.kp)
         gains = Gains.from_mapping(merged, n, spec.controller)
@@ -344,9 +342,8 @@ def decimation(rate: float, target: float) -> int:
     return max(1, int(round(rate / target)))
 
 
-def stamp_to_step(sec: int, nanosec: int, rate: float) -> int:
-    """Control step index of a header stamp (stamps are ``k / rate``)."""
-    return int(round((sec + nanosec * 1e-9) * rate))
+stamp_to_step = stamp_step
+"""Control step index of a header stamp (one implementation, shared with the bag reader)."""
 
 
 def step_stamp(step: int, rate: float) -> tuple[int, int]:
