@@ -18,8 +18,8 @@ import numpy as np
 from .bagio import RecordedRun, read_run, run_metrics
 from .errors import BagError
 from .metrics import Metrics
+from .presets import CONTROLLER_LABELS as LABEL
 
-LABEL = {"pd": "PD", "smc": "SMC", "pdsmc": "PD-SMC"}
 
 
 @dataclass

@@ -16,7 +16,6 @@ from typing import Any
 import numpy as np
 
 from .models import FloatArray
-from .trajectories import Contour
 
 
 @dataclass(frozen=True)
@@ -55,11 +54,6 @@ def sample_times(duration: float, sample_rate: float) -> FloatArray:
     """Statistics instants ``0, 1/f, ..., T`` (inclusive; 2501 for 5 s at 500 Hz)."""
     count = int(round(duration * sample_rate))
     return np.arange(count + 1) / sample_rate
-
-
-def contour_errors(contour: Contour, t: FloatArray, xy: FloatArray) -> FloatArray:
-    """Contour error of actual points ``xy`` at times ``t`` (delegates to the contour)."""
-    return contour.contour_error(t, xy)
 
 
 def compute_metrics(samples: Samples, bound: float) -> Metrics:

@@ -907,24 +907,6 @@ def make_robot(
     raise InvalidInputError(f"unknown robot {name!r}; choose one of: {', '.join(ROBOTS)}")
 
 
-def stack_payloads(robot: Manipulator, payloads: Sequence[float]) -> Manipulator:
-    """One model whose payload varies along a leading batch axis.
-
-    Only the payload-dependent chain constants (``W``, ``w``) gain the batch
-    axis, so every method broadcasts over ``q`` of shape ``(len(payloads), n)``.
-    """
-    base = robot.with_payload(0.0)  # type: ignore[attr-defined]
-    payloads_arr = np.asarray(payloads, dtype=float)
-    chain = base.chain if isinstance(base, Serial3R) else base.left  # type: ignore[attr-defined]
-    lengths = chain.lengths
-    w_extra = payloads_arr[:, None, None] * np.outer(lengths, lengths)
-    chain.W = chain.W + w_extra
-    chain.w = chain.w + payloads_arr[:, None] * lengths
-    chain.tip_mass = payloads_arr  # type: ignore[assignment]
-    base.payload = payloads_arr  # type: ignore[attr-defined]
-    return base
-
-
 __all__ = [
     "GRAVITY",
     "LinkParams",
@@ -938,5 +920,4 @@ __all__ = [
     "Serial3R",
     "as_vector",
     "make_robot",
-    "stack_payloads",
 ]

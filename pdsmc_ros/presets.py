@@ -24,6 +24,7 @@ from .trajectories import Contour, EllipseContour, JointReference, SegmentContou
 
 ROBOT_NAMES = ("serial_3r", "parallel_5r")
 CONTROLLER_NAMES = ("pd", "smc", "pdsmc")
+CONTROLLER_LABELS = {"pd": "PD", "smc": "SMC", "pdsmc": "PD-SMC"}
 GAIN_NAMES = ("kp", "kd", "ks", "lam", "phi")
 REQUIRED_GAINS = {"pd": ("kp", "kd"), "smc": ("ks", "lam", "phi"), "pdsmc": GAIN_NAMES}
 

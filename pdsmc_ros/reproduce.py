@@ -23,10 +23,10 @@ import numpy as np
 
 from . import __version__
 from .errors import BagError, ConfigError
+from .presets import CONTROLLER_LABELS as LABEL
 from .presets import CONTROLLER_NAMES, RunSpec, choice, load_config, make_run
 from .simulator import RunResult, simulate_many
 
-LABEL = {"pd": "PD", "smc": "SMC", "pdsmc": "PD-SMC"}
 
 
 @dataclass(frozen=True)

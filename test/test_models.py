@@ -16,7 +16,6 @@ from pdsmc_ros.models import (
     Parallel5R,
     Serial3R,
     make_robot,
-    stack_payloads,
 )
 
 RNG_SEED = 20151
@@ -270,22 +269,6 @@ def test_parallel_loop_closes_and_jacobian_is_consistent() -> None:
     )
     j = np.einsum("...ij,...j->...i", robot.jacobian(q), qd)
     assert np.allclose(j, j_fd, atol=1e-8)
-
-
-def test_stacked_payload_model_matches_individual_models() -> None:
-    rng = np.random.default_rng(RNG_SEED + 6)
-    for robot in (Serial3R(), Parallel5R()):
-        payloads = [0.0, 1.5, 0.4]
-        batched = stack_payloads(robot, payloads)
-        if isinstance(robot, Serial3R):
-            q, qd = serial_states(rng, 3)
-        else:
-            q, qd = parallel_states(robot, rng, 3)
-        tau = rng.uniform(-1, 1, q.shape)
-        together = batched.forward_dynamics(q, qd, tau)
-        for i, payload in enumerate(payloads):
-            alone = robot.with_payload(payload).forward_dynamics(q[i], qd[i], tau[i])
-            assert np.allclose(together[i], alone, rtol=0, atol=1e-12)
 
 
 # --------------------------------------------------------------------------- #
