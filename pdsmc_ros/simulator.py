@@ -51,12 +51,14 @@ class PlantStepper:
         self.qd = as_vector(qd0, robot.n, "qd0").astype(float).copy()
         self._q_next = np.empty(robot.n)
         self._qd_next = np.empty(robot.n)
+        self._work = kernels.workspace()
         self.steps = 0
 
     def step(self, tau: FloatArray) -> None:
         """Integrate one period with ``tau`` held (RK4, :func:`kernels.rk4_step`)."""
         kernels.rk4_step(
-            self.kind, self.params, self.q, self.qd, tau, self.period, self._q_next, self._qd_next
+            self.kind, self.params, self.q, self.qd, tau, self.period, self._q_next, self._qd_next,
+            self._work,
         )
         self.q, self._q_next = self._q_next, self.q
         self.qd, self._qd_next = self._qd_next, self.qd
@@ -73,7 +75,7 @@ class ControlLaw:
         self.model = spec.smc_model_vector()
         self.model_kind, self.model_params = kernels.pack_robot(spec.nominal_model())
         self.n = self.gains.shape[1]
-        self._tau = np.empty(self.n)
+        self._work = kernels.workspace()
 
     def torque(
         self, q: FloatArray, qd: FloatArray, q_ref: FloatArray, qd_ref: FloatArray, qdd_ref: FloatArray
@@ -82,7 +84,7 @@ class ControlLaw:
         tau = np.empty(self.n)
         kernels.control_torque(
             self.code, self.gains, self.model, self.model_kind, self.model_params,
-            q, qd, q_ref, qd_ref, qdd_ref, tau,
+            q, qd, q_ref, qd_ref, qdd_ref, tau, self._work,
         )
         return tau
 

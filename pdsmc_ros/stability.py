@@ -56,35 +56,46 @@ def effective_gains(spec: RunSpec, mass: FloatArray) -> tuple[FloatArray, FloatA
     return ks_phi @ lam, scale * mass @ lam + ks_phi
 
 
-def spectral_radius(mass: FloatArray, kp: FloatArray, kd: FloatArray, h: float) -> tuple[float, int]:
-    """Spectral radius of the held-input error map and the joint dominating its mode."""
-    n = mass.shape[0]
+def spectral_radius(
+    mass: FloatArray, kp: FloatArray, kd: FloatArray, h: float | FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """Spectral radius of the held-input error map and the joint dominating its mode.
+
+    Works on one configuration (``mass``, ``kp``, ``kd`` of shape ``(n, n)``,
+    scalar ``h``) or on a stack of them (leading axis ``m``, ``h`` scalar or of
+    shape ``(m,)``); returns the radii and the 1-based joints, of the stack's shape.
+    """
+    mass = np.asarray(mass, dtype=float)
+    n = mass.shape[-1]
+    h = np.asarray(h, dtype=float)[..., None, None]
     minv_kp = np.linalg.solve(mass, kp)
     minv_kd = np.linalg.solve(mass, kd)
-    eye = np.eye(n)
-    a = np.block(
-        [
-            [eye - 0.5 * h * h * minv_kp, h * eye - 0.5 * h * h * minv_kd],
-            [-h * minv_kp, eye - h * minv_kd],
-        ]
-    )
+    eye = np.broadcast_to(np.eye(n), minv_kp.shape)
+    a = np.empty((*minv_kp.shape[:-2], 2 * n, 2 * n))
+    a[..., :n, :n] = eye - 0.5 * h * h * minv_kp
+    a[..., :n, n:] = h * eye - 0.5 * h * h * minv_kd
+    a[..., n:, :n] = -h * minv_kp
+    a[..., n:, n:] = eye - h * minv_kd
     values, vectors = np.linalg.eig(a)
-    k = int(np.argmax(np.abs(values)))
-    mode = np.abs(vectors[:n, k]) + np.abs(vectors[n:, k]) * h
-    return float(np.abs(values[k])), int(np.argmax(mode)) + 1
+    k = np.argmax(np.abs(values), axis=-1)
+    radius = np.take_along_axis(np.abs(values), k[..., None], axis=-1)[..., 0]
+    vec = np.take_along_axis(vectors, k[..., None, None], axis=-1)[..., 0]
+    mode = np.abs(vec[..., :n]) + np.abs(vec[..., n:]) * h[..., 0]
+    return radius, np.argmax(mode, axis=-1) + 1
 
 
-def _lowest_rate(mass: FloatArray, kp: FloatArray, kd: FloatArray) -> float:
-    lo, hi = 1.0, 1e8  # Hz; stable at hi for any positive gains
-    if spectral_radius(mass, kp, kd, 1.0 / lo)[0] < 1.0:
-        return lo
+def _lowest_rates(mass: FloatArray, kp: FloatArray, kd: FloatArray) -> FloatArray:
+    """Lowest stable rate (Hz) of each configuration of a stack, by bisection."""
+    m = mass.shape[0]
+    lo = np.full(m, 1.0)  # Hz
+    hi = np.full(m, 1e8)  # stable at 1e8 Hz for any positive gains
+    stable_at_lo = spectral_radius(mass, kp, kd, 1.0 / lo)[0] < 1.0
     for _ in range(24):  # bracket ratio 1e8 -> about 0.1 % resolution
         mid = np.sqrt(lo * hi)
-        if spectral_radius(mass, kp, kd, 1.0 / mid)[0] < 1.0:
-            hi = mid
-        else:
-            lo = mid
-    return hi
+        stable = spectral_radius(mass, kp, kd, 1.0 / mid)[0] < 1.0
+        hi = np.where(stable, mid, hi)
+        lo = np.where(stable, lo, mid)
+    return np.where(stable_at_lo, 1.0, hi)
 
 
 def rate_margin(spec: RunSpec, reference: JointReference, *, points: int = 13) -> RateCheck:
@@ -93,15 +104,14 @@ def rate_margin(spec: RunSpec, reference: JointReference, *, points: int = 13) -
     t = np.linspace(0.0, reference.duration, points)
     q = reference.sample(t).q
     masses = robot._mass_matrix(q)
-    lowest = 0.0
-    worst = (0.0, 1)
-    for mass in masses:
-        kp, kd = effective_gains(spec, mass)
-        lowest = max(lowest, _lowest_rate(mass, kp, kd))
-        radius = spectral_radius(mass, kp, kd, 1.0 / spec.rate)
-        if radius[0] > worst[0]:
-            worst = radius
-    return RateCheck(spec.rate, lowest, worst[0], worst[1], worst[0] < 1.0)
+    pairs = [effective_gains(spec, mass) for mass in masses]
+    kp = np.stack([p[0] for p in pairs])
+    kd = np.stack([p[1] for p in pairs])
+    lowest = float(np.max(_lowest_rates(masses, kp, kd)))
+    radii, joints = spectral_radius(masses, kp, kd, 1.0 / spec.rate)
+    worst = int(np.argmax(radii))
+    radius = float(radii[worst])
+    return RateCheck(spec.rate, lowest, radius, int(joints[worst]), radius < 1.0)
 
 
 def check_rate(spec: RunSpec, reference: JointReference) -> RateCheck:

@@ -150,11 +150,12 @@ def test_kernels_match_reference_model(robot) -> None:  # noqa: ANN001
             q = robot.inverse_kinematics([0.16 + rng.uniform(-0.05, 0.05), 0.2 + rng.uniform(-0.05, 0.05)])
         qd, tau, v = rng.uniform(-2, 2, (3, robot.n))
         out = np.empty(robot.n)
-        kernels.forward_dynamics(kind, p, q, qd, tau, out)
+        work = kernels.workspace()
+        kernels.forward_dynamics(kind, p, q, qd, tau, out, work)
         assert np.allclose(out, robot.forward_dynamics(q, qd, tau), rtol=0, atol=1e-11)
-        kernels.robot_coriolis_times(kind, p, q, qd, v, out)
+        kernels.robot_coriolis_times(kind, p, q, qd, v, out, work)
         assert np.allclose(out, robot.coriolis_matrix(q, qd) @ v, rtol=0, atol=1e-12)
-        kernels.robot_gravity(kind, p, q, out)
+        kernels.robot_gravity(kind, p, q, out, work)
         assert np.allclose(out, robot.gravity(q), rtol=0, atol=1e-12)
 
 
