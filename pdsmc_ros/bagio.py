@@ -169,6 +169,9 @@ class RecordedRun:
     missing: dict[str, int]
     complete: bool
     truncated: bool = False
+    # steps whose torque is the plant's report, not a recorded command: safe mode, or a command
+    # its dying sender got to the plant but not to the recorder
+    plant_torque_steps: int = 0
 
     @property
     def steps(self) -> int:
@@ -234,13 +237,23 @@ def read_run(path: str | Path) -> RecordedRun:
         k = np.array([effort_step(efforts[i]) for i in idx], dtype=np.int64)
         ok = (k >= 0) & (k <= steps) & np.all(np.isfinite(dec["data"]), axis=1)
         tau[k[ok]] = dec["data"][ok]
+    # the torque actually held over [k, k+1], as the plant reports it with state k + 1
+    held = np.vstack([applied[1:], np.full((1, n), np.nan)])
+    plant_torque = 0
+    if description.get("mode") != "realtime":
+        # Lockstep: the plant applies exactly the command of step k (both agree to the bit),
+        # except in safe mode, where it held its safe torque instead; what acted on the
+        # arm is what the statistics use.
+        differs = ~np.isnan(held[:, 0]) & np.any((held != tau) | np.isnan(tau), axis=1)
+        plant_torque = int(np.sum(differs))
+        tau[differs] = held[differs]
     if description.get("mode") == "realtime":
         # In real time the controller's commands are tagged with the state it last saw and
         # the plant applies whichever is newest at its tick: the torque actually applied
         # over [k, k+1] is the effort the plant reports with state k+1. The reference is
         # recomputed from the run description (the trajectory node publishes the same
         # values, but not necessarily for every plant step).
-        tau = np.vstack([applied[1:], np.full((1, n), np.nan)])
+        tau = held
         tau[-1] = tau[-2]
         q_ref = spec.reference().sample(np.arange(steps + 1) / rate).q
     missing = {
@@ -249,7 +262,8 @@ def read_run(path: str | Path) -> RecordedRun:
         "effort": int(np.sum(np.isnan(tau[:, 0]))),
     }
     return RecordedRun(spec, description, q, qd, q_ref, tau, counts, missing,
-                       complete=not any(missing.values()) and not truncated, truncated=truncated)
+                       complete=not any(missing.values()) and not truncated, truncated=truncated,
+                       plant_torque_steps=plant_torque)
 
 
 def run_samples(run: RecordedRun) -> Samples:

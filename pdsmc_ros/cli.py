@@ -254,6 +254,11 @@ def cmd_analyze(args: argparse.Namespace) -> int:
             what = "truncated (recorder stopped without closing it)" if b.run.truncated else "incomplete"
             print(f"pdsmc analyze: {b.path}: {what}: statistics of the {b.metrics.samples} readable samples "
                   f"only; missing steps {b.run.missing}", file=sys.stderr)
+    for b in bags:
+        if b.run.plant_torque_steps:
+            print(f"pdsmc analyze: {b.path}: for {b.run.plant_torque_steps} steps the plant applied a "
+                  "torque other than a recorded command (safe mode, see /diagnostics); the statistics "
+                  "use the torque applied", file=sys.stderr)
     if bad:
         return EXIT_FAILURE
     return 0

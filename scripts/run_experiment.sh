@@ -5,20 +5,26 @@
 #                          [--scenario S] [--mode lockstep|realtime] [--rate HZ]
 #                          [--duration-factor F] [--smc-reading NAME] [--timeout SECONDS]
 #                          [--param NAME:=VALUE ...] [--composed] [--keep-going]
+#                          [--respawn controller]
 #
 # Starts the four nodes (each with `ros2 run pdsmc_ros ...`; with --composed, all four in one
 # process), waits for the end of the trajectory, and exits non-zero naming any node that failed. On timeout or Ctrl-C it
 # stops the nodes it started, by PID, recorder last. Node logs go to OUT.logs/.
 # When a node dies the others get 3 s (the plant's watchdog acts and the recorder records it)
-# before they are stopped; with --keep-going they run on (e.g. for a restarted controller).
+# before they are stopped; with --keep-going they run on. --respawn controller restarts the
+# controller 1 s after it dies, up to 3 times, like launch's respawn: the plant's safe mode
+# supervises the arm meanwhile and the run resumes when the new controller answers.
 set -uo pipefail
 
-usage() { sed -n '2,11p' "$0" | sed 's/^# \{0,1\}//'; }
+usage() { sed -n '2,15p' "$0" | sed 's/^# \{0,1\}//'; }
 die() { echo "run_experiment.sh: error: $*" >&2; exit 2; }
 
 ROBOT="" CONTOUR="" CONTROLLER="" OUT="" SCENARIO="nominal" MODE="lockstep" RATE=""
 FACTOR="" SMC_READING="" TIMEOUT="600" COMPOSED=0 KEEP_GOING=0
 EXTRA=()
+declare -A RESPAWN=()
+RESPAWN_MAX=3
+RESPAWN_DELAY=1
 while [[ $# -gt 0 ]]; do
   case "$1" in
     --robot) ROBOT="${2:-}"; shift 2 ;;
@@ -34,6 +40,12 @@ while [[ $# -gt 0 ]]; do
     --param) EXTRA+=(-p "${2:-}"); shift 2 ;;
     --composed) COMPOSED=1; shift ;;
     --keep-going) KEEP_GOING=1; shift ;;
+    --respawn)
+      case "${2:-}" in
+        controller) RESPAWN[$2]=0 ;;
+        *) die "--respawn takes controller (the node that can rejoin a running loop), got '${2:-}'" ;;
+      esac
+      shift 2 ;;
     -h|--help) usage; exit 0 ;;
     *) die "unknown argument '$1' (see --help)" ;;
   esac
@@ -45,6 +57,7 @@ done
 [[ "$MODE" == lockstep || "$MODE" == realtime ]] || die "--mode must be lockstep or realtime, got '$MODE'"
 [[ "$TIMEOUT" =~ ^[0-9]+$ && "$TIMEOUT" -gt 0 ]] || die "--timeout must be a whole number of seconds > 0, got '$TIMEOUT'"
 [[ -e "$OUT" ]] && die "--out '$OUT' already exists; choose a new bag directory"
+[[ ${#RESPAWN[@]} -gt 0 && $COMPOSED -eq 1 ]] && die "--respawn needs separate processes (not --composed)"
 
 HERE="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
 if command -v ros2 >/dev/null 2>&1; then
@@ -78,7 +91,7 @@ declare -A PIDS=()
 ORDER=(recorder controller trajectory plant)
 start_node() {
   local name="$1"; shift
-  "${ROS2[@]}" run pdsmc_ros "$name" --ros-args "${PARAMS[@]}" "$@" >"$LOGS/$name.log" 2>&1 &
+  "${ROS2[@]}" run pdsmc_ros "$name" --ros-args "${PARAMS[@]}" "$@" >>"$LOGS/$name.log" 2>&1 &
   PIDS[$name]=$!
 }
 
@@ -116,7 +129,17 @@ while :; do
     if kill -0 "$pid" 2>/dev/null; then
       running=$((running + 1))
     else
-      wait "$pid"; CODES[$name]=$?
+      wait "$pid"; code=$?
+      if [[ $code -ne 0 && -n "${RESPAWN[$name]:-}" && "${RESPAWN[$name]}" -lt $RESPAWN_MAX ]] \
+          && kill -0 "${PIDS[plant]}" 2>/dev/null; then
+        RESPAWN[$name]=$(( RESPAWN[$name] + 1 ))
+        echo "run_experiment.sh: node '$name' died (exit $code); respawning in ${RESPAWN_DELAY} s (${RESPAWN[$name]} of $RESPAWN_MAX)" >&2
+        sleep "$RESPAWN_DELAY"
+        start_node "$name"
+        running=$((running + 1))
+        continue
+      fi
+      CODES[$name]=$code
       if [[ "${CODES[$name]}" -ne 0 ]]; then
         FAILED+=("$name")
         echo "run_experiment.sh: node '$name' failed (exit ${CODES[$name]}): $(tail -n 1 "$LOGS/$name.log" 2>/dev/null)" >&2

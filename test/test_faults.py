@@ -19,7 +19,7 @@ from pdsmc_ros.errors import InvalidInputError
 from pdsmc_ros.mcapscan import scan
 from pdsmc_ros.presets import Gains
 from pdsmc_ros.safety import SafetyConfig, check_effort, limit_torque, safe_torque
-from pdsmc_ros.simulator import simulate
+from pdsmc_ros.simulator import ControlLaw, PlantStepper, simulate
 
 ROOT = Path(__file__).resolve().parent.parent
 SCRIPT = ROOT / "scripts" / "run_experiment.sh"
@@ -149,6 +149,51 @@ def test_killed_controller_puts_plant_in_safe_mode_and_run_fails_clearly(ros_env
     assert not run.truncated
     diag = scan(out / f"{out.name}.mcap", ["/diagnostics"]).messages["/diagnostics"]
     assert any(b"controller lost" in m and b"safe mode 'damp'" in m for m in diag)
+
+
+@pytest.mark.timeout(300)
+def test_respawned_controller_resumes_the_run(ros_env: dict, tmp_path: Path) -> None:
+    out = tmp_path / "respawn"
+    env = run_env(ros_env, out)
+    # safe mode advances sim time at 0.1 x wall clock, so the respawned controller
+    # (about 4 s to start) finds the motion still running
+    proc = start_experiment(env, out, "--duration-factor", "0.4", "--respawn", "controller",
+                            "--param", "watchdog_timeout:=0.5", "--param", "safe_time_scale:=0.1")
+    wait_steps(out, 3000)
+    os.kill(node_pid(out, "controller"), signal.SIGKILL)
+    _, err = wait_finish(proc)
+    assert proc.returncode == 0, err
+    assert "node 'controller' died (exit 137); respawning" in err
+    plant_log = (Path(f"{out}.logs") / "plant.log").read_text()
+    assert "controller lost" in plant_log and "safe mode off" in plant_log
+    diag = scan(out / f"{out.name}.mcap", ["/diagnostics"]).messages["/diagnostics"]
+    assert any(b"controller lost" in m for m in diag) and any(b"safe mode off" in m for m in diag)
+
+    run = read_run(out)
+    assert run.complete, run.missing
+    assert run.plant_torque_steps > 100  # the safe-mode stretch, with the torque applied
+    # before the kill: exactly the in-process run
+    sim = simulate(run.spec)
+    every = run.spec.sample_every
+    law = ControlLaw(run.spec)
+    ref = run.spec.reference().sample(np.arange(run.steps + 1) / run.spec.rate)
+    commanded = np.array([np.array_equal(run.tau[k], law.torque(run.q[k], run.qd[k], ref.q[k], ref.qd[k], ref.qdd[k]))
+                          for k in range(run.steps)])
+    first_safe = int(np.argmin(commanded))
+    resumed = first_safe + int(np.argmax(commanded[first_safe:]))
+    assert 0 < first_safe < resumed < run.steps
+    assert commanded[:first_safe].all() and commanded[resumed:].all()  # the law, bit for bit
+    # the safe stretch, plus at most the last command of the killed controller, which
+    # reached the plant but not the recorder
+    assert resumed - first_safe <= run.plant_torque_steps <= resumed - first_safe + 1
+    k_sim = np.arange(0, first_safe, every)
+    assert np.max(np.abs(run.q[k_sim] - sim.samples.q[: len(k_sim)])) <= 1e-9
+    # after the resume, every step is the plant's integration of the commanded torque
+    stepper = PlantStepper(run.spec.robot_model(), 1.0 / run.spec.rate, run.q[resumed], run.qd[resumed])
+    for k in range(resumed, run.steps):
+        stepper.step(run.tau[k])
+        assert np.array_equal(stepper.q, run.q[k + 1]) and np.array_equal(stepper.qd, run.qd[k + 1]), k
+        stepper.q, stepper.qd = run.q[k + 1].copy(), run.qd[k + 1].copy()
 
 
 @pytest.mark.timeout(300)
