@@ -98,8 +98,10 @@ def read_timing(out: Path) -> np.ndarray:
     with AnyReader([out], default_typestore=get_typestore(Stores.ROS2_JAZZY)) as reader:
         conns = [c for c in reader.connections if c.topic == "/pdsmc/controller_timing"]
         for conn, _, raw in reader.messages(connections=conns):
-            rows.append(reader.deserialize(raw, conn.msgtype).data)
-    return np.asarray(rows)
+            msg = reader.deserialize(raw, conn.msgtype)
+            assert [d.size for d in msg.layout.dim] == [len(msg.data) // 5, 5]  # rows x fields
+            rows.append(msg.data)
+    return np.concatenate(rows).reshape(-1, 5)
 
 
 @pytest.mark.timeout(120)

@@ -7,6 +7,7 @@ parameters into a :class:`~pdsmc_ros.presets.RunSpec` and wires messages.
 from __future__ import annotations
 
 import dataclasses
+import gc
 import json
 import os
 import signal
@@ -26,7 +27,6 @@ from rclpy.exceptions import (
     ParameterUninitializedException,
 )
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
-from rclpy.experimental import EventsExecutor
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy_impl
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -58,10 +58,22 @@ TOPIC_DIAGNOSTICS = "diagnostics"
 
 MODES = ("lockstep", "realtime")
 
-# Every sample must arrive, in order: reliable, keep-all (NOTES: KEEP_LAST lost data).
+# Subscriptions of the lockstep loop and the recorder: every sample, in order (reliable,
+# keep-all; a shallow keep-last queue lost data).
 LOCKSTEP_QOS = QoSProfile(
     reliability=ReliabilityPolicy.RELIABLE,
     history=HistoryPolicy.KEEP_ALL,
+    durability=DurabilityPolicy.VOLATILE,
+)
+# Publishers of the loop: reliable with a deep but bounded history. A keep-all writer
+# blocks in publish() once a subscriber stops acknowledging (a killed node, until DDS
+# drops it, or a new node still starting): that froze the plant in safe mode. A live
+# subscriber acknowledges each sample long before 10,000 newer ones are written.
+STREAM_DEPTH = 10_000
+STREAM_QOS = QoSProfile(
+    reliability=ReliabilityPolicy.RELIABLE,
+    history=HistoryPolicy.KEEP_LAST,
+    depth=STREAM_DEPTH,
     durability=DurabilityPolicy.VOLATILE,
 )
 # Real time: a controller acts on the newest sample; a queue of old ones is only delay.
@@ -71,11 +83,6 @@ LATEST_QOS = QoSProfile(
     depth=1,
     durability=DurabilityPolicy.VOLATILE,
 )
-
-
-def control_qos(mode: str) -> QoSProfile:
-    """Subscription QoS of the control loop: every sample in lockstep, the latest in real time."""
-    return LOCKSTEP_QOS if mode == "lockstep" else LATEST_QOS
 
 
 # The run description is published once and must reach late joiners.
@@ -138,6 +145,9 @@ SAFETY_PARAMETERS: dict[str, tuple[Any, ParameterDescriptor]] = {
     "safe_damping": (5.0, _descriptor("safe-mode braking gain in N m s/rad", lo=0.0, hi=1.0e6)),
     "safe_stiffness": (200.0, _descriptor("hold-mode stiffness in N m/rad", lo=0.0, hi=1.0e7)),
     "on_controller_loss": ("resume", _descriptor("after safe mode", constraints="resume or end")),
+    "safe_time_scale": (1.0, _descriptor(
+        "lockstep: sim seconds the plant advances per wall second in safe mode (1: real time, 0: frozen)",
+        lo=0.0, hi=1000.0)),
 }
 
 
@@ -160,9 +170,11 @@ def declare_safety_parameters(node: Node) -> None:
 def safety_from_parameters(node: Node) -> SafetyConfig:
     """The plant's SafetyConfig, validated (ConfigError naming the parameter)."""
     values = {name: node.get_parameter(name).value for name in SAFETY_PARAMETERS}
-    for name in ("watchdog_timeout", "safe_damping", "safe_stiffness"):
+    for name in ("watchdog_timeout", "safe_damping", "safe_stiffness", "safe_time_scale"):
         if isinstance(values[name], bool) or not isinstance(values[name], (int, float)):
             raise ConfigError(f"parameter {name} must be a number, got {values[name]!r}")
+    if not 0.0 <= values["safe_time_scale"] <= 1000.0:
+        raise ConfigError(f"parameter safe_time_scale must be in [0, 1000], got {values['safe_time_scale']!r}")
     if isinstance(values["watchdog_periods"], bool) or not isinstance(values["watchdog_periods"], int) \
             or values["watchdog_periods"] < 1:
         raise ConfigError(f"parameter watchdog_periods must be a whole number >= 1, got {values['watchdog_periods']!r}")
@@ -366,6 +378,48 @@ def exit_watchdog(seconds: float = 10.0) -> None:
     timer.start()
 
 
+class Inputs:
+    """The subscriptions of a node's control loop, taken as serialized CDR.
+
+    They live on a lean companion node (``<name>_io``: no parameter services,
+    no rosout) that no executor sees; :func:`run_nodes` takes their messages
+    with a hand-driven wait set and calls the handlers directly, while the
+    executor serves the node's timers, parameters and ``/clock`` in between.
+    That path sets the lockstep rate (bench/lockstep.py) and the real-time
+    jitter. Handlers receive the serialized message (:mod:`pdsmc_ros.cdr`).
+    QoS: every sample in lockstep, the newest in real time, unless given.
+    """
+
+    def __init__(self, node: Node, mode: str) -> None:
+        self.node = node
+        self.mode = mode
+        self.io_node: Node | None = None
+        self.hot: list[tuple[Any, Callable[[bytes], None]]] = []
+
+    def subscribe(self, msg_type: Any, topic: str, handler: Callable[[bytes], None],
+                  qos: QoSProfile | None = None) -> None:
+        if qos is None:
+            qos = LOCKSTEP_QOS if self.mode == "lockstep" else LATEST_QOS
+        if self.io_node is None:
+            # no global arguments: the companion must not get use_sim_time (a /clock
+            # subscription nobody serves); topics are resolved by the node itself
+            self.io_node = Node(f"{self.node.get_name()}_io", namespace=self.node.get_namespace(),
+                                context=self.node.context, use_global_arguments=False,
+                                start_parameter_services=False, enable_rosout=False)
+        name = self.node.resolve_topic_name(topic)
+        sub = self.io_node.create_subscription(msg_type, name, _taken_by_wait_set, qos, raw=True)
+        self.hot.append((sub, handler))
+
+    def destroy(self) -> None:
+        if self.io_node is not None:
+            self.io_node.destroy_node()
+            self.io_node = None
+
+
+def _taken_by_wait_set(_msg: bytes) -> None:  # pragma: no cover - never called
+    """Callback of a lockstep input: its messages are taken by run_nodes' wait set."""
+
+
 def run_node(
     name: str,
     factory: Callable[[], Any],
@@ -410,22 +464,16 @@ def run_nodes(
             return EXIT_FAILURE
         group = _Group(wrappers)
         period = group.period
-        # Lockstep is event-driven: the EventsExecutor roughly doubles its step rate;
-        # its spin_once without a timeout never blocks in this wheel (NOTES.md), so it
-        # always gets a finite one. Its timers fire far too often (measured 35x the
-        # period), so real-time nodes are paced here instead of by rclpy timers: the
-        # loop calls tick() on a wall-clock schedule and drains messages in between.
-        # That needs sub-millisecond waits, which this EventsExecutor does not honour
-        # (it returns without delivering events); the default executor's wait set does.
-        executor = SingleThreadedExecutor() if period else EventsExecutor()
+        # The loop's messages go through a hand-driven wait set (Inputs), the rest through
+        # the executor between them. Real-time nodes are paced by the loop, not by rclpy
+        # timers (they fired 35x too often under this wheel's EventsExecutor and wake
+        # late under the default one).
+        executor = SingleThreadedExecutor()
         for wrapper in wrappers:
             executor.add_node(wrapper.node)
         _install_signal_handlers(group)
-        if period:
-            _paced_loop(executor, group, period)
-        else:
-            while rclpy.ok() and not group.done:
-                executor.spin_once(timeout_sec=0.05)
+        hot = [item for w in wrappers if getattr(w, "inputs", None) for item in w.inputs.hot]
+        _serve_loop(executor, group, hot, period)
         code = group.exit_code
         if not group.stopped_by_signal:
             _linger(executor, 0.3)  # let reliable DDS deliver the last messages
@@ -436,6 +484,9 @@ def run_nodes(
             close = getattr(wrapper, "close", None)
             if close is not None:
                 close()
+            inputs = getattr(wrapper, "inputs", None)
+            if inputs is not None:
+                inputs.destroy()
             wrapper.node.destroy_node()
         exit_watchdog()
         rclpy.try_shutdown()
@@ -470,23 +521,90 @@ class _Group:
                 w.tick(lateness)
 
 
-def _paced_loop(executor: SingleThreadedExecutor, wrapper: Any, period: float) -> None:
-    """Call ``wrapper.tick()`` every ``period`` seconds of wall-clock time.
+COLD_PERIOD_S = 0.005  # the executor's turn (timers, parameters, /clock) at least this often
+SPIN_BEFORE_TICK_S = 0.0002  # real time: busy-wait this last stretch before a tick
 
-    Late ticks are run at once (no burst catch-up beyond one period); the
-    wrapper may count ``missed`` deadlines from the lateness passed to tick().
+
+def _serve_loop(executor: SingleThreadedExecutor, group: Any,
+                hot: Sequence[tuple[Any, Callable[[bytes], None]]], period: float | None) -> None:
+    """Take the loop's inputs with a wait set of their own; serve the rest beside them.
+
+    Every ready input is drained (``take_message`` until empty) and handed to its
+    handler. Lockstep: every ``COLD_PERIOD_S`` the executor gets one
+    non-blocking turn (timers, parameters, ``/clock``). Real time (a ``period``):
+    the executor spins in a thread of its own instead -- one of its turns builds
+    a wait set of every entity of the node and took about 1 ms, a missed
+    deadline each time -- and ``group.tick(lateness)`` runs on a wall-clock
+    schedule: the loop sleeps in the wait set until ``SPIN_BEFORE_TICK_S``
+    before the deadline and busy-waits the rest, because waking from a sleep is
+    late by tens to hundreds of microseconds. Late ticks run at once (no burst
+    catch-up beyond one period); ``tick`` may count missed deadlines from the
+    lateness. The garbage collector is kept off the path (the loop creates no
+    reference cycles) and its young generation collected now and then.
     """
-    next_tick = time.perf_counter() + period
-    while rclpy.ok() and not wrapper.done:
-        now = time.perf_counter()
-        if now >= next_tick:
-            lateness = now - next_tick
-            wrapper.tick(lateness)
-            next_tick += period
-            if now - next_tick > period:  # more than a period behind: resynchronise
-                next_tick = now + period
-            continue
-        executor.spin_once(timeout_sec=min(next_tick - now, 0.05))
+    clock = time.perf_counter
+    wait_set = _rclpy_impl.WaitSet(len(hot), 0, 0, 0, 0, 0, executor.context.handle)
+    inputs = [(sub.handle, sub.msg_type, handler) for sub, handler in hot]
+    gc.collect()
+    gc.freeze()
+    gc.disable()
+    stop = threading.Event()
+    cold_thread = None
+    if period:
+        def spin_cold() -> None:
+            while not stop.is_set() and rclpy.ok():
+                executor.spin_once(timeout_sec=0.1)
+
+        cold_thread = threading.Thread(target=spin_cold, name="executor", daemon=True)
+        cold_thread.start()
+    try:
+        next_cold = float("inf") if period else 0.0
+        next_tick = clock() + period if period else float("inf")
+        while rclpy.ok() and not group.done:
+            took = False
+            for handle, msg_type, handler in inputs:
+                while True:
+                    taken = handle.take_message(msg_type, True)
+                    if taken is None:
+                        break
+                    handler(taken[0])
+                    took = True
+            if took and group.done:
+                return
+            now = clock()
+            if now >= next_tick:
+                group.tick(now - next_tick)
+                next_tick += period
+                if now - next_tick > period:  # more than a period behind: resynchronise
+                    next_tick = now + period
+                continue
+            if now >= next_cold:
+                executor.spin_once(timeout_sec=0.0)
+                next_cold = now + COLD_PERIOD_S
+                continue
+            if gc.get_count()[0] > 50_000:
+                gc.collect(0)
+            if took:
+                continue
+            sleep = min(next_cold, next_tick - SPIN_BEFORE_TICK_S, now + 0.1) - now
+            if sleep <= 0.0:
+                continue  # busy-wait for the tick
+            if not inputs:
+                if cold_thread is None:
+                    executor.spin_once(timeout_sec=sleep)
+                else:
+                    time.sleep(sleep)
+                continue
+            wait_set.clear_entities()
+            for handle, _, _ in inputs:
+                wait_set.add_subscription(handle)
+            wait_set.wait(int(sleep * 1e9))
+    finally:
+        stop.set()
+        if cold_thread is not None:
+            cold_thread.join(timeout=1.0)
+        gc.enable()
+        gc.unfreeze()
 
 
 def _linger(executor: Any, seconds: float) -> None:

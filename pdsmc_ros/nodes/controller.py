@@ -24,19 +24,20 @@ import numpy as np
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Float64MultiArray, String
+from std_msgs.msg import Float64MultiArray, MultiArrayDimension, String
 from trajectory_msgs.msg import JointTrajectory
 
+from ..cdr import decode_joint_state, decode_joint_trajectory, encode_float64_multi_array
 from ..presets import Gains
 from ..safety import limit_torque
 from ..simulator import ControlLaw, control_steps
 from ..stability import check_rate
 from .common import (
     GuardedPublisher,
-    control_qos,
+    Inputs,
     EXIT_OK,
     LATCHED_QOS,
-    LOCKSTEP_QOS,
+    STREAM_QOS,
     TOPIC_DESCRIPTION,
     TOPIC_EFFORT,
     TOPIC_JOINT_STATES,
@@ -50,6 +51,12 @@ from .common import (
     stamp_to_step,
     torque_limit_from_parameters,
 )
+
+
+# Real time: achieved-period rows [wall time, period, compute time, lateness, missed so far]
+# go out in batches (one publish costs about as much as the control law's whole tick)
+TIMING_FIELDS = 5
+TIMING_BATCH = 50
 
 
 class ControllerNode:
@@ -84,16 +91,18 @@ class ControllerNode:
         self.state_time = 0.0
         self.ref_time = 0.0
 
-        self.pub_effort = GuardedPublisher(node.create_publisher(Float64MultiArray, TOPIC_EFFORT, LOCKSTEP_QOS), node)
+        self.pub_effort = GuardedPublisher(node.create_publisher(Float64MultiArray, TOPIC_EFFORT, STREAM_QOS), node)
         self.pub_desc = node.create_publisher(String, TOPIC_DESCRIPTION, LATCHED_QOS)
-        self.pub_timing = GuardedPublisher(node.create_publisher(Float64MultiArray, TOPIC_TIMING, LOCKSTEP_QOS), node)
-        node.create_subscription(JointState, TOPIC_JOINT_STATES, self.on_state, control_qos(self.mode))
-        node.create_subscription(JointTrajectory, TOPIC_REFERENCE, self.on_reference, control_qos(self.mode))
+        self.pub_timing = GuardedPublisher(node.create_publisher(Float64MultiArray, TOPIC_TIMING, STREAM_QOS), node)
+        self.inputs = Inputs(node, self.mode)
+        self.inputs.subscribe(JointState, TOPIC_JOINT_STATES, self.on_state)
+        self.inputs.subscribe(JointTrajectory, TOPIC_REFERENCE, self.on_reference)
         self.pub_desc.publish(String(data=description_json(self.spec, self.mode)))
         if self.mode == "realtime":
             self.period = 1.0 / self.spec.rate  # run_node paces tick() at this period
             self.missed = 0
             self.deadline: float | None = None
+            self.timing_rows: list[float] = []
         node.get_logger().info(
             f"{self.spec.controller} controller for {self.spec.robot}/{self.spec.contour}, "
             f"{self.mode}, {self.spec.rate:g} Hz"
@@ -105,28 +114,26 @@ class ControllerNode:
         self.law = ControlLaw(self.spec)
         self.node.get_logger().info(f"gains changed: {gains.as_dict()}")
 
-    def on_state(self, msg: JointState) -> None:
-        step = stamp_to_step(msg.header.stamp.sec, msg.header.stamp.nanosec, self.spec.rate)
-        q = np.asarray(msg.position[: self.n], dtype=float)
-        qd = np.asarray(msg.velocity[: self.n], dtype=float)
+    def on_state(self, data: bytes) -> None:
+        sec, nanosec, position, velocity, _ = decode_joint_state(data)
+        step = stamp_to_step(sec, nanosec, self.spec.rate)
+        q = np.array(position[: self.n])
+        qd = np.array(velocity[: self.n])
         self.state = (step, q, qd)
         self.state_time = time.perf_counter()
         if self.mode == "lockstep":
             self.try_compute()
 
-    def on_reference(self, msg: JointTrajectory) -> None:
-        if not msg.points:
+    def on_reference(self, data: bytes) -> None:
+        decoded = decode_joint_trajectory(data)
+        if decoded is None:
             return
-        point = msg.points[0]
-        ref = (
-            np.asarray(point.positions, dtype=float),
-            np.asarray(point.velocities, dtype=float),
-            np.asarray(point.accelerations, dtype=float),
-        )
+        sec, nanosec, positions, velocities, accelerations = decoded
+        ref = (np.array(positions), np.array(velocities), np.array(accelerations))
         self.latest_ref = ref
         self.ref_time = time.perf_counter()
         if self.mode == "lockstep":
-            step = stamp_to_step(msg.header.stamp.sec, msg.header.stamp.nanosec, self.spec.rate)
+            step = stamp_to_step(sec, nanosec, self.spec.rate)
             self.refs[step] = ref
             self.try_compute()
 
@@ -158,16 +165,14 @@ class ControllerNode:
             self.clamped += 1
             if self.clamped <= 5 or self.clamped % 1000 == 0:
                 self.node.get_logger().warn(f"torque limited at step {step} ({self.clamped} so far)")
-        msg = Float64MultiArray()
-        msg.layout.data_offset = step
-        msg.data = tau.tolist()
-        self.pub_effort.publish(msg)
+        self.pub_effort.publish(encode_float64_multi_array(tau.tolist(), step))
 
     def tick(self, lateness: float) -> None:
         """Real time: torque from the latest state and reference; timing recorded.
 
         Publishes ``[wall time (s), achieved period (s), compute time (s),
-        lateness (s), missed deadlines so far]`` on ``/pdsmc/controller_timing``.
+        lateness (s), missed deadlines so far]`` rows on ``/pdsmc/controller_timing``,
+        ``TIMING_BATCH`` rows per message.
         """
         now = time.perf_counter()
         if lateness > self.period:
@@ -196,11 +201,30 @@ class ControllerNode:
         self.publish(self.law.torque(q, qd, *self.latest_ref), step)
         period = 0.0 if self.last_tick is None else now - self.last_tick
         self.last_tick = now
-        timing = Float64MultiArray()
-        timing.data = [time.time(), period, time.perf_counter() - now, lateness, float(self.missed)]
-        self.pub_timing.publish(timing)
+        self.timing_rows += [time.time(), period, time.perf_counter() - now, lateness, float(self.missed)]
+        if len(self.timing_rows) >= TIMING_FIELDS * TIMING_BATCH:
+            self.publish_timing()
         if step >= self.last_step:
             self.done = True
+            self.publish_timing()
+
+    def publish_timing(self) -> None:
+        """Publish the pending timing rows as one ``rows x 5`` Float64MultiArray."""
+        if not self.timing_rows:
+            return
+        rows = len(self.timing_rows) // TIMING_FIELDS
+        msg = Float64MultiArray()
+        msg.layout.dim = [
+            MultiArrayDimension(label="tick", size=rows, stride=rows * TIMING_FIELDS),
+            MultiArrayDimension(label="field", size=TIMING_FIELDS, stride=TIMING_FIELDS),
+        ]
+        msg.data = self.timing_rows
+        self.pub_timing.publish(msg)
+        self.timing_rows = []
+
+    def close(self) -> None:
+        if self.mode == "realtime":
+            self.publish_timing()
 
 
 def main(args: Sequence[str] | None = None) -> int:

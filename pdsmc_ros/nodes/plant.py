@@ -28,14 +28,16 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
+from ..cdr import decode_float64_multi_array, encode_joint_state
+from ..errors import BagError
 from ..safety import check_effort, safe_torque
 from ..simulator import PlantStepper, control_steps
 from .common import (
     GuardedPublisher,
-    control_qos,
+    Inputs,
     STEADY_CLOCK,
     EXIT_OK,
-    LOCKSTEP_QOS,
+    STREAM_QOS,
     TOPIC_EE_ACTUAL,
     TOPIC_DIAGNOSTICS,
     TOPIC_EFFORT,
@@ -65,6 +67,9 @@ class PlantNode:
         node.add_on_set_parameters_callback(refuse_run_changes)
         self.watchdog_timeout = float(node.get_parameter("watchdog_timeout").value)
         self.watchdog_periods = int(node.get_parameter("watchdog_periods").value)
+        self.safe_time_scale = float(node.get_parameter("safe_time_scale").value)
+        self.safe_debt = 0.0  # safe-mode steps owed to the wall clock (lockstep)
+        self.safe_since = 0.0
         self.mode = node.get_parameter("mode").value
         self.expected = int(node.get_parameter("expected_subscribers").value)
         reference = self.spec.reference()
@@ -89,11 +94,12 @@ class PlantNode:
         self.clock_every = decimation(self.spec.rate, node.get_parameter("clock_rate").value)
         self.ee_every = self.spec.sample_every
 
-        self.pub_state = GuardedPublisher(node.create_publisher(JointState, TOPIC_JOINT_STATES, LOCKSTEP_QOS), node)
-        self.pub_ee = GuardedPublisher(node.create_publisher(PointStamped, TOPIC_EE_ACTUAL, LOCKSTEP_QOS), node)
-        self.pub_clock = GuardedPublisher(node.create_publisher(Clock, "/clock", LOCKSTEP_QOS), node)
-        self.pub_diag = GuardedPublisher(node.create_publisher(DiagnosticArray, TOPIC_DIAGNOSTICS, LOCKSTEP_QOS), node)
-        node.create_subscription(Float64MultiArray, TOPIC_EFFORT, self.on_effort, control_qos(self.mode))
+        self.pub_state = GuardedPublisher(node.create_publisher(JointState, TOPIC_JOINT_STATES, STREAM_QOS), node)
+        self.pub_ee = GuardedPublisher(node.create_publisher(PointStamped, TOPIC_EE_ACTUAL, STREAM_QOS), node)
+        self.pub_clock = GuardedPublisher(node.create_publisher(Clock, "/clock", STREAM_QOS), node)
+        self.pub_diag = GuardedPublisher(node.create_publisher(DiagnosticArray, TOPIC_DIAGNOSTICS, STREAM_QOS), node)
+        self.inputs = Inputs(node, self.mode)
+        self.inputs.subscribe(Float64MultiArray, TOPIC_EFFORT, self.on_effort)
 
         if self.mode == "lockstep":
             self.timer = node.create_timer(0.01, self.try_start, clock=STEADY_CLOCK)
@@ -109,23 +115,18 @@ class PlantNode:
     def publish_state(self) -> None:
         step = self.plant.steps
         sec, nanosec = step_stamp(step, self.spec.rate)
-        stamp = Time(sec=sec, nanosec=nanosec)
         if self.mode == "lockstep" and step % self.clock_every == 0:
-            self.pub_clock.publish(Clock(clock=stamp))
-        msg = JointState()
-        msg.header.stamp = stamp
-        msg.name = self.names
+            self.pub_clock.publish(Clock(clock=Time(sec=sec, nanosec=nanosec)))
         q, qd = self.plant.q, self.plant.qd
         passive_q, passive_qd = self.robot.passive_joints(q, qd)
-        msg.position = q.tolist() + passive_q.tolist()
-        msg.velocity = qd.tolist() + passive_qd.tolist()
-        msg.effort = self.applied.tolist() + [0.0] * len(passive_q)
-        self.pub_state.publish(msg)
+        self.pub_state.publish(encode_joint_state(
+            sec, nanosec, self.names, q.tolist() + passive_q.tolist(), qd.tolist() + passive_qd.tolist(),
+            self.applied.tolist() + [0.0] * len(passive_q)))
         if step % self.ee_every and step != self.last_step:
             return  # the end-effector point goes out at the statistics rate
         x, y = self.robot.position(q)
         ee = PointStamped()
-        ee.header.stamp = stamp
+        ee.header.stamp = Time(sec=sec, nanosec=nanosec)
         ee.point.x, ee.point.y = float(x), float(y)
         self.pub_ee.publish(ee)
 
@@ -170,10 +171,14 @@ class PlantNode:
         msg.header.stamp = Time(sec=sec, nanosec=nanosec)
         self.pub_diag.publish(msg)
 
-    def on_effort(self, msg: Float64MultiArray) -> None:
-        step = int(msg.layout.data_offset)
+    def on_effort(self, data: bytes) -> None:
+        try:
+            step, values = decode_float64_multi_array(data)
+        except BagError as exc:
+            self.reject(str(exc))
+            return
         lockstep = self.mode == "lockstep"
-        tau, reason = check_effort(msg.data, self.robot.n)
+        tau, reason = check_effort(values, self.robot.n)
         if tau is None:
             self.reject(reason)
             return
@@ -210,8 +215,15 @@ class PlantNode:
         if not self.safe and time.monotonic() - self.last_progress > self.watchdog_timeout:
             self.enter_safe_mode(f"no effort for step {self.plant.steps} within {self.watchdog_timeout:g} s")
         elif self.safe and not self.awaiting_resume:
-            # advance in real-time pace with the safe torque so the arm is supervised
-            for _ in range(max(1, int(round(0.01 * self.spec.rate)))):
+            # advance with the safe torque at safe_time_scale x wall-clock pace, so the
+            # arm stays supervised while no controller answers
+            now = time.monotonic()
+            owed = (now - self.safe_since) * self.safe_time_scale * self.spec.rate
+            self.safe_since = now
+            # after a stall, catch up at most 0.1 s of wall time at once
+            self.safe_debt = min(self.safe_debt + owed, 0.1 * self.safe_time_scale * self.spec.rate + 1.0)
+            while self.safe_debt >= 1.0:
+                self.safe_debt -= 1.0
                 if self.plant.steps >= self.last_step:
                     self.done = True
                     return
@@ -226,6 +238,8 @@ class PlantNode:
     def enter_safe_mode(self, why: str) -> None:
         self.safe = True
         self.awaiting_resume = False
+        self.safe_debt = 0.0
+        self.safe_since = time.monotonic()
         self.q_hold = self.plant.q.copy()
         text = f"controller lost: {why}; safe mode '{self.safety.mode}'"
         self.node.get_logger().error(text)

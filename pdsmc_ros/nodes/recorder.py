@@ -11,6 +11,7 @@ else. The bag is closed cleanly on completion, SIGINT or SIGTERM.
 from __future__ import annotations
 
 import sys
+import threading
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -31,6 +32,7 @@ from ..simulator import control_steps
 from .common import (
     EXIT_FAILURE,
     EXIT_OK,
+    Inputs,
     LATCHED_QOS,
     LOCKSTEP_QOS,
     STEADY_CLOCK,
@@ -97,10 +99,13 @@ class RecorderNode:
         except OSError as exc:
             raise BagError(f"cannot open bag {output!r} for writing: {exc}") from None
         self.connections = {}
+        # the flush timer may run in the executor's thread (real-time composed mode)
+        self.lock = threading.Lock()
+        self.inputs = Inputs(node, str(node.get_parameter("mode").value))
         for topic, (msg_type, type_name, qos) in RECORDED.items():
             name = "/" + topic
             self.connections[topic] = self.writer.add_connection(name, type_name, typestore=typestore)
-            node.create_subscription(msg_type, topic, self._callback(topic), qos, raw=True)
+            self.inputs.subscribe(msg_type, topic, self._callback(topic), qos)
         # rosbags closes an MCAP chunk only at 1 MiB (seconds of data); close and flush one
         # every 0.5 s so a killed recorder loses at most that much (see mcapscan)
         self.flush_timer = node.create_timer(FLUSH_PERIOD_S, self.flush, clock=STEADY_CLOCK)
@@ -112,7 +117,8 @@ class RecorderNode:
 
         def callback(data: bytes) -> None:
             try:
-                self.writer.write(connection, time.time_ns(), data)
+                with self.lock:
+                    self.writer.write(connection, time.time_ns(), data)
             except OSError as exc:
                 self.node.get_logger().error(f"write to {self.path} failed: {exc}")
                 self.exit_code = EXIT_FAILURE
@@ -123,9 +129,10 @@ class RecorderNode:
                 self.description = deserialize_message(data, String).data
             if stepped:
                 step = effort_step(data) if topic == TOPIC_EFFORT else header_step(data, self.spec.rate)
-                self.seen[topic] = max(self.seen[topic], step)
-                if all(v >= self.last_step for v in self.seen.values()):
-                    self.done = True
+                if step > self.seen[topic]:
+                    self.seen[topic] = step
+                    if step >= self.last_step and all(v >= self.last_step for v in self.seen.values()):
+                        self.done = True
 
         return callback
 
@@ -135,9 +142,10 @@ class RecorderNode:
         if storage is None or not hasattr(storage, "close_chunk"):
             return
         try:
-            if storage.chunk.bio.tell():
-                storage.close_chunk()
-            storage.bio.flush()
+            with self.lock:
+                if storage.chunk.bio.tell():
+                    storage.close_chunk()
+                storage.bio.flush()
         except OSError as exc:
             self.node.get_logger().error(f"write to {self.path} failed: {exc}")
             self.exit_code = EXIT_FAILURE

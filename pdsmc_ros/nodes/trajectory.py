@@ -19,19 +19,20 @@ import sys
 from collections.abc import Sequence
 
 import numpy as np
-from builtin_interfaces.msg import Duration, Time
+from builtin_interfaces.msg import Time
 from geometry_msgs.msg import PointStamped
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
-from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+from trajectory_msgs.msg import JointTrajectory
 
+from ..cdr import decode_stamp, encode_joint_trajectory
 from ..simulator import control_steps
 from .common import (
     GuardedPublisher,
-    control_qos,
+    Inputs,
     STEADY_CLOCK,
     EXIT_OK,
-    LOCKSTEP_QOS,
+    STREAM_QOS,
     TOPIC_EE_DESIRED,
     TOPIC_JOINT_STATES,
     TOPIC_REFERENCE,
@@ -63,15 +64,17 @@ class TrajectoryNode:
         self.refs = reference.sample(t)
         self.task = reference.contour.task(t).p
         self.names = list(self.robot.joint_names)
+        self.ee_every = self.spec.sample_every
         self.next_step = 0
         self.state_step = -1
         self.started = False
         self.done = False
         self.exit_code = EXIT_OK
 
-        self.pub_ref = GuardedPublisher(node.create_publisher(JointTrajectory, TOPIC_REFERENCE, LOCKSTEP_QOS), node)
-        self.pub_ee = GuardedPublisher(node.create_publisher(PointStamped, TOPIC_EE_DESIRED, LOCKSTEP_QOS), node)
-        node.create_subscription(JointState, TOPIC_JOINT_STATES, self.on_state, control_qos(self.mode))
+        self.pub_ref = GuardedPublisher(node.create_publisher(JointTrajectory, TOPIC_REFERENCE, STREAM_QOS), node)
+        self.pub_ee = GuardedPublisher(node.create_publisher(PointStamped, TOPIC_EE_DESIRED, STREAM_QOS), node)
+        self.inputs = Inputs(node, self.mode)
+        self.inputs.subscribe(JointState, TOPIC_JOINT_STATES, self.on_state)
         if self.mode == "lockstep":
             self.timer = node.create_timer(0.01, self.try_start, clock=STEADY_CLOCK)
         else:
@@ -83,21 +86,13 @@ class TrajectoryNode:
 
     def publish(self, step: int) -> None:
         sec, nanosec = step_stamp(step, self.spec.rate)
-        stamp = Time(sec=sec, nanosec=nanosec)
-        msg = JointTrajectory()
-        msg.header.stamp = stamp
-        msg.joint_names = self.names
-        point = JointTrajectoryPoint()
-        point.positions = self.refs.q[step].tolist()
-        point.velocities = self.refs.qd[step].tolist()
-        point.accelerations = self.refs.qdd[step].tolist()
-        point.time_from_start = Duration(sec=0, nanosec=0)
-        msg.points = [point]
-        self.pub_ref.publish(msg)
-        if step % self.spec.sample_every and step != self.last_step:
+        self.pub_ref.publish(encode_joint_trajectory(
+            sec, nanosec, self.names, self.refs.q[step].tolist(), self.refs.qd[step].tolist(),
+            self.refs.qdd[step].tolist()))
+        if step % self.ee_every and step != self.last_step:
             return  # the desired end-effector point goes out at the statistics rate
         ee = PointStamped()
-        ee.header.stamp = stamp
+        ee.header.stamp = Time(sec=sec, nanosec=nanosec)
         ee.point.x, ee.point.y = float(self.task[step, 0]), float(self.task[step, 1])
         self.pub_ee.publish(ee)
 
@@ -116,8 +111,8 @@ class TrajectoryNode:
             self.publish(self.next_step)
             self.next_step += 1
 
-    def on_state(self, msg: JointState) -> None:
-        step = stamp_to_step(msg.header.stamp.sec, msg.header.stamp.nanosec, self.spec.rate)
+    def on_state(self, data: bytes) -> None:
+        step = stamp_to_step(*decode_stamp(data), self.spec.rate)
         repeated = step == self.state_step
         self.state_step = max(self.state_step, step)
         if self.mode != "lockstep":
