@@ -116,6 +116,8 @@ class ControllerNode:
 
     def on_state(self, data: bytes) -> None:
         sec, nanosec, position, velocity, _ = decode_joint_state(data)
+        if len(position) < self.n or len(velocity) < self.n:
+            return  # not this arm's state (the plant always sends every joint)
         step = stamp_to_step(sec, nanosec, self.spec.rate)
         q = np.array(position[: self.n])
         qd = np.array(velocity[: self.n])
@@ -129,6 +131,8 @@ class ControllerNode:
         if decoded is None:
             return
         sec, nanosec, positions, velocities, accelerations = decoded
+        if not len(positions) == len(velocities) == len(accelerations) == self.n:
+            return  # not this arm's reference
         ref = (np.array(positions), np.array(velocities), np.array(accelerations))
         self.latest_ref = ref
         self.ref_time = time.perf_counter()

@@ -128,8 +128,12 @@ class RecorderNode:
             if topic == TOPIC_DESCRIPTION:
                 self.description = deserialize_message(data, String).data
             if stepped:
-                step = effort_step(data) if topic == TOPIC_EFFORT else header_step(data, self.spec.rate)
-                if step > self.seen[topic]:
+                try:
+                    step = effort_step(data) if topic == TOPIC_EFFORT else header_step(data, self.spec.rate)
+                except BagError:
+                    return  # not a message of this loop (e.g. an effort with layout dimensions)
+                # a step beyond the run is not this run's (a rogue publisher): recorded, not counted
+                if self.seen[topic] < step <= self.last_step:
                     self.seen[topic] = step
                     if step >= self.last_step and all(v >= self.last_step for v in self.seen.values()):
                         self.done = True
