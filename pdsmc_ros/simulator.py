@@ -23,6 +23,7 @@ from .errors import InvalidInputError
 from .metrics import Metrics, Samples, compute_metrics
 from .models import FloatArray, Manipulator, as_vector
 from .presets import RunSpec
+from .trajectories import JointReference
 from .stability import check_rate
 
 CONTROLLER_CODES = {"pd": kernels.CTRL_PD, "smc": kernels.CTRL_SMC, "pdsmc": kernels.CTRL_PDSMC}
@@ -124,13 +125,12 @@ def simulate(spec: RunSpec, *, check_stability: bool = True) -> RunResult:
     """
     start = time.perf_counter()
     robot = spec.robot_model()
-    reference = spec.reference()
+    reference, refs = _reference_samples(spec)
     if check_stability:
         check_rate(spec, reference)
     contour = reference.contour
-    steps = control_steps(contour.duration, spec.rate)
+    steps = refs.shape[0] - 1
     t_ctrl = np.arange(steps + 1) / spec.rate
-    refs = np.ascontiguousarray(reference.sample(t_ctrl).stacked())
     every = spec.sample_every
     count = steps // every + 1
     out_q = np.empty((count, robot.n))
@@ -147,6 +147,33 @@ def simulate(spec: RunSpec, *, check_stability: bool = True) -> RunResult:
     samples = build_samples(spec, robot, contour, t, out_q, refs[::every, 0], out_tau)
     metrics = compute_metrics(samples, spec.bound)
     return RunResult(spec, samples, metrics, steps, time.perf_counter() - start)
+
+
+def _reference_key(spec: RunSpec) -> tuple[object, ...]:
+    """What the sampled joint reference depends on (not gains, controller or payload)."""
+    waypoints = spec.waypoints_file
+    stamp = os.stat(waypoints).st_mtime_ns if waypoints and os.path.exists(waypoints) else None
+    return (spec.robot, spec.contour, spec.ellipse_error, waypoints, stamp, spec.segment_duration,
+            spec.duration_factor, spec.rate)
+
+
+_REFERENCES: dict[tuple[object, ...], tuple[JointReference, FloatArray]] = {}
+
+
+def _reference_samples(spec: RunSpec) -> tuple[JointReference, FloatArray]:
+    """The joint reference and its samples at every control instant (read-only), shared
+    by the runs of a process that differ only in gains, controller or payload."""
+    key = _reference_key(spec)
+    hit = _REFERENCES.get(key)
+    if hit is None:
+        reference = spec.reference()
+        steps = control_steps(reference.contour.duration, spec.rate)
+        refs = np.ascontiguousarray(reference.sample(np.arange(steps + 1) / spec.rate).stacked())
+        refs.flags.writeable = False
+        if len(_REFERENCES) >= 8:
+            _REFERENCES.pop(next(iter(_REFERENCES)))
+        hit = _REFERENCES[key] = (reference, refs)
+    return hit
 
 
 def build_samples(
