@@ -188,6 +188,11 @@ def test_respawned_controller_resumes_the_run(ros_env: dict, tmp_path: Path) -> 
     assert resumed - first_safe <= run.plant_torque_steps <= resumed - first_safe + 1
     k_sim = np.arange(0, first_safe, every)
     assert np.max(np.abs(run.q[k_sim] - sim.samples.q[: len(k_sim)])) <= 1e-9
+    analyzed = subprocess.run([sys.executable, "-m", "pdsmc_ros.cli", "analyze", str(out)],
+                              capture_output=True, text=True, timeout=120)
+    assert analyzed.returncode == 0, analyzed.stderr
+    assert f"for {run.plant_torque_steps} steps the plant applied a torque other than a recorded command" \
+        in analyzed.stderr
     # after the resume, every step is the plant's integration of the commanded torque
     stepper = PlantStepper(run.spec.robot_model(), 1.0 / run.spec.rate, run.q[resumed], run.qd[resumed])
     for k in range(resumed, run.steps):
