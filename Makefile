@@ -49,6 +49,9 @@ reproduce: $(STAMP)
 
 bench: $(STAMP)
 	$(PY) bench/reproduce.py
+	$(PY) bench/analysis.py
+	PATH="$(abspath $(VENV))/bin:$$PATH" $(PY) bench/lockstep.py
+	PATH="$(abspath $(VENV))/bin:$$PATH" $(PY) bench/realtime.py
 
 clean:
 	rm -rf $(VENV) build *.egg-info .pytest_cache
