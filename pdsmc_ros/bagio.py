@@ -5,7 +5,8 @@ per-step arrays and a :class:`~pdsmc_ros.presets.RunSpec`, and computes the
 thesis statistics with the same code as the in-process simulator. Messages
 are read with :mod:`pdsmc_ros.mcapscan` (about 3x faster than a generic MCAP
 reader, and it reads a bag whose recorder was killed up to its last complete
-chunk) and decoded in bulk with numpy; the bags stay standard rosbag2/MCAP
+chunk) and decoded in bulk with numpy at the byte spans :mod:`pdsmc_ros.cdr`
+finds in the first message of each layout; the bags stay standard rosbag2/MCAP
 files that rosbags' ``AnyReader``, the ``mcap`` reader and Foxglove open.
 """
 
@@ -19,13 +20,13 @@ from typing import Any
 
 import numpy as np
 
+from . import cdr
 from .errors import BagError
 from .metrics import Metrics, Samples, compute_metrics
 from .models import FloatArray
 from .presets import RunSpec
 
 DESCRIPTION_KEY = "pdsmc_ros.run_description"
-_CDR_HEADER = 4
 
 
 def decode_topic(raws: list[bytes], layout_of) -> list[tuple[np.ndarray, dict[str, np.ndarray]]]:  # noqa: ANN001
@@ -49,12 +50,6 @@ def decode_topic(raws: list[bytes], layout_of) -> list[tuple[np.ndarray, dict[st
     return out
 
 
-def _cdr_string(data: bytes) -> str:
-    """The single string of a CDR ``std_msgs/String``."""
-    (length,) = struct.unpack_from("<I", data, _CDR_HEADER)
-    return data[_CDR_HEADER + 4 : _CDR_HEADER + 4 + length].rstrip(b"\x00").decode("utf-8")
-
-
 def stamp_step(sec: int, nanosec: int, rate: float) -> int:
     """Control step of a header stamp (stamps are ``k / rate``)."""
     return int(round((sec + nanosec * 1e-9) * rate))
@@ -62,79 +57,12 @@ def stamp_step(sec: int, nanosec: int, rate: float) -> int:
 
 def header_step(data: bytes, rate: float) -> int:
     """Control step of a CDR message that starts with ``std_msgs/Header``."""
-    sec, nanosec = struct.unpack_from("<iI", data, _CDR_HEADER)
-    return stamp_step(sec, nanosec, rate)
+    return stamp_step(*cdr.decode_stamp(data), rate)
 
 
 def effort_step(data: bytes) -> int:
     """``layout.data_offset`` of a CDR ``std_msgs/Float64MultiArray`` (no dimensions)."""
-    (dims,) = struct.unpack_from("<I", data, _CDR_HEADER)
-    if dims != 0:
-        raise BagError("effort messages with layout dimensions are not produced by pdsmc_ros")
-    (offset,) = struct.unpack_from("<I", data, _CDR_HEADER + 4)
-    return int(offset)
-
-
-# --------------------------------------------------------------------------- #
-# CDR layouts (offsets relative to the byte after the 4-byte encapsulation)
-# --------------------------------------------------------------------------- #
-def _align(offset: int, size: int) -> int:
-    return (offset + size - 1) // size * size
-
-
-def _skip_string(data: bytes, offset: int) -> int:
-    offset = _align(offset, 4)
-    (length,) = struct.unpack_from("<I", data, _CDR_HEADER + offset)
-    return offset + 4 + length
-
-
-def _skip_strings(data: bytes, offset: int) -> int:
-    offset = _align(offset, 4)
-    (count,) = struct.unpack_from("<I", data, _CDR_HEADER + offset)
-    offset += 4
-    for _ in range(count):
-        offset = _skip_string(data, offset)
-    return offset
-
-
-def _double_seq(data: bytes, offset: int) -> tuple[tuple[int, int], int]:
-    """((absolute byte offset of the doubles, count), offset after the sequence)."""
-    offset = _align(offset, 4)
-    (count,) = struct.unpack_from("<I", data, _CDR_HEADER + offset)
-    offset += 4
-    if count:
-        offset = _align(offset, 8)
-    return (_CDR_HEADER + offset, count), offset + 8 * count
-
-
-def joint_state_layout(data: bytes) -> dict[str, tuple[int, int]]:
-    """Byte offsets of position, velocity and effort in a CDR ``sensor_msgs/JointState``."""
-    off = _skip_string(data, 8)  # stamp, frame_id
-    off = _skip_strings(data, off)  # name
-    layout = {}
-    for field in ("position", "velocity", "effort"):
-        layout[field], off = _double_seq(data, off)
-    return layout
-
-
-def joint_trajectory_layout(data: bytes) -> dict[str, tuple[int, int]]:
-    """Byte offsets of the first point's positions, velocities, accelerations."""
-    off = _skip_string(data, 8)
-    off = _skip_strings(data, off)  # joint_names
-    off = _align(off, 4) + 4  # number of points
-    layout = {}
-    for field in ("positions", "velocities", "accelerations"):
-        layout[field], off = _double_seq(data, off)
-    return layout
-
-
-def multi_array_layout(data: bytes) -> dict[str, tuple[int, int]]:
-    """Byte offset of ``data`` in a CDR ``std_msgs/Float64MultiArray`` without dimensions."""
-    (dims,) = struct.unpack_from("<I", data, _CDR_HEADER)
-    if dims != 0:
-        raise BagError("effort messages with layout dimensions are not produced by pdsmc_ros")
-    layout, _ = _double_seq(data, 8)
-    return {"data": layout}
+    return cdr.float64_multi_array_offset(data)
 
 
 def decode_fixed(raws: list[bytes], layout: dict[str, tuple[int, int]]) -> dict[str, np.ndarray]:
@@ -204,7 +132,7 @@ def read_run(path: str | Path) -> RecordedRun:
             raw_by_topic[topic] += result.messages[topic]
     if not raw_by_topic["/pdsmc/run_description"]:
         raise BagError(f"bag {str(path)!r} holds no /pdsmc/run_description: not a pdsmc_ros run")
-    description: dict[str, Any] = json.loads(_cdr_string(raw_by_topic.pop("/pdsmc/run_description")[0]))
+    description: dict[str, Any] = json.loads(cdr.decode_string(raw_by_topic.pop("/pdsmc/run_description")[0]))
     spec = RunSpec.from_description(description)
     n = len(spec.gains.kp)
     rate = spec.rate
@@ -215,7 +143,7 @@ def read_run(path: str | Path) -> RecordedRun:
     tau = np.full((steps + 1, n), np.nan)
     applied = np.full((steps + 1, n), np.nan)  # torque held over the period ending at k
     counts = {topic: len(items) for topic, items in raw_by_topic.items() if items}
-    for _idx, dec in decode_topic(raw_by_topic.get("/joint_states", []), joint_state_layout):
+    for _idx, dec in decode_topic(raw_by_topic.get("/joint_states", []), cdr.joint_state_spans):
         if dec["position"].shape[1] < n:
             continue
         k = np.rint(dec["stamp"] * rate).astype(np.int64)
@@ -223,14 +151,14 @@ def read_run(path: str | Path) -> RecordedRun:
         q[k[ok]] = dec["position"][ok, :n]
         qd[k[ok]] = dec["velocity"][ok, :n]
         applied[k[ok]] = dec["effort"][ok, :n]
-    for _idx, dec in decode_topic(raw_by_topic.get("/reference", []), joint_trajectory_layout):
+    for _idx, dec in decode_topic(raw_by_topic.get("/reference", []), cdr.joint_trajectory_spans):
         if dec["positions"].shape[1] != n:
             continue
         k = np.rint(dec["stamp"] * rate).astype(np.int64)
         ok = (k >= 0) & (k <= steps)
         q_ref[k[ok]] = dec["positions"][ok, :n]
     efforts = raw_by_topic.get("/effort_controller/commands", [])
-    for idx, dec in decode_topic(efforts, multi_array_layout):
+    for idx, dec in decode_topic(efforts, cdr.float64_multi_array_spans):
         # only what the plant would apply: n finite values for a step of this run
         if dec["data"].shape[1] != n:
             continue

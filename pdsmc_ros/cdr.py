@@ -2,8 +2,10 @@
 
 The lockstep nodes publish and take serialized messages (``raw=True``): building
 a ``JointState`` in Python and converting it to C costs more than the control
-law. These functions write exactly the bytes rclpy's ``serialize_message`` writes
-(tested), and read back the fields the nodes use. No ROS import: plain
+law. These functions write what rclpy's ``serialize_message`` writes (rclpy reads
+it back unchanged; rosbags' serializer writes the very same bytes, tested), and read
+back the fields the nodes use; the bag reader
+(:mod:`pdsmc_ros.bagio`) locates the same fields with it. No ROS import: plain
 ``struct``.
 
 Layout rules (OMG CDR, as ROS 2's Fast CDR uses them): a 4-byte encapsulation
@@ -64,6 +66,12 @@ class _Writer:
             self.align(8)
             self.buf += struct.pack(f"<{len(values)}d", *values)
 
+    def header_and_names(self, sec: int, nanosec: int, frame_id: str, names: Sequence[str]) -> None:
+        """A ``std_msgs/Header`` followed by a string sequence (joint names)."""
+        self.stamp(sec, nanosec)
+        self.string(frame_id)
+        self.strings(names)
+
 
 class _Reader:
     """Sequential CDR reader over one serialized message."""
@@ -99,19 +107,48 @@ class _Reader:
         for _ in range(self.u32()):
             self.skip_string()
 
-    def doubles(self) -> tuple[float, ...]:
+    def double_span(self) -> tuple[int, int]:
+        """``(byte offset of the elements, count)`` of a double sequence; skips it."""
         count = self.u32()
-        if not count:
-            return ()
-        self.align(8)
-        values = struct.unpack_from(f"<{count}d", self.data, self.pos)
+        if count:
+            self.align(8)
+        start = self.pos
         self.pos += 8 * count
-        return values
+        return start, count
+
+    def doubles(self) -> tuple[float, ...]:
+        start, count = self.double_span()
+        return struct.unpack_from(f"<{count}d", self.data, start) if count else ()
+
+    def header_and_names(self) -> tuple[int, int]:
+        """Read a ``std_msgs/Header`` and a string sequence; returns the stamp."""
+        stamp = self.stamp()
+        self.skip_string()  # frame_id
+        self.skip_strings()  # joint names
+        return stamp
+
+    def multi_array_offset(self) -> int:
+        """``layout.data_offset`` of a ``Float64MultiArray``; layouts with dimensions are refused."""
+        if self.u32():
+            raise BagError("effort messages with layout dimensions are not produced by pdsmc_ros")
+        return self.u32()
 
 
 def decode_stamp(data: bytes) -> tuple[int, int]:
     """``(sec, nanosec)`` of a message that starts with a ``std_msgs/Header``."""
     return _Reader(data).stamp()
+
+
+def decode_string(data: bytes) -> str:
+    """The text of a ``std_msgs/msg/String``."""
+    r = _Reader(data)
+    length = r.u32()
+    return data[r.pos : r.pos + length].rstrip(b"\x00").decode("utf-8")
+
+
+def float64_multi_array_offset(data: bytes) -> int:
+    """``layout.data_offset`` of a ``Float64MultiArray`` (dimensions are refused)."""
+    return _Reader(data).multi_array_offset()
 
 
 def encode_joint_state(
@@ -120,9 +157,7 @@ def encode_joint_state(
 ) -> bytes:
     """``sensor_msgs/msg/JointState``."""
     w = _Writer()
-    w.stamp(sec, nanosec)
-    w.string(frame_id)
-    w.strings(names)
+    w.header_and_names(sec, nanosec, frame_id, names)
     w.doubles(position)
     w.doubles(velocity)
     w.doubles(effort)
@@ -132,9 +167,7 @@ def encode_joint_state(
 def decode_joint_state(data: bytes) -> tuple[int, int, tuple[float, ...], tuple[float, ...], tuple[float, ...]]:
     """``(sec, nanosec, position, velocity, effort)`` of a ``JointState``."""
     r = _Reader(data)
-    sec, nanosec = r.stamp()
-    r.skip_string()
-    r.skip_strings()
+    sec, nanosec = r.header_and_names()
     return sec, nanosec, r.doubles(), r.doubles(), r.doubles()
 
 
@@ -144,9 +177,7 @@ def encode_joint_trajectory(
 ) -> bytes:
     """``trajectory_msgs/msg/JointTrajectory`` with one point at ``time_from_start = 0``."""
     w = _Writer()
-    w.stamp(sec, nanosec)
-    w.string(frame_id)
-    w.strings(names)
+    w.header_and_names(sec, nanosec, frame_id, names)
     w.u32(1)  # one point
     w.doubles(positions)
     w.doubles(velocities)
@@ -161,9 +192,7 @@ def decode_joint_trajectory(
 ) -> tuple[int, int, tuple[float, ...], tuple[float, ...], tuple[float, ...]] | None:
     """``(sec, nanosec, positions, velocities, accelerations)`` of the first point, or None."""
     r = _Reader(data)
-    sec, nanosec = r.stamp()
-    r.skip_string()
-    r.skip_strings()
+    sec, nanosec = r.header_and_names()
     if r.u32() == 0:
         return None
     return sec, nanosec, r.doubles(), r.doubles(), r.doubles()
@@ -181,7 +210,29 @@ def encode_float64_multi_array(data: Sequence[float], data_offset: int = 0) -> b
 def decode_float64_multi_array(data: bytes) -> tuple[int, tuple[float, ...]]:
     """``(layout.data_offset, data)``; layouts with dimensions are refused."""
     r = _Reader(data)
-    if r.u32():
-        raise BagError("effort messages with layout dimensions are not produced by pdsmc_ros")
-    offset = r.u32()
+    offset = r.multi_array_offset()
     return offset, r.doubles()
+
+
+# Byte spans (offset of the first double, count) for bulk decoding of many messages
+# that share one layout (pdsmc_ros.bagio decodes a whole bag with numpy).
+def joint_state_spans(data: bytes) -> dict[str, tuple[int, int]]:
+    """Spans of ``position``, ``velocity`` and ``effort`` in a ``JointState``."""
+    r = _Reader(data)
+    r.header_and_names()
+    return {field: r.double_span() for field in ("position", "velocity", "effort")}
+
+
+def joint_trajectory_spans(data: bytes) -> dict[str, tuple[int, int]]:
+    """Spans of the first point's ``positions``, ``velocities`` and ``accelerations``."""
+    r = _Reader(data)
+    r.header_and_names()
+    r.u32()  # number of points (a reference has one)
+    return {field: r.double_span() for field in ("positions", "velocities", "accelerations")}
+
+
+def float64_multi_array_spans(data: bytes) -> dict[str, tuple[int, int]]:
+    """Span of ``data`` in a ``Float64MultiArray`` without dimensions."""
+    r = _Reader(data)
+    r.multi_array_offset()
+    return {"data": r.double_span()}
