@@ -19,6 +19,10 @@ from .models import FloatArray
 
 SAFE_MODES = ("damp", "hold")
 ON_LOSS = ("resume", "end")
+# Upper bounds of the safe-mode gains (also the plant parameters' declared ranges): far
+# above any useful value, low enough that the safe torque stays finite.
+MAX_SAFE_DAMPING = 1.0e6  # N m s/rad
+MAX_SAFE_STIFFNESS = 1.0e7  # N m/rad
 
 
 @dataclass(frozen=True)
@@ -47,10 +51,10 @@ class SafetyConfig:
             raise InvalidInputError(f"safe_mode must be one of {', '.join(SAFE_MODES)}, got {self.mode!r}")
         if self.on_loss not in ON_LOSS:
             raise InvalidInputError(f"on_controller_loss must be one of {', '.join(ON_LOSS)}, got {self.on_loss!r}")
-        for name in ("damping", "stiffness"):
+        for name, most in (("damping", MAX_SAFE_DAMPING), ("stiffness", MAX_SAFE_STIFFNESS)):
             value = getattr(self, name)
-            if not np.isfinite(value) or value < 0.0:
-                raise InvalidInputError(f"safe_{name} must be a finite number >= 0, got {value!r}")
+            if not np.isfinite(value) or not 0.0 <= value <= most:
+                raise InvalidInputError(f"safe_{name} must be a finite number in [0, {most:g}], got {value!r}")
 
 
 def safe_torque(config: SafetyConfig, q: FloatArray, qd: FloatArray, q_hold: FloatArray) -> FloatArray:

@@ -34,7 +34,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 
 from ..bagio import stamp_step
 from ..errors import ConfigError, InvalidInputError, PdsmcError
-from ..safety import SafetyConfig
+from ..safety import MAX_SAFE_DAMPING, MAX_SAFE_STIFFNESS, SafetyConfig
 from ..presets import (
     CONTROLLER_NAMES,
     GAIN_NAMES,
@@ -142,8 +142,8 @@ SAFETY_PARAMETERS: dict[str, tuple[Any, ParameterDescriptor]] = {
     "watchdog_timeout": (2.0, _descriptor("lockstep: wall-clock seconds without effort before safe mode", lo=0.01, hi=3600.0)),
     "watchdog_periods": (20, _descriptor("real time: control periods without effort before safe mode")),
     "safe_mode": ("damp", _descriptor("safe mode", constraints="damp (braking only) or hold (hold position)")),
-    "safe_damping": (5.0, _descriptor("safe-mode braking gain in N m s/rad", lo=0.0, hi=1.0e6)),
-    "safe_stiffness": (200.0, _descriptor("hold-mode stiffness in N m/rad", lo=0.0, hi=1.0e7)),
+    "safe_damping": (5.0, _descriptor("safe-mode braking gain in N m s/rad", lo=0.0, hi=MAX_SAFE_DAMPING)),
+    "safe_stiffness": (200.0, _descriptor("hold-mode stiffness in N m/rad", lo=0.0, hi=MAX_SAFE_STIFFNESS)),
     "on_controller_loss": ("resume", _descriptor("after safe mode", constraints="resume or end")),
     "safe_time_scale": (1.0, _descriptor(
         "lockstep: sim seconds the plant advances per wall second in safe mode (1: real time, 0: frozen)",
