@@ -95,6 +95,7 @@ start_node() {
   PIDS[$name]=$!
 }
 
+declare -A KILLED=()
 stop_all() {
   # stop what we started, by PID: the plant first, the recorder last so it loses nothing
   local name pid
@@ -103,8 +104,18 @@ stop_all() {
     [[ -n "$pid" ]] && kill -0 "$pid" 2>/dev/null || continue
     kill -INT "$pid" 2>/dev/null
     for _ in $(seq 1 50); do kill -0 "$pid" 2>/dev/null || break; sleep 0.1; done
-    kill -0 "$pid" 2>/dev/null && kill -KILL "$pid" 2>/dev/null
+    if kill -0 "$pid" 2>/dev/null; then
+      kill -KILL "$pid" 2>/dev/null
+      KILLED[$name]=1
+    fi
   done
+}
+
+# one line on why a node failed: its exit code and the last line of its log
+explain() {
+  local name="$1" code="$2" how="exit $2"
+  [[ -n "${KILLED[$name]:-}" ]] && how="still running 5 s after SIGINT; killed"
+  echo "run_experiment.sh: node '$name' failed ($how): $(tail -n 1 "$LOGS/$name.log" 2>/dev/null)" >&2
 }
 trap 'echo "run_experiment.sh: interrupted, stopping nodes" >&2; stop_all; exit 130' INT TERM
 
@@ -142,7 +153,7 @@ while :; do
       CODES[$name]=$code
       if [[ "${CODES[$name]}" -ne 0 ]]; then
         FAILED+=("$name")
-        echo "run_experiment.sh: node '$name' failed (exit ${CODES[$name]}): $(tail -n 1 "$LOGS/$name.log" 2>/dev/null)" >&2
+        explain "$name" "$code"
       fi
     fi
   done
@@ -153,10 +164,11 @@ while :; do
     PLANT_DONE="${PLANT_DONE:-$SECONDS}"
     if (( SECONDS - PLANT_DONE >= 5 )); then
       stop_all
-      for name in "${ORDER[@]}"; do [[ -n "${CODES[$name]:-}" ]] || { wait "${PIDS[$name]}" 2>/dev/null; CODES[$name]=$?; }; done
       # a node stopped by SIGINT after the motion exits 0; anything else is a failure
       for name in "${ORDER[@]}"; do
-        if [[ "${CODES[$name]}" -ne 0 ]]; then FAILED+=("$name"); fi
+        [[ -z "${CODES[$name]:-}" ]] || continue
+        wait "${PIDS[$name]}" 2>/dev/null; CODES[$name]=$?
+        if [[ "${CODES[$name]}" -ne 0 ]]; then FAILED+=("$name"); explain "$name" "${CODES[$name]}"; fi
       done
       break
     fi

@@ -31,3 +31,13 @@ def ros_env() -> dict[str, str]:
     env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     assert shutil.which("ros2", path=env["PATH"])
     return env
+
+
+def node_log_tails(out: Path, lines: int = 25) -> str:
+    """The last lines of every node log of an orchestrated run (for failure messages)."""
+    logs = Path(f"{out}.logs")
+    parts = []
+    for log in sorted(logs.glob("*.log")) if logs.is_dir() else []:
+        tail = log.read_text(errors="replace").splitlines()[-lines:]
+        parts.append(f"--- {log.name} (last {len(tail)} lines)\n" + "\n".join(tail))
+    return "\n".join(parts) or f"(no node logs in {logs})"

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import node_log_tails
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -99,12 +100,22 @@ def start_experiment(env: dict, out: Path, *args: str) -> subprocess.Popen:
 
 
 def wait_finish(proc: subprocess.Popen, timeout: float = 240) -> tuple[str, str]:
+    """Wait for the orchestration; on failure its stderr carries the node logs' tails."""
     try:
-        return proc.communicate(timeout=timeout)
+        out, err = proc.communicate(timeout=timeout)
     except subprocess.TimeoutExpired:
         os.killpg(proc.pid, signal.SIGKILL)
         out, err = proc.communicate()
-        pytest.fail(f"orchestration timed out: {err}")
+        pytest.fail(f"orchestration timed out: {err}\n{bag_logs(proc)}")
+    if proc.returncode != 0:
+        err += "\n" + bag_logs(proc)
+    return out, err
+
+
+def bag_logs(proc: subprocess.Popen) -> str:
+    """The node logs of the run ``proc`` orchestrates (found from its ``--out`` argument)."""
+    args = list(proc.args)
+    return node_log_tails(Path(args[args.index("--out") + 1])) if "--out" in args else ""
 
 
 def node_pid(out: Path, name: str, timeout: float = 60) -> int:
@@ -281,3 +292,50 @@ def test_two_lockstep_runs_give_identical_payloads(ros_env: dict, tmp_path: Path
         payloads.append(scan(out / f"{out.name}.mcap", topics).messages)
     for topic in payloads[0]:
         assert payloads[0][topic] == payloads[1][topic], topic
+
+
+FAKE_PLANT = r"""
+import time
+import rclpy
+from rclpy.node import Node
+from sensor_msgs.msg import JointState
+rclpy.init()
+node = Node("fake_plant")
+pub = node.create_publisher(JointState, "joint_states", 10)
+deadline = time.monotonic() + 60
+while pub.get_subscription_count() < 1 and time.monotonic() < deadline:
+    rclpy.spin_once(node, timeout_sec=0.05)
+msg = JointState(name=["q1", "q2"], position=[0.0, 0.0], velocity=[0.0, 0.0], effort=[0.0, 0.0])
+msg.header.stamp.nanosec = 40_000_000  # step 10 at 250 Hz
+end = time.monotonic() + 1.5
+while time.monotonic() < end:
+    pub.publish(msg)
+    rclpy.spin_once(node, timeout_sec=0.004)
+node.destroy_node()
+rclpy.shutdown()
+"""
+
+
+@pytest.mark.timeout(120)
+def test_realtime_trajectory_ends_when_the_plant_leaves(ros_env: dict, tmp_path: Path) -> None:
+    """The plant's last state may never arrive; its departure from the graph ends the node."""
+    env = run_env(ros_env, tmp_path / "leave")
+    log = tmp_path / "trajectory.log"
+    with log.open("w") as sink:
+        trajectory = subprocess.Popen(
+            ["ros2", "run", "pdsmc_ros", "trajectory", "--ros-args", "-p", "mode:=realtime",
+             "-p", "robot:=parallel_5r", "-p", "contour:=ellipse_vertical", "-p", "rate:=250.0",
+             "-p", "sample_rate:=250.0", "-p", "duration_factor:=0.5"],
+            env=env, stdout=sink, stderr=subprocess.STDOUT, start_new_session=True)
+        plant = subprocess.Popen([sys.executable, "-c", FAKE_PLANT], env=env, start_new_session=True)
+        try:
+            assert plant.wait(timeout=90) == 0
+            code = trajectory.wait(timeout=20)
+        finally:
+            for proc in (plant, trajectory):
+                if proc.poll() is None:
+                    os.killpg(proc.pid, signal.SIGKILL)
+                    proc.wait()
+    text = log.read_text()
+    assert code == 0, text
+    assert "the plant has left (last state received: step 10 of 500); stopping" in text

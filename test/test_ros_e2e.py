@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import node_log_tails
 
 from pdsmc_ros.bagio import read_run, run_metrics
 from pdsmc_ros.simulator import simulate
@@ -29,7 +30,9 @@ def run_experiment(env: dict, out: Path, *args: str, timeout: float = 240) -> su
     except subprocess.TimeoutExpired:
         os.killpg(proc.pid, signal.SIGKILL)
         stdout, stderr = proc.communicate()
-        pytest.fail(f"orchestration timed out:\n{stderr}")
+        pytest.fail(f"orchestration timed out:\n{stderr}\n{node_log_tails(out)}")
+    if proc.returncode != 0:
+        stderr += "\n" + node_log_tails(out)  # so a failure in CI shows what the nodes said
     return subprocess.CompletedProcess(proc.args, proc.returncode, stdout, stderr)
 
 

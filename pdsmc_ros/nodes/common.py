@@ -7,9 +7,9 @@ parameters into a :class:`~pdsmc_ros.presets.RunSpec` and wires messages.
 from __future__ import annotations
 
 import dataclasses
+import faulthandler
 import gc
 import json
-import os
 import signal
 import sys
 import threading
@@ -21,6 +21,7 @@ import numpy as np
 import rclpy
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
 from rclpy.clock import Clock, ClockType
+from rclpy.duration import Duration
 from rclpy.exceptions import (
     InvalidParameterTypeException,
     ParameterException,
@@ -367,15 +368,45 @@ def step_stamp(step: int, rate: float) -> tuple[int, int]:
 # --------------------------------------------------------------------------- #
 # Process lifecycle
 # --------------------------------------------------------------------------- #
-def exit_watchdog(seconds: float = 10.0) -> None:
-    """Force the process to exit if shutdown hangs (Fast DDS once hung at exit)."""
+TEARDOWN_TIMEOUT_S = 4.0  # below the orchestration's 5 s between SIGINT and SIGKILL
+DRAIN_TIMEOUT_S = 2.0  # at most this long for subscribers to acknowledge the last messages
 
-    def _kill() -> None:
-        os._exit(EXIT_FAILURE)
 
-    timer = threading.Timer(seconds, _kill)
-    timer.daemon = True
-    timer.start()
+def arm_teardown_watch(seconds: float = TEARDOWN_TIMEOUT_S) -> None:
+    """Exit with every thread's stack on stderr if the process has not ended in ``seconds``.
+
+    Armed once the node's work is saved, before DDS entities are destroyed
+    and the interpreter finalises (Fast DDS once hung at exit). It runs in
+    faulthandler's own C thread, so it fires even when the hang holds the GIL,
+    and the dump in the node's log names where the process was stuck. It stays
+    armed until the process ends: :func:`run_nodes` is a process entry point.
+    """
+    faulthandler.dump_traceback_later(seconds, exit=True, file=sys.__stderr__)
+
+
+class UpstreamWatch:
+    """Real time: notice that every publisher of a topic has gone after the run began.
+
+    A real-time node cannot tell the plant's last message from any other; when
+    the plant leaves (its participant is removed from the graph), the node
+    downstream of it is done, even if that last message was never delivered.
+    Polled from the executor (``count_publishers`` reads the graph cache).
+    """
+
+    def __init__(self, node: Node, topic: str, on_gone: Callable[[], None], *,
+                 period: float = 0.1) -> None:
+        self.node = node
+        self.topic = node.resolve_topic_name(topic)
+        self.on_gone = on_gone
+        self.seen = False
+        self.timer = node.create_timer(period, self.check, clock=STEADY_CLOCK)
+
+    def check(self) -> None:
+        if self.node.count_publishers(self.topic):
+            self.seen = True
+        elif self.seen:
+            self.timer.cancel()
+            self.on_gone()
 
 
 class Inputs:
@@ -448,6 +479,7 @@ def run_nodes(
     """
     rclpy.init(args=args)
     wrappers: list[Any] = []
+    executor: SingleThreadedExecutor | None = None
     code = EXIT_OK
     try:
         try:
@@ -476,7 +508,7 @@ def run_nodes(
         _serve_loop(executor, group, hot, period)
         code = group.exit_code
         if not group.stopped_by_signal:
-            _linger(executor, 0.3)  # let reliable DDS deliver the last messages
+            _drain(executor, wrappers)
     except (KeyboardInterrupt, ExternalShutdownException):
         code = max((getattr(w, "exit_code", EXIT_OK) for w in wrappers), default=EXIT_OK)
     finally:
@@ -484,11 +516,14 @@ def run_nodes(
             close = getattr(wrapper, "close", None)
             if close is not None:
                 close()
+        arm_teardown_watch()
+        for wrapper in reversed(wrappers):
             inputs = getattr(wrapper, "inputs", None)
             if inputs is not None:
                 inputs.destroy()
             wrapper.node.destroy_node()
-        exit_watchdog()
+        if executor is not None:
+            executor.shutdown(timeout_sec=1.0)
         rclpy.try_shutdown()
     return code
 
@@ -602,14 +637,29 @@ def _serve_loop(executor: SingleThreadedExecutor, group: Any,
     finally:
         stop.set()
         if cold_thread is not None:
-            cold_thread.join(timeout=1.0)
+            executor.wake()  # end its wait now, not after up to 0.1 s
+            cold_thread.join(timeout=2.0)
         gc.enable()
         gc.unfreeze()
 
 
-def _linger(executor: Any, seconds: float) -> None:
-    """Keep serving the node briefly after its work is done (final deliveries, acks)."""
-    end = time.perf_counter() + seconds
+def _drain(executor: Any, wrappers: Sequence[Any], timeout: float = DRAIN_TIMEOUT_S) -> None:
+    """After the work is done: let subscribers acknowledge the last messages, then linger.
+
+    A reliable sample lost on the way is repaired only after the writer's next
+    heartbeat; a node that exits at once never repairs it (a real-time
+    trajectory once missed the plant's last state this way). Waits at most
+    ``timeout`` in all (a killed subscriber never acknowledges), then serves
+    the executor briefly for what needs a callback (parameter events, acks).
+    """
+    end = time.perf_counter() + timeout
+    for wrapper in wrappers:
+        for publisher in wrapper.node.publishers:
+            left = end - time.perf_counter()
+            if left <= 0.0:
+                break
+            publisher.wait_for_all_acked(Duration(nanoseconds=int(left * 1e9)))
+    end = time.perf_counter() + 0.1
     while rclpy.ok() and time.perf_counter() < end:
         executor.spin_once(timeout_sec=0.02)
 

@@ -10,7 +10,8 @@ Lockstep: reference ``0`` is published once its subscribers listen, then
 reference ``k + 1`` as soon as joint state ``k`` arrives (one step ahead, so
 the controller never waits for it). Real time: a wall-clock timer at the
 control rate publishes the reference one step ahead of the latest plant state,
-so the reference follows the plant's clock.
+so the reference follows the plant's clock; the node ends with the plant's last
+state or, should that never arrive, when the plant leaves the graph.
 """
 
 from __future__ import annotations
@@ -36,6 +37,7 @@ from .common import (
     TOPIC_EE_DESIRED,
     TOPIC_JOINT_STATES,
     TOPIC_REFERENCE,
+    UpstreamWatch,
     declare_run_parameters,
     run_node,
     refuse_run_changes,
@@ -79,6 +81,7 @@ class TrajectoryNode:
             self.timer = node.create_timer(0.01, self.try_start, clock=STEADY_CLOCK)
         else:
             self.period = 1.0 / self.spec.rate  # run_node paces tick() at this period
+            self.plant_watch = UpstreamWatch(node, TOPIC_JOINT_STATES, self.on_plant_gone)
         node.get_logger().info(
             f"{self.spec.contour} for {self.spec.robot}: {reference.duration:g} s, "
             f"{self.last_step + 1} references"
@@ -125,6 +128,13 @@ class TrajectoryNode:
                     self.publish(k)
             self.advance()
         if step >= self.last_step:
+            self.done = True
+
+    def on_plant_gone(self) -> None:
+        """Real time: the plant has left, so no state will come; the node is done."""
+        if not self.done:
+            self.node.get_logger().info(
+                f"the plant has left (last state received: step {self.state_step} of {self.last_step}); stopping")
             self.done = True
 
     def tick(self, lateness: float) -> None:  # noqa: ARG002
