@@ -237,3 +237,17 @@ def test_parameters_are_validated_at_run_time(ros_env: dict) -> None:
     assert result["controller.kd"] == [True, ""]
     assert result["controller.robot"][0] is False and "cannot change while it runs" in result["controller.robot"][1]
     assert result["plant.rate"][0] is False and "cannot change while it runs" in result["plant.rate"][1]
+
+
+@pytest.mark.timeout(120)
+@pytest.mark.parametrize(("node", "param", "message"), [
+    ("trajectory", "lookahead_steps:=0", "parameter lookahead_steps must be a whole number in [1, 5000], got 0"),
+    ("controller", "stale_periods:=2.5", "parameter stale_periods must be a whole number in [1, 1000000], got 2.5"),
+    ("plant", "expected_subscribers:=many",
+     "parameter expected_subscribers must be a whole number in [0, 100], got 'many'"),
+])
+def test_whole_number_parameters_are_checked(ros_env: dict, node: str, param: str, message: str) -> None:
+    proc = subprocess.run(["ros2", "run", "pdsmc_ros", node, "--ros-args", "-p", param],
+                          env=ros_env, capture_output=True, text=True, timeout=100)
+    assert proc.returncode == 2, proc.stderr
+    assert proc.stderr.strip() == f"{node}: error: {message}"

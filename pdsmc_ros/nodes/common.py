@@ -140,7 +140,8 @@ GAIN_DESCRIPTIONS = {
 
 
 SAFETY_PARAMETERS: dict[str, tuple[Any, ParameterDescriptor]] = {
-    "watchdog_timeout": (2.0, _descriptor("lockstep: wall-clock seconds without effort before safe mode", lo=0.01, hi=3600.0)),
+    "watchdog_timeout": (2.0, _descriptor(
+        "lockstep: wall-clock seconds without effort before safe mode (checked every 20 ms)", lo=0.05, hi=3600.0)),
     "watchdog_periods": (20, _descriptor("real time: control periods without effort before safe mode")),
     "safe_mode": ("damp", _descriptor("safe mode", constraints="damp (braking only) or hold (hold position)")),
     "safe_damping": (5.0, _descriptor("safe-mode braking gain in N m s/rad", lo=0.0, hi=MAX_SAFE_DAMPING)),
@@ -184,6 +185,21 @@ def safety_from_parameters(node: Node) -> SafetyConfig:
                             stiffness=float(values["safe_stiffness"]), on_loss=values["on_controller_loss"])
     except InvalidInputError as exc:
         raise ConfigError(f"parameter {exc}") from None
+
+
+def declare_int_parameter(node: Node, name: str, default: int, description: str, *,
+                          lo: int, hi: int) -> int:
+    """Declare a whole-number parameter and return its value, checked against [lo, hi].
+
+    A wrong type or range is a ConfigError naming the parameter and what is allowed.
+    """
+    node.declare_parameter(name, default, ParameterDescriptor(
+        description=description, additional_constraints=f"a whole number in [{lo}, {hi}]",
+        dynamic_typing=True))
+    value = node.get_parameter(name).value
+    if isinstance(value, bool) or not isinstance(value, int) or not lo <= value <= hi:
+        raise ConfigError(f"parameter {name} must be a whole number in [{lo}, {hi}], got {value!r}")
+    return value
 
 
 def torque_limit_from_parameters(node: Node, n: int) -> np.ndarray | None:
@@ -419,11 +435,20 @@ class Inputs:
     That path sets the lockstep rate (bench/lockstep.py) and the real-time
     jitter. Handlers receive the serialized message (:mod:`pdsmc_ros.cdr`).
     QoS: every sample in lockstep, the newest in real time, unless given.
+
+    ``batch_s`` > 0 makes the inputs an observer's: once woken, the loop lets
+    messages gather for ``batch_s`` before it takes them again, so a node off
+    the loop's critical path (the recorder) wakes a few hundred times a second
+    instead of once per message, and leaves the cores to the nodes that are
+    on it. Its subscriptions must keep every sample (keep-all or deep queues).
     """
 
-    def __init__(self, node: Node, mode: str) -> None:
+    def __init__(self, node: Node, mode: str, *, batch_s: float = 0.0) -> None:
+        if not 0.0 <= batch_s <= MAX_BATCH_S:
+            raise ValueError(f"batch_s must be in [0, {MAX_BATCH_S}] s, got {batch_s!r}")
         self.node = node
         self.mode = mode
+        self.batch_s = batch_s
         self.io_node: Node | None = None
         self.hot: list[tuple[Any, Callable[[bytes], None]]] = []
 
@@ -504,8 +529,11 @@ def run_nodes(
         for wrapper in wrappers:
             executor.add_node(wrapper.node)
         _install_signal_handlers(group)
-        hot = [item for w in wrappers if getattr(w, "inputs", None) for item in w.inputs.hot]
-        _serve_loop(executor, group, hot, period)
+        with_inputs = [w.inputs for w in wrappers if getattr(w, "inputs", None)]
+        hot = [item for inputs in with_inputs for item in inputs.hot]
+        # observers batch only when alone in their process (composed: the loop's own nodes)
+        batch = min((inputs.batch_s for inputs in with_inputs), default=0.0)
+        _serve_loop(executor, group, hot, period, batch)
         code = group.exit_code
         if not group.stopped_by_signal:
             _drain(executor, wrappers)
@@ -556,12 +584,15 @@ class _Group:
                 w.tick(lateness)
 
 
-COLD_PERIOD_S = 0.005  # the executor's turn (timers, parameters, /clock) at least this often
+COLD_PERIOD_S = 0.02  # lockstep: the executor's turn (timers, parameters, /clock) this often
+# (one turn costs 0.2-1 ms of Python; every 5 ms it took 15 % of the lockstep rate)
+MAX_BATCH_S = 0.05  # an observer lets its messages gather at most this long
 SPIN_BEFORE_TICK_S = 0.0002  # real time: busy-wait this last stretch before a tick
 
 
 def _serve_loop(executor: SingleThreadedExecutor, group: Any,
-                hot: Sequence[tuple[Any, Callable[[bytes], None]]], period: float | None) -> None:
+                hot: Sequence[tuple[Any, Callable[[bytes], None]]], period: float | None,
+                batch: float = 0.0) -> None:
     """Take the loop's inputs with a wait set of their own; serve the rest beside them.
 
     Every ready input is drained (``take_message`` until empty) and handed to its
@@ -576,6 +607,8 @@ def _serve_loop(executor: SingleThreadedExecutor, group: Any,
     catch-up beyond one period); ``tick`` may count missed deadlines from the
     lateness. The garbage collector is kept off the path (the loop creates no
     reference cycles) and its young generation collected now and then.
+    With ``batch`` > 0 (observers, see :class:`Inputs`) the loop sleeps
+    ``batch`` after each round that took messages, so they are taken in batches.
     """
     clock = time.perf_counter
     wait_set = _rclpy_impl.WaitSet(len(hot), 0, 0, 0, 0, 0, executor.context.handle)
@@ -620,6 +653,8 @@ def _serve_loop(executor: SingleThreadedExecutor, group: Any,
             if gc.get_count()[0] > 50_000:
                 gc.collect(0)
             if took:
+                if batch:
+                    time.sleep(min(batch, max(next_tick - SPIN_BEFORE_TICK_S - now, 0.0)))
                 continue
             sleep = min(next_cold, next_tick - SPIN_BEFORE_TICK_S, now + 0.1) - now
             if sleep <= 0.0:

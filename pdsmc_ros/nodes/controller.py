@@ -44,6 +44,7 @@ from .common import (
     TOPIC_REFERENCE,
     TOPIC_TIMING,
     UpstreamWatch,
+    declare_int_parameter,
     declare_run_parameters,
     description_json,
     gains_callback,
@@ -69,11 +70,11 @@ class ControllerNode:
         declare_run_parameters(node, gains=True)
         node.declare_parameter("torque_limit", None, ParameterDescriptor(
             description="optional per-joint torque limits in N m (empty: none)", dynamic_typing=True))
-        node.declare_parameter("stale_periods", 20, ParameterDescriptor(
-            description="real time: periods after which a state or reference is stale", dynamic_typing=True))
+        self.stale_periods = declare_int_parameter(
+            node, "stale_periods", 20, "real time: periods after which a state or reference is stale",
+            lo=1, hi=1_000_000)
         self.spec = run_spec_from_parameters(node)
         self.torque_limit = torque_limit_from_parameters(node, len(self.spec.gains.kp))
-        self.stale_periods = int(node.get_parameter("stale_periods").value)
         self.non_finite = 0
         self.clamped = 0
         self.stale = False
@@ -150,8 +151,13 @@ class ControllerNode:
         ref = self.refs.pop(step, None)
         if ref is None:
             return
-        for old in [k for k in self.refs if k < step]:
-            del self.refs[old]  # references of states that will not come (safe mode)
+        # references of states that will not come (safe mode): they arrived in step order,
+        # so they are the oldest entries (the trajectory sends references ahead)
+        while self.refs:
+            oldest = next(iter(self.refs))
+            if oldest >= step:
+                break
+            del self.refs[oldest]
         self.publish(self.law.torque(q, qd, *ref), step)
         self.state = None
         if step >= self.last_step:

@@ -43,6 +43,7 @@ from .common import (
     TOPIC_EFFORT,
     TOPIC_JOINT_STATES,
     decimation,
+    declare_int_parameter,
     declare_run_parameters,
     declare_safety_parameters,
     run_node,
@@ -60,7 +61,9 @@ class PlantNode:
         self.node = Node("plant")
         node = self.node
         declare_run_parameters(node)
-        node.declare_parameter("expected_subscribers", 3)  # trajectory, controller, recorder
+        self.expected = declare_int_parameter(
+            node, "expected_subscribers", 3, "subscribers of /joint_states to wait for (trajectory, controller, recorder)",
+            lo=0, hi=100)
         declare_safety_parameters(node)
         self.spec = run_spec_from_parameters(node)
         self.safety = safety_from_parameters(node)
@@ -71,7 +74,6 @@ class PlantNode:
         self.safe_debt = 0.0  # safe-mode steps owed to the wall clock (lockstep)
         self.safe_since = 0.0
         self.mode = node.get_parameter("mode").value
-        self.expected = int(node.get_parameter("expected_subscribers").value)
         reference = self.spec.reference()
         self.robot = self.spec.robot_model()
         q0 = reference.sample([0.0]).q[0]

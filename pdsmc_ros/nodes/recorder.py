@@ -62,6 +62,7 @@ RECORDED = {
     TOPIC_DESCRIPTION: (String, "std_msgs/msg/String", LATCHED_QOS),
 }
 FLUSH_PERIOD_S = 0.5
+RECORDER_BATCH_S = 0.002  # the recorder wakes at most ~500 times a second (bench/lockstep.py)
 STEPPED = (TOPIC_JOINT_STATES, TOPIC_REFERENCE, TOPIC_EFFORT, TOPIC_EE_DESIRED, TOPIC_EE_ACTUAL)
 """Topics with one message per control step; the run is complete when each has its last."""
 
@@ -101,7 +102,8 @@ class RecorderNode:
         self.connections = {}
         # the flush timer may run in the executor's thread (real-time composed mode)
         self.lock = threading.Lock()
-        self.inputs = Inputs(node, str(node.get_parameter("mode").value))
+        # off the loop's critical path: take messages in batches (keep-all subscriptions)
+        self.inputs = Inputs(node, str(node.get_parameter("mode").value), batch_s=RECORDER_BATCH_S)
         for topic, (msg_type, type_name, qos) in RECORDED.items():
             name = "/" + topic
             self.connections[topic] = self.writer.add_connection(name, type_name, typestore=typestore)

@@ -6,9 +6,12 @@ instant) and ``/end_effector/desired`` at the statistics rate. The references of
 computed once at start with the same vectorised call as the in-process
 simulator, so both see bit-identical references.
 
-Lockstep: reference ``0`` is published once its subscribers listen, then
-reference ``k + 1`` as soon as joint state ``k`` arrives (one step ahead, so
-the controller never waits for it). Real time: a wall-clock timer at the
+Lockstep: references ``0 .. W`` are published once the subscribers listen, then
+up to ``k + W`` as soon as joint state ``k`` arrives (``W = lookahead_steps``,
+500 by default), so the controller never waits for a reference and the
+trajectory is off the loop's critical path: it takes the plant's states in
+batches (like the recorder) instead of waking once per step. ``W`` stays well
+below the publishers' history depth, so nothing sent ahead can be lost. Real time: a wall-clock timer at the
 control rate publishes the reference one step ahead of the latest plant state,
 so the reference follows the plant's clock; the node ends with the plant's last
 state or, should that never arrive, when the plant leaves the graph.
@@ -33,11 +36,13 @@ from .common import (
     Inputs,
     STEADY_CLOCK,
     EXIT_OK,
+    STREAM_DEPTH,
     STREAM_QOS,
     TOPIC_EE_DESIRED,
     TOPIC_JOINT_STATES,
     TOPIC_REFERENCE,
     UpstreamWatch,
+    declare_int_parameter,
     declare_run_parameters,
     run_node,
     refuse_run_changes,
@@ -47,6 +52,10 @@ from .common import (
 )
 
 
+LOOKAHEAD_STEPS = 500  # lockstep: 50 ms at 10 kHz; far below STREAM_DEPTH
+TRAJECTORY_BATCH_S = 0.002  # lockstep: take the plant's states every 2 ms, in batches
+
+
 class TrajectoryNode:
     """Thin wrapper around :class:`~pdsmc_ros.trajectories.JointReference`."""
 
@@ -54,11 +63,15 @@ class TrajectoryNode:
         self.node = Node("trajectory")
         node = self.node
         declare_run_parameters(node)
-        node.declare_parameter("expected_subscribers", 2)  # controller, recorder
+        self.expected = declare_int_parameter(
+            node, "expected_subscribers", 2, "subscribers of /reference to wait for (controller, recorder)",
+            lo=0, hi=100)
+        self.lookahead = declare_int_parameter(
+            node, "lookahead_steps", LOOKAHEAD_STEPS, "lockstep: references published ahead of the plant's state",
+            lo=1, hi=STREAM_DEPTH // 2)
         self.spec = run_spec_from_parameters(node)
         node.add_on_set_parameters_callback(refuse_run_changes)
         self.mode = node.get_parameter("mode").value
-        self.expected = int(node.get_parameter("expected_subscribers").value)
         reference = self.spec.reference()
         self.robot = self.spec.robot_model()
         self.last_step = control_steps(reference.duration, self.spec.rate)
@@ -75,7 +88,8 @@ class TrajectoryNode:
 
         self.pub_ref = GuardedPublisher(node.create_publisher(JointTrajectory, TOPIC_REFERENCE, STREAM_QOS), node)
         self.pub_ee = GuardedPublisher(node.create_publisher(PointStamped, TOPIC_EE_DESIRED, STREAM_QOS), node)
-        self.inputs = Inputs(node, self.mode)
+        # lockstep: off the critical path (references go out W steps ahead), so batched
+        self.inputs = Inputs(node, self.mode, batch_s=TRAJECTORY_BATCH_S if self.mode == "lockstep" else 0.0)
         self.inputs.subscribe(JointState, TOPIC_JOINT_STATES, self.on_state)
         if self.mode == "lockstep":
             self.timer = node.create_timer(0.01, self.try_start, clock=STEADY_CLOCK)
@@ -109,8 +123,8 @@ class TrajectoryNode:
             self.advance()
 
     def advance(self) -> None:
-        """Publish every reference up to one step ahead of the latest state."""
-        while self.next_step <= min(self.state_step + 1, self.last_step):
+        """Publish every reference up to ``lookahead_steps`` ahead of the latest state."""
+        while self.next_step <= min(self.state_step + self.lookahead, self.last_step):
             self.publish(self.next_step)
             self.next_step += 1
 
@@ -123,8 +137,8 @@ class TrajectoryNode:
         if self.started:
             if repeated and step < self.next_step:
                 # the plant offers this state again (a controller came back after safe
-                # mode): a new controller has not seen its reference, so send it again
-                for k in range(step, min(step + 1, self.last_step) + 1):
+                # mode): a new controller has seen none of the references sent ahead
+                for k in range(step, self.next_step):
                     self.publish(k)
             self.advance()
         if step >= self.last_step:
