@@ -255,6 +255,34 @@ def test_metrics_are_means_and_population_sd_of_absolute_errors() -> None:
     assert m.task_mean["total"] == pytest.approx(np.sqrt(2))
 
 
+def test_signed_task_sd_differs_from_absolute_only_where_the_error_changes_sign() -> None:
+    t = np.arange(4.0)
+    xy_ref = np.zeros((4, 2))
+    # x error alternates +-1 (|e| constant: absolute S.D. 0, signed S.D. 1); y error 1, 2, 3, 4
+    xy = -np.array([[1.0, 1.0], [-1.0, 2.0], [1.0, 3.0], [-1.0, 4.0]])
+    q = np.zeros((4, 1))
+    s = Samples(t, q, q, xy, xy_ref, q, np.zeros(4))
+    m = compute_metrics(s, bound=1.0)
+    assert m.task_sd["x"] == 0.0 and m.task_sd_signed["x"] == 1.0
+    assert m.task_sd_signed["y"] == m.task_sd["y"] == pytest.approx(np.std([1.0, 2.0, 3.0, 4.0]))
+
+
+def test_reproduction_reads_the_pdsmc_x_sd_as_signed_and_keeps_the_defined_value() -> None:
+    from pdsmc_ros.reproduce import STATISTIC_READINGS, as_defined, compare
+
+    results = [simulate(make_run("parallel_5r", "circle", c)) for c in ("pd", "pdsmc")]
+    cells = {(c.controller, c.metric): c for c in compare(results)}
+    read = cells[("pdsmc", "task_sd.x")]
+    assert STATISTIC_READINGS[("pdsmc", "task_sd.x")][0] == read.ours_metric == "task_sd_signed.x"
+    assert read.ours == results[1].metrics.task_sd_signed["x"]
+    assert read.as_defined == results[1].metrics.task_sd["x"]
+    # the PD row and every other statistic are compared as defined
+    assert cells[("pd", "task_sd.x")].ours == results[0].metrics.task_sd["x"]
+    assert all(c.ours == c.as_defined for key, c in cells.items() if key != ("pdsmc", "task_sd.x"))
+    plain = {(c.controller, c.metric): c for c in as_defined(cells.values())}
+    assert plain[("pdsmc", "task_sd.x")].ours == results[1].metrics.task_sd["x"]
+
+
 # --------------------------------------------------------------------------- #
 # CLI
 # --------------------------------------------------------------------------- #
