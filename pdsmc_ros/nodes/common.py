@@ -545,13 +545,13 @@ def run_nodes(
             if close is not None:
                 close()
         arm_teardown_watch()
+        if executor is not None:
+            executor.shutdown(timeout_sec=1.0)  # before the nodes go (rclpy's order)
         for wrapper in reversed(wrappers):
             inputs = getattr(wrapper, "inputs", None)
             if inputs is not None:
                 inputs.destroy()
             wrapper.node.destroy_node()
-        if executor is not None:
-            executor.shutdown(timeout_sec=1.0)
         rclpy.try_shutdown()
     return code
 
@@ -674,6 +674,8 @@ def _serve_loop(executor: SingleThreadedExecutor, group: Any,
         if cold_thread is not None:
             executor.wake()  # end its wait now, not after up to 0.1 s
             cold_thread.join(timeout=2.0)
+            if cold_thread.is_alive():
+                print("warning: the executor thread did not stop within 2 s", file=sys.stderr, flush=True)
         gc.enable()
         gc.unfreeze()
 
