@@ -2,9 +2,10 @@
 
 Runs the real four-node system (plant with the serial arm's dynamics,
 trajectory, controller type:=pdsmc, recorder) through scripts/run_experiment.sh
-on a time-scaled serial circle at 10 kHz, in the multi-process default and in
-the composed mode, and -- in the same run -- a plain two-process rclpy
-publish/echo round trip with default executors. Steps per second are taken
+on a time-scaled serial circle at 10 kHz, in the multi-process default, in
+the composed mode and with only the plant and the controller composed, and
+-- in the same run -- a plain two-process rclpy publish/echo round trip with
+default executors. Steps per second are taken
 from the recorder's receive times of /joint_states (start-up excluded).
 
 Last line: ``lockstep_steps_per_s=N rclpy_roundtrips_per_s=M`` (N: multi-process).
@@ -20,6 +21,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -85,8 +87,11 @@ def roundtrips_per_s(seconds: float = 4.0) -> float:
         echo.wait(timeout=10)
 
 
-def lockstep_steps_per_s(steps: int, composed: bool) -> tuple[float, int]:
-    """Steps per second of one lockstep run; returns (rate, messages lost)."""
+def lockstep_steps_per_s(steps: int, composition: Sequence[str] = ()) -> tuple[float, int]:
+    """Steps per second of one lockstep run; returns (rate, messages lost).
+
+    ``composition``: run_experiment.sh options (``--composed`` or ``--compose LIST``).
+    """
     from rosbags.highlevel import AnyReader
     from rosbags.typesys import Stores, get_typestore
 
@@ -96,8 +101,7 @@ def lockstep_steps_per_s(steps: int, composed: bool) -> tuple[float, int]:
         cmd = ["bash", str(ROOT / "scripts" / "run_experiment.sh"), "--robot", "serial_3r",
                "--contour", "circle", "--controller", "pdsmc", "--duration-factor", f"{factor:g}",
                "--out", str(out), "--timeout", "900"]
-        if composed:
-            cmd.append("--composed")
+        cmd += list(composition)
         subprocess.run(cmd, check=True, env=os.environ.copy())
         stamps = []
         with AnyReader([out], default_typestore=get_typestore(Stores.ROS2_JAZZY)) as reader:
@@ -119,10 +123,13 @@ def main() -> int:
     if args.echo is not None:
         echo_main(args.echo)
         return 0
-    multi, lost_multi = lockstep_steps_per_s(args.steps, composed=False)
+    multi, lost_multi = lockstep_steps_per_s(args.steps)
     print(f"lockstep, 4 processes: {multi:,.0f} steps/s ({args.steps} steps, {lost_multi} messages lost)")
-    comp, lost_comp = lockstep_steps_per_s(args.steps, composed=True)
+    comp, lost_comp = lockstep_steps_per_s(args.steps, ["--composed"])
     print(f"lockstep, composed (1 process): {comp:,.0f} steps/s ({lost_comp} messages lost)")
+    loop, lost_loop = lockstep_steps_per_s(args.steps, ["--compose", "plant,controller"])
+    print(f"lockstep, plant+controller composed, trajectory and recorder apart (3 processes): "
+          f"{loop:,.0f} steps/s ({lost_loop} messages lost)")
     rt = roundtrips_per_s()
     print(f"plain rclpy publish/echo round trip, default executors: {rt:,.0f} round trips/s")
     print(f"lockstep_steps_per_s={multi:.0f} rclpy_roundtrips_per_s={rt:.0f}")

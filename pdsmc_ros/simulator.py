@@ -65,6 +65,17 @@ class PlantStepper:
         self.qd, self._qd_next = self._qd_next, self.qd
         self.steps += 1
 
+    def warm_up(self) -> None:
+        """Load the compiled step now, leaving the state untouched.
+
+        The first call of a kernel in a process loads it from numba's cache
+        (tens of ms); a real-time loop calls this before its first tick.
+        """
+        kernels.rk4_step(
+            self.kind, self.params, self.q, self.qd, np.zeros(self.robot.n), self.period,
+            self._q_next, self._qd_next, self._work,
+        )
+
 
 class ControlLaw:
     """PD, SMC or PD-SMC torque for one state (:func:`kernels.control_torque`)."""
@@ -88,6 +99,14 @@ class ControlLaw:
             q, qd, q_ref, qd_ref, qdd_ref, tau, self._work,
         )
         return tau
+
+    def warm_up(self, q: FloatArray, qd: FloatArray) -> None:
+        """Load the compiled law now with one torque at a valid state (discarded).
+
+        The first call in a process loads the kernel from numba's cache (about
+        0.7 s here); a real-time controller would otherwise stall on its first tick.
+        """
+        self.torque(q, qd, q, qd, np.zeros(self.n))
 
 
 @dataclass(frozen=True)

@@ -4,11 +4,12 @@
 # usage: run_experiment.sh --robot R --contour C --controller K --out bags/NAME
 #                          [--scenario S] [--mode lockstep|realtime] [--rate HZ]
 #                          [--duration-factor F] [--smc-reading NAME] [--timeout SECONDS]
-#                          [--param NAME:=VALUE ...] [--composed] [--keep-going]
+#                          [--param NAME:=VALUE ...] [--composed | --compose NODES] [--keep-going]
 #                          [--respawn controller]
 #
 # Starts the four nodes (each with `ros2 run pdsmc_ros ...`; with --composed, all four in one
-# process), waits for the end of the trajectory, and exits non-zero naming any node that failed. On timeout or Ctrl-C it
+# process; with --compose plant,controller, those in one process and the others apart), waits
+# for the end of the trajectory, and exits non-zero naming any node that failed. On timeout or Ctrl-C it
 # stops the nodes it started, by PID, recorder last. Node logs go to OUT.logs/.
 # When a node dies the others get 3 s (the plant's watchdog acts and the recorder records it)
 # before they are stopped; with --keep-going they run on. --respawn controller restarts the
@@ -16,11 +17,11 @@
 # supervises the arm meanwhile and the run resumes when the new controller answers.
 set -uo pipefail
 
-usage() { sed -n '2,15p' "$0" | sed 's/^# \{0,1\}//'; }
+usage() { awk 'NR > 1 && /^#/ { sub(/^# ?/, ""); print; next } NR > 1 { exit }' "$0"; }
 die() { echo "run_experiment.sh: error: $*" >&2; exit 2; }
 
 ROBOT="" CONTOUR="" CONTROLLER="" OUT="" SCENARIO="nominal" MODE="lockstep" RATE=""
-FACTOR="" SMC_READING="" TIMEOUT="600" COMPOSED=0 KEEP_GOING=0
+FACTOR="" SMC_READING="" TIMEOUT="600" COMPOSE="" KEEP_GOING=0
 EXTRA=()
 declare -A RESPAWN=()
 RESPAWN_MAX=3
@@ -38,7 +39,8 @@ while [[ $# -gt 0 ]]; do
     --smc-reading) SMC_READING="${2:-}"; shift 2 ;;
     --timeout) TIMEOUT="${2:-}"; shift 2 ;;
     --param) EXTRA+=(-p "${2:-}"); shift 2 ;;
-    --composed) COMPOSED=1; shift ;;
+    --composed) COMPOSE="recorder,controller,trajectory,plant"; shift ;;
+    --compose) COMPOSE="${2:-}"; shift 2 ;;
     --keep-going) KEEP_GOING=1; shift ;;
     --respawn)
       case "${2:-}" in
@@ -57,7 +59,27 @@ done
 [[ "$MODE" == lockstep || "$MODE" == realtime ]] || die "--mode must be lockstep or realtime, got '$MODE'"
 [[ "$TIMEOUT" =~ ^[0-9]+$ && "$TIMEOUT" -gt 0 ]] || die "--timeout must be a whole number of seconds > 0, got '$TIMEOUT'"
 [[ -e "$OUT" ]] && die "--out '$OUT' already exists; choose a new bag directory"
-[[ ${#RESPAWN[@]} -gt 0 && $COMPOSED -eq 1 ]] && die "--respawn needs separate processes (not --composed)"
+# the nodes run in one process (composed), each in the canonical start order
+NODE_NAMES=(recorder controller trajectory plant)
+declare -A IN_GROUP=()
+if [[ -n "$COMPOSE" ]]; then
+  IFS=',' read -r -a _group <<< "$COMPOSE"
+  for name in "${_group[@]}"; do
+    case "$name" in
+      recorder|controller|trajectory|plant) IN_GROUP[$name]=1 ;;
+      *) die "--compose takes a comma-separated list of recorder, controller, trajectory, plant; got '$COMPOSE'" ;;
+    esac
+  done
+  [[ ${#IN_GROUP[@]} -ge 2 ]] || die "--compose needs at least two different nodes, got '$COMPOSE'"
+  COMPOSE_LIST="$(for n in "${NODE_NAMES[@]}"; do [[ -n "${IN_GROUP[$n]:-}" ]] && printf '%s,' "$n"; done)"
+  COMPOSE_LIST="${COMPOSE_LIST%,}"
+fi
+for name in "${!RESPAWN[@]}"; do
+  [[ -z "${IN_GROUP[$name]:-}" ]] || die "--respawn $name needs $name in a process of its own (not composed)"
+done
+# the process that runs the plant: its end ends a real-time run
+PLANT_PROC=plant
+[[ -n "${IN_GROUP[plant]:-}" ]] && PLANT_PROC=composed
 
 HERE="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
 if command -v ros2 >/dev/null 2>&1; then
@@ -88,10 +110,12 @@ LOGS="$OUT.logs"
 mkdir -p "$LOGS" || die "cannot create log directory '$LOGS'"
 
 declare -A PIDS=()
-ORDER=(recorder controller trajectory plant)
+ORDER=()
 start_node() {
   local name="$1"; shift
-  "${ROS2[@]}" run pdsmc_ros "$name" --ros-args "${PARAMS[@]}" "$@" >>"$LOGS/$name.log" 2>&1 &
+  local pre=()
+  [[ "$name" == composed ]] && pre=(--nodes "$COMPOSE_LIST")
+  "${ROS2[@]}" run pdsmc_ros "$name" "${pre[@]}" --ros-args "${PARAMS[@]}" "$@" >>"$LOGS/$name.log" 2>&1 &
   PIDS[$name]=$!
 }
 
@@ -119,15 +143,17 @@ explain() {
 }
 trap 'echo "run_experiment.sh: interrupted, stopping nodes" >&2; stop_all; exit 130' INT TERM
 
-if [[ $COMPOSED -eq 1 ]]; then
-  ORDER=(composed)
-  start_node composed -p "output:=$OUT"
-else
-  start_node recorder -p "output:=$OUT"
-  start_node controller
-  start_node trajectory
-  start_node plant
-fi
+for name in "${NODE_NAMES[@]}"; do
+  proc="$name"
+  [[ -n "${IN_GROUP[$name]:-}" ]] && proc=composed
+  [[ -n "${PIDS[$proc]:-}" ]] && continue  # the composed process is already started
+  ORDER+=("$proc")
+  if [[ "$name" == recorder || ( "$proc" == composed && -n "${IN_GROUP[recorder]:-}" ) ]]; then
+    start_node "$proc" -p "output:=$OUT"
+  else
+    start_node "$proc"
+  fi
+done
 
 START=$SECONDS
 declare -A CODES=()
@@ -142,7 +168,7 @@ while :; do
     else
       wait "$pid"; code=$?
       if [[ $code -ne 0 && -n "${RESPAWN[$name]:-}" && "${RESPAWN[$name]}" -lt $RESPAWN_MAX ]] \
-          && kill -0 "${PIDS[plant]}" 2>/dev/null; then
+          && kill -0 "${PIDS[$PLANT_PROC]}" 2>/dev/null; then
         RESPAWN[$name]=$(( RESPAWN[$name] + 1 ))
         echo "run_experiment.sh: node '$name' died (exit $code); respawning in ${RESPAWN_DELAY} s (${RESPAWN[$name]} of $RESPAWN_MAX)" >&2
         sleep "$RESPAWN_DELAY"
@@ -160,7 +186,7 @@ while :; do
   [[ $running -eq 0 ]] && break
   # real time: once the plant has finished the motion, give the others a moment, then
   # stop them (recorder last) -- they cannot know the plant's last message was its last
-  if [[ "$MODE" == realtime && $COMPOSED -eq 0 && "${CODES[plant]:-}" == 0 ]]; then
+  if [[ "$MODE" == realtime && ${#ORDER[@]} -gt 1 && "${CODES[$PLANT_PROC]:-}" == 0 ]]; then
     PLANT_DONE="${PLANT_DONE:-$SECONDS}"
     if (( SECONDS - PLANT_DONE >= 5 )); then
       stop_all

@@ -132,11 +132,15 @@ def test_ros2_run_shim(ros_env: dict) -> None:
 
 
 @pytest.mark.timeout(300)
-def test_composed_mode_equals_multi_process(ros_env: dict, tmp_path: Path) -> None:
+@pytest.mark.parametrize("composition", [["--composed"], ["--compose", "plant,controller"]])
+def test_composed_mode_equals_multi_process(ros_env: dict, tmp_path: Path, composition: list) -> None:
     out = tmp_path / "composed"
     proc = run_experiment(ros_env, out, "--robot", "parallel_5r", "--contour", "ellipse_vertical",
-                          "--controller", "smc", "--duration-factor", "0.1", "--composed")
+                          "--controller", "smc", "--duration-factor", "0.1", *composition)
     assert proc.returncode == 0, proc.stderr
+    logs = sorted(p.name for p in Path(f"{out}.logs").glob("*.log"))
+    assert logs == (["composed.log"] if composition == ["--composed"]
+                    else ["composed.log", "recorder.log", "trajectory.log"])
     run = read_run(out)
     assert run.complete and run.steps == 2000
     sim = simulate(run.spec)

@@ -255,6 +255,23 @@ def test_metrics_are_means_and_population_sd_of_absolute_errors() -> None:
     assert m.task_mean["total"] == pytest.approx(np.sqrt(2))
 
 
+def test_warm_up_changes_no_state_and_no_result() -> None:
+    spec = make_run("parallel_5r", "circle", "pdsmc")
+    start = spec.reference().sample([0.0])
+    q0, qd0 = start.q[0], start.qd[0]
+    cold, warm = PlantStepper(spec.robot_model(), 1e-3, q0, qd0), PlantStepper(spec.robot_model(), 1e-3, q0, qd0)
+    warm.warm_up()
+    assert warm.steps == 0 and np.array_equal(warm.q, q0) and np.array_equal(warm.qd, qd0)
+    law_cold, law_warm = ControlLaw(spec), ControlLaw(spec)
+    law_warm.warm_up(q0, qd0)
+    for _ in range(3):
+        tau = law_cold.torque(cold.q, cold.qd, q0, qd0, np.zeros(2))
+        assert np.array_equal(tau, law_warm.torque(warm.q, warm.qd, q0, qd0, np.zeros(2)))
+        cold.step(tau)
+        warm.step(tau)
+        assert np.array_equal(cold.q, warm.q) and np.array_equal(cold.qd, warm.qd)
+
+
 def test_signed_task_sd_differs_from_absolute_only_where_the_error_changes_sign() -> None:
     t = np.arange(4.0)
     xy_ref = np.zeros((4, 2))

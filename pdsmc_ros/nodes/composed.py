@@ -1,8 +1,12 @@
-"""All four nodes in one process (composed mode), like a ROS 2 component container.
+"""Several nodes in one process (composed mode), like a ROS 2 component container.
 
-The plant, trajectory, controller and recorder stay separate rclpy nodes with
-the same parameters, topics and QoS; they share one process and one executor,
-so a lockstep step costs no inter-process hand-off.
+``ros2 run pdsmc_ros composed [--nodes plant,controller] --ros-args ...``:
+the listed nodes (default: all four) stay separate rclpy nodes with the same
+parameters, topics and QoS; they share one process and one executor, so a
+lockstep step between them costs no inter-process hand-off. Composing only
+the plant and the controller (the loop's critical path) and running the
+trajectory and the recorder apart was the fastest lockstep arrangement on
+two cores (docs/PERFORMANCE.md).
 """
 
 from __future__ import annotations
@@ -10,16 +14,39 @@ from __future__ import annotations
 import sys
 from collections.abc import Sequence
 
-from .common import run_nodes
+from rclpy.utilities import remove_ros_args
+
+from ..cli import OneLineParser
+from .common import EXIT_BAD_INPUT, run_nodes
 from .controller import ControllerNode
 from .plant import PlantNode
 from .recorder import RecorderNode
 from .trajectory import TrajectoryNode
 
+# creation order: the recorder first (closed last), the plant last (starts once everyone listens)
+NODES = {"recorder": RecorderNode, "controller": ControllerNode, "trajectory": TrajectoryNode, "plant": PlantNode}
+
+
+def parse_nodes(text: str) -> list[str]:
+    """The node names of ``--nodes`` (comma-separated), in creation order; ValueError if bad."""
+    names = [n.strip() for n in text.split(",") if n.strip()]
+    unknown = [n for n in names if n not in NODES]
+    if unknown or not names:
+        raise ValueError(f"--nodes takes a comma-separated list of {', '.join(NODES)}; got {text!r}")
+    return [n for n in NODES if n in names]
+
 
 def main(args: Sequence[str] | None = None) -> int:
-    # the recorder first (closed last), the plant last (starts once everyone listens)
-    return run_nodes("composed", [RecorderNode, ControllerNode, TrajectoryNode, PlantNode], args)
+    argv = list(sys.argv if args is None else args)
+    parser = OneLineParser(prog="composed", description=__doc__.splitlines()[0])
+    parser.add_argument("--nodes", default=",".join(NODES), help="nodes to run in this process")
+    options = parser.parse_args(remove_ros_args(argv)[1:])
+    try:
+        names = parse_nodes(options.nodes)
+    except ValueError as exc:
+        print(f"composed: error: {exc}", file=sys.stderr, flush=True)
+        return EXIT_BAD_INPUT
+    return run_nodes("composed", [NODES[n] for n in names], argv)
 
 
 if __name__ == "__main__":

@@ -80,8 +80,11 @@ class ControllerNode:
         self.stale = False
         node.add_on_set_parameters_callback(gains_callback(self.spec, self.apply_gains))
         self.mode = node.get_parameter("mode").value
-        check_rate(self.spec, self.spec.reference())  # refuse gains unstable at this rate
+        reference = self.spec.reference()
+        check_rate(self.spec, reference)  # refuse gains unstable at this rate
         self.law = ControlLaw(self.spec)
+        start = reference.sample([0.0])
+        self.law.warm_up(start.q[0], start.qd[0])  # not on the first tick (numba loads it)
         self.n = self.law.n
         self.last_step = control_steps(self.spec.contour_model().duration, self.spec.rate)
         self.state: tuple[int, np.ndarray, np.ndarray] | None = None

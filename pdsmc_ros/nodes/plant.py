@@ -78,6 +78,7 @@ class PlantNode:
         self.robot = self.spec.robot_model()
         q0 = reference.sample([0.0]).q[0]
         self.plant = PlantStepper(self.robot, 1.0 / self.spec.rate, q0, np.zeros(self.robot.n))
+        self.plant.warm_up()  # not on the first step (numba loads the kernel)
         self.last_step = control_steps(reference.duration, self.spec.rate)
         self.applied = np.zeros(self.robot.n)
         self.latest_effort = np.zeros(self.robot.n)
