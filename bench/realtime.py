@@ -32,6 +32,8 @@ def main() -> int:
     parser.add_argument("--rate", type=float, default=1000.0, help="control rate in Hz (default 1000)")
     parser.add_argument("--duration-factor", type=float, default=0.5,
                         help="fraction of the 10 s circle to run (default 0.5)")
+    parser.add_argument("--compose", default="",
+                        help="nodes to run in one process (run_experiment.sh --compose), e.g. plant,controller")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "realtime"
@@ -39,6 +41,8 @@ def main() -> int:
                "--contour", "circle", "--controller", "pdsmc", "--mode", "realtime",
                "--rate", f"{args.rate:g}", "--duration-factor", f"{args.duration_factor:g}",
                "--param", f"sample_rate:={args.rate / 2:g}", "--out", str(out), "--timeout", "600"]
+        if args.compose:
+            cmd += ["--compose", args.compose]
         if subprocess.run(cmd, env=os.environ.copy()).returncode != 0:
             print("bench/realtime.py: error: the real-time run failed (see the messages above)", file=sys.stderr)
             return 1
