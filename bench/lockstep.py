@@ -10,7 +10,7 @@ from the recorder's receive times of /joint_states (start-up excluded).
 
 Last line: ``lockstep_steps_per_s=N rclpy_roundtrips_per_s=M`` (N: multi-process).
 
-Usage: python bench/lockstep.py [--steps 20000]   (run inside the venv, after make setup)
+Usage: python bench/lockstep.py [--steps 20000] [--nice -10]   (inside the venv, after make setup)
 """
 
 from __future__ import annotations
@@ -118,16 +118,19 @@ def lockstep_steps_per_s(steps: int, composition: Sequence[str] = ()) -> tuple[f
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--steps", type=int, default=20000)
+    parser.add_argument("--nice", type=int, default=None,
+                        help="niceness of the plant and the controller (run_experiment.sh --nice; negative needs root)")
     parser.add_argument("--echo", type=float, default=None, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.echo is not None:
         echo_main(args.echo)
         return 0
-    multi, lost_multi = lockstep_steps_per_s(args.steps)
+    nice = [] if args.nice is None else ["--nice", str(args.nice)]
+    multi, lost_multi = lockstep_steps_per_s(args.steps, nice)
     print(f"lockstep, 4 processes: {multi:,.0f} steps/s ({args.steps} steps, {lost_multi} messages lost)")
-    comp, lost_comp = lockstep_steps_per_s(args.steps, ["--composed"])
+    comp, lost_comp = lockstep_steps_per_s(args.steps, ["--composed", *nice])
     print(f"lockstep, composed (1 process): {comp:,.0f} steps/s ({lost_comp} messages lost)")
-    loop, lost_loop = lockstep_steps_per_s(args.steps, ["--compose", "plant,controller"])
+    loop, lost_loop = lockstep_steps_per_s(args.steps, ["--compose", "plant,controller", *nice])
     print(f"lockstep, plant+controller composed, trajectory and recorder apart (3 processes): "
           f"{loop:,.0f} steps/s ({lost_loop} messages lost)")
     rt = roundtrips_per_s()

@@ -34,6 +34,8 @@ def main() -> int:
                         help="fraction of the 10 s circle to run (default 0.5)")
     parser.add_argument("--compose", default="",
                         help="nodes to run in one process (run_experiment.sh --compose), e.g. plant,controller")
+    parser.add_argument("--nice", type=int, default=None,
+                        help="niceness of the plant and the controller (run_experiment.sh --nice; negative needs root)")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "realtime"
@@ -43,6 +45,8 @@ def main() -> int:
                "--param", f"sample_rate:={args.rate / 2:g}", "--out", str(out), "--timeout", "600"]
         if args.compose:
             cmd += ["--compose", args.compose]
+        if args.nice is not None:
+            cmd += ["--nice", str(args.nice)]
         if subprocess.run(cmd, env=os.environ.copy()).returncode != 0:
             print("bench/realtime.py: error: the real-time run failed (see the messages above)", file=sys.stderr)
             return 1

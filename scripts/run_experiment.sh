@@ -5,7 +5,7 @@
 #                          [--scenario S] [--mode lockstep|realtime] [--rate HZ]
 #                          [--duration-factor F] [--smc-reading NAME] [--timeout SECONDS]
 #                          [--param NAME:=VALUE ...] [--composed | --compose NODES] [--keep-going]
-#                          [--respawn controller]
+#                          [--respawn controller] [--nice N]
 #
 # Starts the four nodes (each with `ros2 run pdsmc_ros ...`; with --composed, all four in one
 # process; with --compose plant,controller, those in one process and the others apart), waits
@@ -15,13 +15,15 @@
 # before they are stopped; with --keep-going they run on. --respawn controller restarts the
 # controller 1 s after it dies, up to 3 times, like launch's respawn: the plant's safe mode
 # supervises the arm meanwhile and the run resumes when the new controller answers.
+# --nice N starts the plant and the controller (the loop's critical path) at niceness N, e.g.
+# -10 (negative values need root; without it they run at normal priority, with a warning).
 set -uo pipefail
 
 usage() { awk 'NR > 1 && /^#/ { sub(/^# ?/, ""); print; next } NR > 1 { exit }' "$0"; }
 die() { echo "run_experiment.sh: error: $*" >&2; exit 2; }
 
 ROBOT="" CONTOUR="" CONTROLLER="" OUT="" SCENARIO="nominal" MODE="lockstep" RATE=""
-FACTOR="" SMC_READING="" TIMEOUT="600" COMPOSE="" KEEP_GOING=0
+FACTOR="" SMC_READING="" TIMEOUT="600" COMPOSE="" KEEP_GOING=0 NICE=""
 EXTRA=()
 declare -A RESPAWN=()
 RESPAWN_MAX=3
@@ -42,6 +44,7 @@ while [[ $# -gt 0 ]]; do
     --composed) COMPOSE="recorder,controller,trajectory,plant"; shift ;;
     --compose) COMPOSE="${2:-}"; shift 2 ;;
     --keep-going) KEEP_GOING=1; shift ;;
+    --nice) NICE="${2:-}"; shift 2 ;;
     --respawn)
       case "${2:-}" in
         controller) RESPAWN[$2]=0 ;;
@@ -58,6 +61,9 @@ done
 [[ -n "$OUT" ]] || die "--out is required (a new bag directory, e.g. bags/run1)"
 [[ "$MODE" == lockstep || "$MODE" == realtime ]] || die "--mode must be lockstep or realtime, got '$MODE'"
 [[ "$TIMEOUT" =~ ^[0-9]+$ && "$TIMEOUT" -gt 0 ]] || die "--timeout must be a whole number of seconds > 0, got '$TIMEOUT'"
+if [[ -n "$NICE" ]]; then
+  [[ "$NICE" =~ ^-?[0-9]+$ && "$NICE" -ge -20 && "$NICE" -le 19 ]] || die "--nice must be a whole number in [-20, 19], got '$NICE'"
+fi
 [[ -e "$OUT" ]] && die "--out '$OUT' already exists; choose a new bag directory"
 # the nodes run in one process (composed), each in the canonical start order
 NODE_NAMES=(recorder controller trajectory plant)
@@ -113,9 +119,14 @@ declare -A PIDS=()
 ORDER=()
 start_node() {
   local name="$1"; shift
-  local pre=()
+  local pre=() launcher=()
   [[ "$name" == composed ]] && pre=(--nodes "$COMPOSE_LIST")
-  "${ROS2[@]}" run pdsmc_ros "$name" "${pre[@]}" --ros-args "${PARAMS[@]}" "$@" >>"$LOGS/$name.log" 2>&1 &
+  # the loop's critical path (plant, controller, or the process composing them) may run niced
+  if [[ -n "$NICE" && ( "$name" == plant || "$name" == controller || \
+        ( "$name" == composed && ( -n "${IN_GROUP[plant]:-}" || -n "${IN_GROUP[controller]:-}" ) ) ) ]]; then
+    launcher=(nice -n "$NICE")
+  fi
+  "${launcher[@]}" "${ROS2[@]}" run pdsmc_ros "$name" "${pre[@]}" --ros-args "${PARAMS[@]}" "$@" >>"$LOGS/$name.log" 2>&1 &
   PIDS[$name]=$!
 }
 

@@ -339,3 +339,25 @@ def test_realtime_trajectory_ends_when_the_plant_leaves(ros_env: dict, tmp_path:
     text = log.read_text()
     assert code == 0, text
     assert "the plant has left (last state received: step 10 of 500); stopping" in text
+
+
+def niceness(pid: int) -> int:
+    """Niceness of a process (field 19 of /proc/PID/stat)."""
+    stat = Path(f"/proc/{pid}/stat").read_text()
+    return int(stat[stat.rindex(")") + 2 :].split()[16])
+
+
+@pytest.mark.timeout(300)
+def test_nice_applies_to_the_critical_path_only(ros_env: dict, tmp_path: Path) -> None:
+    out = tmp_path / "nice"
+    env = run_env(ros_env, out)
+    proc = start_experiment(env, out, "--duration-factor", "0.2", "--nice", "5")
+    try:
+        seen = {name: niceness(node_pid(out, name)) for name in ("plant", "controller", "trajectory", "recorder")}
+    finally:
+        _, err = wait_finish(proc)
+    assert proc.returncode == 0, err
+    base = niceness(os.getpid())  # nice -n adds to the niceness the test runs at
+    raised = min(base + 5, 19)
+    assert seen == {"plant": raised, "controller": raised, "trajectory": base, "recorder": base}
+    assert read_run(out).complete
