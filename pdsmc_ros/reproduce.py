@@ -31,7 +31,7 @@ from .simulator import RunResult, simulate_many
 
 # Statistics the thesis computed differently for one controller, found by comparing its
 # tables with ours; per (controller, thesis statistic): our statistic it is compared with,
-# the value as NOTES.md section 4 defines it, and why. Shown with both values in the report.
+# and why. The report shows both our values (as read and as NOTES.md section 4 defines it).
 STATISTIC_READINGS: dict[tuple[str, str], tuple[str, str]] = {
     ("pdsmc", "task_sd.x"): (
         "task_sd_signed.x",
@@ -413,8 +413,7 @@ def write_report(rep: Reproduction, out: Path) -> dict[str, Path]:
         add("")
         add("| robot | contour | controller | statistic | thesis | ours as read | dev | ours as defined | dev |")
         add("| --- | --- | --- | --- | ---: | ---: | ---: | ---: | ---: |")
-        for c in read:
-            plain = dataclasses.replace(c, ours=c.as_defined)
+        for c, plain in zip(read, as_defined(read)):
             add(f"| {c.robot} | {c.contour} | {LABEL[c.controller]} | {c.metric} | {_fmt(c.thesis, c.metric)} | "
                 f"{_fmt(c.ours, c.metric)} | {100 * c.deviation:+.1f} % | {_fmt(c.as_defined, c.metric)} | "
                 f"{100 * plain.deviation:+.1f} % |")
@@ -446,8 +445,10 @@ def write_report(rep: Reproduction, out: Path) -> dict[str, Path]:
         metrics = list(dict.fromkeys(c.metric for c in group))
         for metric in metrics:
             row = [metric]
-            if any(c.metric == metric and c.ours_metric != metric for c in group):
-                row = [f"{metric} (PD-SMC: signed, see Statistic readings)"]
+            readers = [c for c in group if c.metric == metric and c.ours_metric != metric]
+            if readers:
+                row = [f"{metric} ({LABEL[readers[0].controller]}: vs `{readers[0].ours_metric}`, "
+                       "see Statistic readings)"]
             for ctrl in CONTROLLER_NAMES:
                 match = [c for c in group if c.controller == ctrl and c.metric == metric]
                 if match:

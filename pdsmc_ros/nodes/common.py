@@ -425,6 +425,21 @@ class UpstreamWatch:
             self.on_gone()
 
 
+def end_when_plant_leaves(wrapper: Any, last_state: Callable[[], int]) -> UpstreamWatch:
+    """Real time: once the plant has left, no state will come, so ``wrapper`` is done.
+
+    ``last_state()`` gives the last state step the node received, for the log line.
+    """
+
+    def on_gone() -> None:
+        if not wrapper.done:
+            wrapper.node.get_logger().info(
+                f"the plant has left (last state received: step {last_state()} of {wrapper.last_step}); stopping")
+            wrapper.done = True
+
+    return UpstreamWatch(wrapper.node, TOPIC_JOINT_STATES, on_gone)
+
+
 class Inputs:
     """The subscriptions of a node's control loop, taken as serialized CDR.
 

@@ -43,10 +43,10 @@ from .common import (
     TOPIC_JOINT_STATES,
     TOPIC_REFERENCE,
     TOPIC_TIMING,
-    UpstreamWatch,
     declare_int_parameter,
     declare_run_parameters,
     description_json,
+    end_when_plant_leaves,
     gains_callback,
     run_node,
     run_spec_from_parameters,
@@ -108,7 +108,8 @@ class ControllerNode:
             self.missed = 0
             self.deadline: float | None = None
             self.timing_rows: list[float] = []
-            self.plant_watch = UpstreamWatch(node, TOPIC_JOINT_STATES, self.on_plant_gone)
+            self.plant_watch = end_when_plant_leaves(
+                self, lambda: self.state[0] if self.state is not None else -1)
         node.get_logger().info(
             f"{self.spec.controller} controller for {self.spec.robot}/{self.spec.contour}, "
             f"{self.mode}, {self.spec.rate:g} Hz"
@@ -181,14 +182,6 @@ class ControllerNode:
             if self.clamped <= 5 or self.clamped % 1000 == 0:
                 self.node.get_logger().warn(f"torque limited at step {step} ({self.clamped} so far)")
         self.pub_effort.publish(encode_float64_multi_array(tau.tolist(), step))
-
-    def on_plant_gone(self) -> None:
-        """Real time: the plant has left, so no state will come; the node is done."""
-        if not self.done:
-            step = self.state[0] if self.state is not None else -1
-            self.node.get_logger().info(
-                f"the plant has left (last state received: step {step} of {self.last_step}); stopping")
-            self.done = True
 
     def tick(self, lateness: float) -> None:
         """Real time: torque from the latest state and reference; timing recorded.

@@ -11,10 +11,12 @@ up to ``k + W`` as soon as joint state ``k`` arrives (``W = lookahead_steps``,
 500 by default), so the controller never waits for a reference and the
 trajectory is off the loop's critical path: it takes the plant's states in
 batches (like the recorder) instead of waking once per step. ``W`` stays well
-below the publishers' history depth, so nothing sent ahead can be lost. Real time: a wall-clock timer at the
-control rate publishes the reference one step ahead of the latest plant state,
-so the reference follows the plant's clock; the node ends with the plant's last
-state or, should that never arrive, when the plant leaves the graph.
+below the publishers' history depth, so nothing sent ahead can be lost.
+
+Real time: a wall-clock timer at the control rate publishes the reference one
+step ahead of the latest plant state, so the reference follows the plant's
+clock; the node ends with the plant's last state or, should that never arrive,
+when the plant leaves the graph.
 """
 
 from __future__ import annotations
@@ -41,9 +43,9 @@ from .common import (
     TOPIC_EE_DESIRED,
     TOPIC_JOINT_STATES,
     TOPIC_REFERENCE,
-    UpstreamWatch,
     declare_int_parameter,
     declare_run_parameters,
+    end_when_plant_leaves,
     run_node,
     refuse_run_changes,
     run_spec_from_parameters,
@@ -95,7 +97,7 @@ class TrajectoryNode:
             self.timer = node.create_timer(0.01, self.try_start, clock=STEADY_CLOCK)
         else:
             self.period = 1.0 / self.spec.rate  # run_node paces tick() at this period
-            self.plant_watch = UpstreamWatch(node, TOPIC_JOINT_STATES, self.on_plant_gone)
+            self.plant_watch = end_when_plant_leaves(self, lambda: self.state_step)
         node.get_logger().info(
             f"{self.spec.contour} for {self.spec.robot}: {reference.duration:g} s, "
             f"{self.last_step + 1} references"
@@ -142,13 +144,6 @@ class TrajectoryNode:
                     self.publish(k)
             self.advance()
         if step >= self.last_step:
-            self.done = True
-
-    def on_plant_gone(self) -> None:
-        """Real time: the plant has left, so no state will come; the node is done."""
-        if not self.done:
-            self.node.get_logger().info(
-                f"the plant has left (last state received: step {self.state_step} of {self.last_step}); stopping")
             self.done = True
 
     def tick(self, lateness: float) -> None:  # noqa: ARG002
