@@ -20,7 +20,8 @@ our bytes back to the same message and we read its bytes.
 from __future__ import annotations
 
 import struct
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from operator import itemgetter
 
 from .errors import BagError
 
@@ -134,6 +135,85 @@ class _Reader:
         return self.u32()
 
 
+class _FixedLayout:
+    """One message shape as a single ``struct``: constant bytes around fixed-size fields.
+
+    Learned from one encoded message and the offsets of its variable fields (the
+    stamp, ``layout.data_offset``, the double sequences). Every other byte -- string
+    lengths and texts, sequence counts, padding -- decides where those fields lie,
+    so a message of the same length whose other bytes are equal has them at the
+    same offsets: it is read with one ``unpack`` and written with one ``pack``
+    (a few microseconds instead of a field-by-field walk; the loop's messages all
+    have one shape per run).
+    """
+
+    __slots__ = ("size", "struct", "consts", "const_at", "groups")
+
+    def __init__(self, data: bytes, fields: Sequence[tuple[int, str]]) -> None:
+        fmt, consts, const_idx, groups = "<", [], [], []
+        pos = index = 0
+        for offset, code in fields:  # ascending offsets; code: "iI", "I", "3d", ...
+            fmt += f"{offset - pos}s{code}"
+            consts.append(data[pos:offset])
+            const_idx.append(index)
+            width = len(struct.unpack_from("<" + code, data, offset))
+            groups.append(slice(index + 1, index + 1 + width))
+            index += 1 + width
+            pos = offset + struct.calcsize("<" + code)
+        fmt += f"{len(data) - pos}s"
+        consts.append(data[pos:])
+        const_idx.append(index)
+        self.size = len(data)
+        self.struct = struct.Struct(fmt)
+        self.consts = tuple(consts)
+        getter = itemgetter(*const_idx)
+        self.const_at = getter if len(const_idx) > 1 else (lambda values: (values[const_idx[0]],))
+        self.groups = groups
+
+    def read(self, data: bytes) -> list[tuple[float | int, ...]] | None:
+        """The variable fields of ``data`` (a tuple each), or None if it has another shape."""
+        if len(data) != self.size:
+            return None
+        values = self.struct.unpack(data)
+        if self.const_at(values) != self.consts:
+            return None
+        return [values[group] for group in self.groups]
+
+    def write(self, *fields: Sequence[float | int]) -> bytes:
+        """A message of this shape with the given variable fields (in order)."""
+        args: list[object] = []
+        for const, values in zip(self.consts, fields):
+            args.append(const)
+            args.extend(values)
+        args.append(self.consts[-1])
+        return self.struct.pack(*args)
+
+
+_LAYOUT_CACHE_SIZE = 32  # shapes kept per message kind (a run has one or two)
+_encode_layouts: dict[tuple[object, ...], _FixedLayout] = {}
+_decode_layouts: dict[tuple[str, int], _FixedLayout] = {}
+
+
+def _remember(cache: dict, key: object, layout: _FixedLayout) -> None:  # type: ignore[type-arg]
+    if len(cache) >= _LAYOUT_CACHE_SIZE:
+        cache.clear()  # e.g. a fuzzer's endless shapes: start over rather than grow
+    cache[key] = layout
+
+
+def _fields_of(spans: dict[str, tuple[int, int]], head: Sequence[tuple[int, str]]) -> list[tuple[int, str]]:
+    return [*head, *((start, f"{count}d") for start, count in spans.values())]
+
+
+def _fast_decode(kind: str, data: bytes) -> list[tuple[float | int, ...]] | None:
+    layout = _decode_layouts.get((kind, len(data)))
+    return None if layout is None else layout.read(data)
+
+
+def _learn(kind: str, data: bytes, fields: Callable[[bytes], list[tuple[int, str]]]) -> None:
+    """Remember the shape of a message that the general decoder has just read."""
+    _remember(_decode_layouts, (kind, len(data)), _FixedLayout(data, fields(data)))
+
+
 def decode_stamp(data: bytes) -> tuple[int, int]:
     """``(sec, nanosec)`` of a message that starts with a ``std_msgs/Header``."""
     return _Reader(data).stamp()
@@ -156,19 +236,35 @@ def encode_joint_state(
     velocity: Sequence[float], effort: Sequence[float], frame_id: str = "",
 ) -> bytes:
     """``sensor_msgs/msg/JointState``."""
+    key = ("js", frame_id, *names, len(position), len(velocity), len(effort))
+    layout = _encode_layouts.get(key)
+    if layout is not None:
+        return layout.write((sec, nanosec), position, velocity, effort)
     w = _Writer()
     w.header_and_names(sec, nanosec, frame_id, names)
     w.doubles(position)
     w.doubles(velocity)
     w.doubles(effort)
-    return bytes(w.buf)
+    data = bytes(w.buf)
+    _remember(_encode_layouts, key, _FixedLayout(data, _joint_state_fields(data)))
+    return data
+
+
+def _joint_state_fields(data: bytes) -> list[tuple[int, str]]:
+    return _fields_of(joint_state_spans(data), [(4, "iI")])
 
 
 def decode_joint_state(data: bytes) -> tuple[int, int, tuple[float, ...], tuple[float, ...], tuple[float, ...]]:
     """``(sec, nanosec, position, velocity, effort)`` of a ``JointState``."""
+    fast = _fast_decode("js", data)
+    if fast is not None:
+        (sec, nanosec), position, velocity, effort = fast
+        return sec, nanosec, position, velocity, effort  # type: ignore[return-value]
     r = _Reader(data)
     sec, nanosec = r.header_and_names()
-    return sec, nanosec, r.doubles(), r.doubles(), r.doubles()
+    decoded = sec, nanosec, r.doubles(), r.doubles(), r.doubles()
+    _learn("js", data, _joint_state_fields)
+    return decoded
 
 
 def encode_joint_trajectory(
@@ -176,6 +272,10 @@ def encode_joint_trajectory(
     velocities: Sequence[float], accelerations: Sequence[float], frame_id: str = "",
 ) -> bytes:
     """``trajectory_msgs/msg/JointTrajectory`` with one point at ``time_from_start = 0``."""
+    key = ("jt", frame_id, *names, len(positions), len(velocities), len(accelerations))
+    layout = _encode_layouts.get(key)
+    if layout is not None:
+        return layout.write((sec, nanosec), positions, velocities, accelerations)
     w = _Writer()
     w.header_and_names(sec, nanosec, frame_id, names)
     w.u32(1)  # one point
@@ -184,34 +284,62 @@ def encode_joint_trajectory(
     w.doubles(accelerations)
     w.doubles(())  # effort
     w.stamp(0, 0)  # time_from_start
-    return bytes(w.buf)
+    data = bytes(w.buf)
+    _remember(_encode_layouts, key, _FixedLayout(data, _joint_trajectory_fields(data)))
+    return data
+
+
+def _joint_trajectory_fields(data: bytes) -> list[tuple[int, str]]:
+    return _fields_of(joint_trajectory_spans(data), [(4, "iI")])
 
 
 def decode_joint_trajectory(
     data: bytes,
 ) -> tuple[int, int, tuple[float, ...], tuple[float, ...], tuple[float, ...]] | None:
     """``(sec, nanosec, positions, velocities, accelerations)`` of the first point, or None."""
+    fast = _fast_decode("jt", data)
+    if fast is not None:
+        (sec, nanosec), positions, velocities, accelerations = fast
+        return sec, nanosec, positions, velocities, accelerations  # type: ignore[return-value]
     r = _Reader(data)
     sec, nanosec = r.header_and_names()
     if r.u32() == 0:
         return None
-    return sec, nanosec, r.doubles(), r.doubles(), r.doubles()
+    decoded = sec, nanosec, r.doubles(), r.doubles(), r.doubles()
+    _learn("jt", data, _joint_trajectory_fields)
+    return decoded
 
 
 def encode_float64_multi_array(data: Sequence[float], data_offset: int = 0) -> bytes:
     """``std_msgs/msg/Float64MultiArray`` without layout dimensions."""
+    key = ("fa", len(data))
+    layout = _encode_layouts.get(key)
+    if layout is not None:
+        return layout.write((data_offset,), data)
     w = _Writer()
     w.u32(0)  # layout.dim
     w.u32(data_offset)
     w.doubles(data)
-    return bytes(w.buf)
+    encoded = bytes(w.buf)
+    _remember(_encode_layouts, key, _FixedLayout(encoded, _float64_multi_array_fields(encoded)))
+    return encoded
+
+
+def _float64_multi_array_fields(data: bytes) -> list[tuple[int, str]]:
+    return _fields_of(float64_multi_array_spans(data), [(8, "I")])  # layout.data_offset
 
 
 def decode_float64_multi_array(data: bytes) -> tuple[int, tuple[float, ...]]:
     """``(layout.data_offset, data)``; layouts with dimensions are refused."""
+    fast = _fast_decode("fa", data)
+    if fast is not None:
+        (offset,), values = fast
+        return offset, values  # type: ignore[return-value]
     r = _Reader(data)
     offset = r.multi_array_offset()
-    return offset, r.doubles()
+    decoded = offset, r.doubles()
+    _learn("fa", data, _float64_multi_array_fields)
+    return decoded
 
 
 # Byte spans (offset of the first double, count) for bulk decoding of many messages

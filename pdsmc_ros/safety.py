@@ -10,6 +10,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -67,6 +68,12 @@ def safe_torque(config: SafetyConfig, q: FloatArray, qd: FloatArray, q_hold: Flo
 
 def check_effort(data: object, n: int, step: int | None = None, expected: int | None = None) -> tuple[FloatArray | None, str]:
     """``(torque, "")`` if the command may be applied, else ``(None, reason)``."""
+    if type(data) is tuple and len(data) == n and (expected is None or step == expected):
+        try:  # the loop's path: the decoder's tuple of floats
+            if all(map(math.isfinite, data)):
+                return np.array(data, dtype=float), ""
+        except (TypeError, OverflowError):
+            pass  # judged below
     try:
         tau = np.asarray(data, dtype=float).reshape(-1)
     except (TypeError, ValueError):

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from pdsmc_ros import cdr
 from pdsmc_ros.errors import BagError
@@ -81,3 +83,49 @@ def test_codecs_are_byte_identical_to_rosbags(names: list[str], m: int) -> None:
         (cdr.encode_float64_multi_array(p, 6), "std_msgs/msg/Float64MultiArray"),
     ):
         assert store.serialize_cdr(store.deserialize_cdr(ours, msgtype), msgtype) == ours
+
+
+finite = st.floats(allow_nan=False, width=64)
+shapes = st.tuples(
+    st.lists(st.sampled_from(["a", "b", "ab", "q1", "q2", "joint_1"]), max_size=4),  # joint names
+    st.integers(0, 4), st.integers(-5, 5), st.integers(0, 10**9 - 1),  # doubles per field, stamp
+)
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(st.tuples(shapes, st.data()), min_size=1, max_size=12))
+def test_remembered_layouts_never_mix_up_messages(messages) -> None:  # noqa: ANN001
+    """Encoders and decoders reuse the layout of a shape they have seen (one pack or
+    unpack); messages of equal length but other names or counts must still read back
+    exactly, in any order, as must rclpy-style bytes with garbage in the padding."""
+    for (names, m, sec, nanosec), data in messages:
+        p, v, e = (data.draw(st.lists(finite, min_size=m, max_size=m)) for _ in range(3))
+        js = cdr.encode_joint_state(sec, nanosec, names, p, v, e)
+        assert cdr.decode_joint_state(js) == (sec, nanosec, tuple(p), tuple(v), tuple(e))
+        jt = cdr.encode_joint_trajectory(sec, nanosec, names, p, v, e)
+        assert cdr.decode_joint_trajectory(jt) == (sec, nanosec, tuple(p), tuple(v), tuple(e))
+        fa = cdr.encode_float64_multi_array(p, nanosec)
+        assert cdr.decode_float64_multi_array(fa) == (nanosec, tuple(p))
+        # a writer that leaves garbage in its padding (rclpy does) is read field by field
+        dirty = bytearray(js)
+        spans = cdr.joint_state_spans(js)
+        pad = spans["position"][0] - 4
+        if m and dirty[pad:pad + 4] == b"\x00" * 4 and (pad - 4) % 8 == 4:
+            dirty[pad:pad + 4] = b"\xff" * 4
+            assert cdr.decode_joint_state(bytes(dirty)) == (sec, nanosec, tuple(p), tuple(v), tuple(e))
+
+
+def test_the_loop_messages_take_the_one_pack_path() -> None:
+    """After one message of a shape, the same shape is written and read by its layout."""
+    names = ["joint_1", "joint_2", "joint_3"]
+    first = cdr.encode_joint_state(1, 2, names, [1.0] * 3, [2.0] * 3, [3.0] * 3)
+    cdr.decode_joint_state(first)
+    key = ("js", "", *names, 3, 3, 3)
+    assert key in cdr._encode_layouts and ("js", len(first)) in cdr._decode_layouts
+    again = cdr.encode_joint_state(5, 6, names, [0.5] * 3, [0.25] * 3, [0.0] * 3)
+    general = cdr._Writer()
+    general.header_and_names(5, 6, "", names)
+    for values in ([0.5] * 3, [0.25] * 3, [0.0] * 3):
+        general.doubles(values)
+    assert again == bytes(general.buf)
+    assert cdr._decode_layouts[("js", len(first))].read(again) == [(5, 6), (0.5,) * 3, (0.25,) * 3, (0.0,) * 3]

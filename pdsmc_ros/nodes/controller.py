@@ -16,6 +16,7 @@ with the latest state and reference and publishes the achieved period on
 from __future__ import annotations
 
 import dataclasses
+import math
 import sys
 import time
 from collections.abc import Sequence
@@ -169,19 +170,22 @@ class ControllerNode:
 
     def publish(self, tau: np.ndarray, step: int) -> None:
         """Publish a torque -- never a non-finite one; clamp to the limits if set."""
-        if not np.all(np.isfinite(tau)):
+        values = tau.tolist()
+        if not all(map(math.isfinite, values)):
             self.non_finite += 1
             if self.non_finite <= 5 or self.non_finite % 1000 == 0:
                 self.node.get_logger().error(
-                    f"non-finite torque {tau.tolist()} at step {step} not published "
+                    f"non-finite torque {values} at step {step} not published "
                     f"({self.non_finite} so far)")
             return
-        tau, clamped = limit_torque(tau, self.torque_limit)
-        if clamped:
-            self.clamped += 1
-            if self.clamped <= 5 or self.clamped % 1000 == 0:
-                self.node.get_logger().warn(f"torque limited at step {step} ({self.clamped} so far)")
-        self.pub_effort.publish(encode_float64_multi_array(tau.tolist(), step))
+        if self.torque_limit is not None:
+            tau, clamped = limit_torque(tau, self.torque_limit)
+            if clamped:
+                values = tau.tolist()
+                self.clamped += 1
+                if self.clamped <= 5 or self.clamped % 1000 == 0:
+                    self.node.get_logger().warn(f"torque limited at step {step} ({self.clamped} so far)")
+        self.pub_effort.publish(encode_float64_multi_array(values, step))
 
     def tick(self, lateness: float) -> None:
         """Real time: torque from the latest state and reference; timing recorded.
