@@ -1,7 +1,9 @@
 """Recorder node: writes every run topic into a rosbag2 MCAP bag.
 
-Serialized (raw) subscriptions are written as they arrive with rosbags'
-writer in MCAP mode, so the bag holds exactly the CDR bytes that crossed DDS.
+Serialized (raw) subscriptions are written as they arrive into rosbags'
+writer in MCAP mode (through :class:`~pdsmc_ros.bagwrite.MessageAppender`,
+which writes rosbags' bytes without its per-message overhead), so the bag
+holds exactly the CDR bytes that crossed DDS.
 The run description (robot, contour, controller, gains, rates, scenario,
 package version) is stored twice: as the latched ``/pdsmc/run_description``
 message and in ``metadata.yaml``'s custom data, so analysis needs nothing
@@ -27,6 +29,7 @@ from std_msgs.msg import Float64MultiArray, String
 from trajectory_msgs.msg import JointTrajectory
 
 from ..bagio import DESCRIPTION_KEY, effort_step, header_step
+from ..bagwrite import MessageAppender
 from ..errors import BagError, ConfigError
 from ..simulator import control_steps
 from .common import (
@@ -114,13 +117,13 @@ class RecorderNode:
         node.get_logger().info(f"recording {len(RECORDED)} topics into {self.path}")
 
     def _callback(self, topic: str):  # noqa: ANN202
-        connection = self.connections[topic]
+        append = MessageAppender(self.writer, self.connections[topic]).append
         stepped = topic in STEPPED
 
         def callback(data: bytes) -> None:
             try:
                 with self.lock:
-                    self.writer.write(connection, time.time_ns(), data)
+                    append(time.time_ns(), data)
             except OSError as exc:
                 self.node.get_logger().error(f"write to {self.path} failed: {exc}")
                 self.exit_code = EXIT_FAILURE

@@ -1,0 +1,61 @@
+"""The recorder's fast message appender writes what rosbags' own writer writes."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from rosbags.rosbag2 import StoragePlugin, Writer
+from rosbags.typesys import Stores, get_typestore
+
+from pdsmc_ros import cdr
+from pdsmc_ros.bagwrite import MessageAppender
+
+TOPICS = (("/joint_states", "sensor_msgs/msg/JointState"),
+          ("/effort_controller/commands", "std_msgs/msg/Float64MultiArray"))
+
+
+def _messages(count: int) -> list[tuple[int, int, bytes]]:
+    """(topic index, timestamp, data): interleaved topics, a timestamp going backwards,
+    and enough bytes to close several 1 MiB chunks."""
+    out = []
+    for k in range(count):
+        js = cdr.encode_joint_state(k // 10, k, ["a", "b"], [0.1 * k, 2.0], [3.0, k], [])
+        out.append((0, 1_000_000 + 37 * k, js))
+        out.append((1, 1_000_000 + 37 * k + (-500 if k == 7 else 5), cdr.encode_float64_multi_array([1.0] * (k % 40), k)))
+    return out
+
+
+def _write(path: Path, messages: list[tuple[int, int, bytes]], fast: bool) -> None:
+    store = get_typestore(Stores.ROS2_JAZZY)
+    with Writer(path, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        conns = [writer.add_connection(topic, msgtype, typestore=store) for topic, msgtype in TOPICS]
+        appenders = [MessageAppender(writer, conn) for conn in conns]
+        for index, stamp, data in messages:
+            if fast:
+                appenders[index].append(stamp, data)
+            else:
+                writer.write(conns[index], stamp, data)
+
+
+def test_appender_writes_the_bytes_rosbags_writes(tmp_path: Path) -> None:
+    messages = _messages(12_000)  # about 3.5 MB: several chunks
+    _write(tmp_path / "rosbags" / "bag", messages, fast=False)
+    _write(tmp_path / "fast" / "bag", messages, fast=True)
+    for name in ("bag.mcap", "metadata.yaml"):  # same bag name: the metadata names the file
+        ours = (tmp_path / "fast" / "bag" / name).read_bytes()
+        theirs = (tmp_path / "rosbags" / "bag" / name).read_bytes()
+        assert ours == theirs, name
+    assert len(theirs) > 0 and (tmp_path / "fast" / "bag" / "bag.mcap").stat().st_size > 3 * 2**20
+
+
+def test_appender_refuses_a_closed_bag_or_a_foreign_connection(tmp_path: Path) -> None:
+    store = get_typestore(Stores.ROS2_JAZZY)
+    writer = Writer(tmp_path / "a", version=9, storage_plugin=StoragePlugin.MCAP)
+    with pytest.raises(ValueError, match="not open"):
+        MessageAppender(writer, None)
+    other = Writer(tmp_path / "b", version=9, storage_plugin=StoragePlugin.MCAP)
+    with writer, other:
+        foreign = other.add_connection("/x", "std_msgs/msg/String", typestore=store)
+        with pytest.raises(ValueError, match="'/x' is not one of this bag's"):
+            MessageAppender(writer, foreign)
