@@ -28,6 +28,7 @@ from .errors import BagError
 HEADER = b"\x00\x01\x00\x00"
 _U32 = struct.Struct("<I")
 _STAMP = struct.Struct("<iI")
+_TWO_U32 = struct.Struct("<II")
 
 
 class _Writer:
@@ -216,6 +217,8 @@ def _learn(kind: str, data: bytes, fields: Callable[[bytes], list[tuple[int, str
 
 def decode_stamp(data: bytes) -> tuple[int, int]:
     """``(sec, nanosec)`` of a message that starts with a ``std_msgs/Header``."""
+    if len(data) >= 12 and data[1] == 1:
+        return _STAMP.unpack_from(data, 4)  # right after the encapsulation header, aligned
     return _Reader(data).stamp()
 
 
@@ -228,6 +231,10 @@ def decode_string(data: bytes) -> str:
 
 def float64_multi_array_offset(data: bytes) -> int:
     """``layout.data_offset`` of a ``Float64MultiArray`` (dimensions are refused)."""
+    if len(data) >= 12 and data[1] == 1:
+        dims, offset = _TWO_U32.unpack_from(data, 4)
+        if dims == 0:
+            return offset
     return _Reader(data).multi_array_offset()
 
 

@@ -64,6 +64,8 @@ def test_decoders_refuse_what_the_loop_does_not_produce() -> None:
     with_dims[4] = 1  # one layout dimension
     with pytest.raises(BagError, match="layout dimensions"):
         cdr.decode_float64_multi_array(bytes(with_dims))
+    with pytest.raises(BagError, match="layout dimensions"):
+        cdr.float64_multi_array_offset(bytes(with_dims))
     empty = cdr.encode_joint_trajectory(0, 0, ["a"], [], [], [])
     no_points = empty[: empty.index(b"a\x00") + 4] + b"\x00\x00\x00\x00"
     assert cdr.decode_joint_trajectory(no_points) is None
@@ -106,6 +108,8 @@ def test_remembered_layouts_never_mix_up_messages(messages) -> None:  # noqa: AN
         assert cdr.decode_joint_trajectory(jt) == (sec, nanosec, tuple(p), tuple(v), tuple(e))
         fa = cdr.encode_float64_multi_array(p, nanosec)
         assert cdr.decode_float64_multi_array(fa) == (nanosec, tuple(p))
+        assert cdr.decode_stamp(js) == cdr.decode_stamp(jt) == (sec, nanosec)
+        assert cdr.float64_multi_array_offset(fa) == nanosec
         # a writer that leaves garbage in its padding (rclpy does) is read field by field
         dirty = bytearray(js)
         spans = cdr.joint_state_spans(js)

@@ -344,10 +344,15 @@ class GuardedPublisher:
         self.publisher = publisher
         self.node = node
         self.failures = 0
+        self._handle = publisher.handle
 
     def publish(self, msg: Any) -> bool:
         try:
-            self.publisher.publish(msg)
+            if type(msg) is bytes:  # the loop's serialized messages: straight to rcl
+                with self._handle:
+                    self._handle.publish_raw(msg)
+            else:
+                self.publisher.publish(msg)
             return True
         except RCLError as exc:
             self.failures += 1
@@ -545,10 +550,11 @@ def run_nodes(
             executor.add_node(wrapper.node)
         _install_signal_handlers(group)
         with_inputs = [w.inputs for w in wrappers if getattr(w, "inputs", None)]
-        hot = [item for inputs in with_inputs for item in inputs.hot]
-        # observers batch only when alone in their process (composed: the loop's own nodes)
-        batch = min((inputs.batch_s for inputs in with_inputs), default=0.0)
-        _serve_loop(executor, group, hot, period, batch)
+        # the loop's own inputs are taken at every pass; observers' (composed or alone) in batches
+        loop_inputs = [item for inputs in with_inputs if not inputs.batch_s for item in inputs.hot]
+        observed = [item for inputs in with_inputs if inputs.batch_s for item in inputs.hot]
+        observe_every = min((inputs.batch_s for inputs in with_inputs if inputs.batch_s), default=0.0)
+        _serve_loop(executor, group, loop_inputs, period, observed, observe_every)
         code = group.exit_code
         if not group.stopped_by_signal:
             _drain(executor, wrappers)
@@ -607,27 +613,32 @@ SPIN_BEFORE_TICK_S = 0.0002  # real time: busy-wait this last stretch before a t
 
 def _serve_loop(executor: SingleThreadedExecutor, group: Any,
                 hot: Sequence[tuple[Any, Callable[[bytes], None]]], period: float | None,
-                batch: float = 0.0) -> None:
+                observed: Sequence[tuple[Any, Callable[[bytes], None]]] = (),
+                observe_every: float = 0.0) -> None:
     """Take the loop's inputs with a wait set of their own; serve the rest beside them.
 
-    Every ready input is drained (``take_message`` until empty) and handed to its
-    handler. Lockstep: every ``COLD_PERIOD_S`` the executor gets one
-    non-blocking turn (timers, parameters, ``/clock``). Real time (a ``period``):
-    the executor spins in a thread of its own instead -- one of its turns builds
-    a wait set of every entity of the node and took about 1 ms, a missed
-    deadline each time -- and ``group.tick(lateness)`` runs on a wall-clock
-    schedule: the loop sleeps in the wait set until ``SPIN_BEFORE_TICK_S``
-    before the deadline and busy-waits the rest, because waking from a sleep is
-    late by tens to hundreds of microseconds. Late ticks run at once (no burst
-    catch-up beyond one period); ``tick`` may count missed deadlines from the
-    lateness. The garbage collector is kept off the path (the loop creates no
-    reference cycles) and its young generation collected now and then.
-    With ``batch`` > 0 (observers, see :class:`Inputs`) the loop sleeps
-    ``batch`` after each round that took messages, so they are taken in batches.
+    Every ready input of ``hot`` is drained (``take_message`` until empty) and
+    handed to its handler at every pass. Lockstep: every ``COLD_PERIOD_S`` the
+    executor gets one non-blocking turn (timers, parameters, ``/clock``). Real
+    time (a ``period``): the executor spins in a thread of its own instead -- one
+    of its turns builds a wait set of every entity of the node and took about
+    1 ms, a missed deadline each time -- and ``group.tick(lateness)`` runs on a
+    wall-clock schedule: the loop sleeps in the wait set until
+    ``SPIN_BEFORE_TICK_S`` before the deadline and busy-waits the rest, because
+    waking from a sleep is late by tens to hundreds of microseconds. Late ticks
+    run at once (no burst catch-up beyond one period); ``tick`` may count missed
+    deadlines from the lateness. The garbage collector is kept off the path (the
+    loop creates no reference cycles) and its young generation collected now and then.
+
+    ``observed`` are the inputs of observers (see :class:`Inputs`): once they
+    have given messages, they are left alone for ``observe_every`` seconds, so
+    their messages are taken in batches -- whether the observer runs alone or
+    composed with the loop's nodes, whose inputs are still taken at every pass.
     """
     clock = time.perf_counter
-    wait_set = _rclpy_impl.WaitSet(len(hot), 0, 0, 0, 0, 0, executor.context.handle)
+    wait_set = _rclpy_impl.WaitSet(len(hot) + len(observed), 0, 0, 0, 0, 0, executor.context.handle)
     inputs = [(sub.handle, sub.msg_type, handler) for sub, handler in hot]
+    observer_inputs = [(sub.handle, sub.msg_type, handler) for sub, handler in observed]
     gc.collect()
     gc.freeze()
     gc.disable()
@@ -643,6 +654,7 @@ def _serve_loop(executor: SingleThreadedExecutor, group: Any,
     try:
         next_cold = float("inf") if period else 0.0
         next_tick = clock() + period if period else float("inf")
+        next_observe = 0.0
         while rclpy.ok() and not group.done:
             took = False
             for handle, msg_type, handler in inputs:
@@ -652,6 +664,16 @@ def _serve_loop(executor: SingleThreadedExecutor, group: Any,
                         break
                     handler(taken[0])
                     took = True
+            now = clock()
+            if observer_inputs and now >= next_observe:
+                for handle, msg_type, handler in observer_inputs:
+                    while True:
+                        taken = handle.take_message(msg_type, True)
+                        if taken is None:
+                            break
+                        handler(taken[0])
+                        next_observe = now + observe_every
+                        took = True
             if took and group.done:
                 return
             now = clock()
@@ -668,20 +690,23 @@ def _serve_loop(executor: SingleThreadedExecutor, group: Any,
             if gc.get_count()[0] > 50_000:
                 gc.collect(0)
             if took:
-                if batch:
-                    time.sleep(min(batch, max(next_tick - SPIN_BEFORE_TICK_S - now, 0.0)))
                 continue
-            sleep = min(next_cold, next_tick - SPIN_BEFORE_TICK_S, now + 0.1) - now
+            due = min(next_cold, next_tick - SPIN_BEFORE_TICK_S, now + 0.1)
+            observing = now >= next_observe
+            if not observing:
+                due = min(due, next_observe)
+            sleep = due - now
             if sleep <= 0.0:
                 continue  # busy-wait for the tick
-            if not inputs:
-                if cold_thread is None:
-                    executor.spin_once(timeout_sec=sleep)
+            waited = inputs + observer_inputs if observing else inputs
+            if not waited:
+                if cold_thread is None and not observer_inputs:
+                    executor.spin_once(timeout_sec=sleep)  # a node without inputs
                 else:
                     time.sleep(sleep)
                 continue
             wait_set.clear_entities()
-            for handle, _, _ in inputs:
+            for handle, _, _ in waited:
                 wait_set.add_subscription(handle)
             wait_set.wait(int(sleep * 1e9))
     finally:
