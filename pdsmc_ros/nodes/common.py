@@ -411,7 +411,10 @@ class UpstreamWatch:
     A real-time node cannot tell the plant's last message from any other; when
     the plant leaves (its participant is removed from the graph), the node
     downstream of it is done, even if that last message was never delivered.
-    Polled from the executor (``count_publishers`` reads the graph cache).
+    The owner calls :meth:`poll` from its tick, after the tick's work; it reads
+    the graph cache (``count_publishers``) at most every ``period`` seconds. (An
+    executor timer did this at first: each of its turns took the GIL for about
+    half a millisecond and made every hundredth controller period late.)
     """
 
     def __init__(self, node: Node, topic: str, on_gone: Callable[[], None], *,
@@ -419,14 +422,23 @@ class UpstreamWatch:
         self.node = node
         self.topic = node.resolve_topic_name(topic)
         self.on_gone = on_gone
+        self.period = period
         self.seen = False
-        self.timer = node.create_timer(period, self.check, clock=STEADY_CLOCK)
+        self.gone = False
+        self.next_check = 0.0
+
+    def poll(self) -> None:
+        now = time.perf_counter()
+        if self.gone or now < self.next_check:
+            return
+        self.next_check = now + self.period
+        self.check()
 
     def check(self) -> None:
         if self.node.count_publishers(self.topic):
             self.seen = True
         elif self.seen:
-            self.timer.cancel()
+            self.gone = True
             self.on_gone()
 
 
@@ -609,6 +621,7 @@ COLD_PERIOD_S = 0.02  # lockstep: the executor's turn (timers, parameters, /cloc
 # (one turn costs 0.2-1 ms of Python; every 5 ms it took 15 % of the lockstep rate)
 MAX_BATCH_S = 0.05  # an observer lets its messages gather at most this long
 SPIN_BEFORE_TICK_S = 0.0002  # real time: busy-wait this last stretch before a tick
+COLD_WAIT_S = 5.0  # real time: the executor thread's longest sleep (it is woken to stop)
 
 
 def _serve_loop(executor: SingleThreadedExecutor, group: Any,
@@ -644,10 +657,17 @@ def _serve_loop(executor: SingleThreadedExecutor, group: Any,
     gc.disable()
     stop = threading.Event()
     cold_thread = None
+    wake_guard = None
     if period:
+        # the executor thread sleeps until it has work (timers, services); a guard condition
+        # of one of its nodes ends that sleep when the loop ends (Executor.wake() does not
+        # interrupt spin_once here). Waking every 0.1 s instead cost ~0.5 ms under the GIL
+        # ten times a second -- a late control period each time.
+        wake_guard = group.wrappers[0].node.create_guard_condition(lambda: None)
+
         def spin_cold() -> None:
             while not stop.is_set() and rclpy.ok():
-                executor.spin_once(timeout_sec=0.1)
+                executor.spin_once(timeout_sec=COLD_WAIT_S)
 
         cold_thread = threading.Thread(target=spin_cold, name="executor", daemon=True)
         cold_thread.start()
@@ -711,11 +731,12 @@ def _serve_loop(executor: SingleThreadedExecutor, group: Any,
             wait_set.wait(int(sleep * 1e9))
     finally:
         stop.set()
-        if cold_thread is not None:
-            executor.wake()  # end its wait now, not after up to 0.1 s
+        if cold_thread is not None and wake_guard is not None:
+            wake_guard.trigger()  # end its wait now
             cold_thread.join(timeout=2.0)
             if cold_thread.is_alive():
                 print("warning: the executor thread did not stop within 2 s", file=sys.stderr, flush=True)
+            group.wrappers[0].node.destroy_guard_condition(wake_guard)
         gc.enable()
         gc.unfreeze()
 

@@ -188,6 +188,11 @@ class ControllerNode:
         self.pub_effort.publish(encode_float64_multi_array(values, step))
 
     def tick(self, lateness: float) -> None:
+        """Real time: one control period, then (rarely) a look at whether the plant is there."""
+        self.control(lateness)
+        self.plant_watch.poll()
+
+    def control(self, lateness: float) -> None:
         """Real time: torque from the latest state and reference; timing recorded.
 
         Publishes ``[wall time (s), achieved period (s), compute time (s),

@@ -152,6 +152,7 @@ class TrajectoryNode:
         self.publish(max(step, 0))
         if self.state_step >= self.last_step:
             self.done = True
+        self.plant_watch.poll()
 
 
 def main(args: Sequence[str] | None = None) -> int:
