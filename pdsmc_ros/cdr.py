@@ -1,4 +1,4 @@
-"""CDR (XCDR1, little endian) encoding of the three messages of the control loop.
+"""CDR (XCDR1, little endian) encoding of the messages of the control loop.
 
 The lockstep nodes publish and take serialized messages (``raw=True``): building
 a ``JointState`` in Python and converting it to C costs more than the control
@@ -347,6 +347,29 @@ def decode_float64_multi_array(data: bytes) -> tuple[int, tuple[float, ...]]:
     decoded = offset, r.doubles()
     _learn("fa", data, _float64_multi_array_fields)
     return decoded
+
+
+def encode_clock(sec: int, nanosec: int) -> bytes:
+    """``rosgraph_msgs/msg/Clock``."""
+    return HEADER + _STAMP.pack(sec, nanosec)
+
+
+def encode_point_stamped(sec: int, nanosec: int, x: float, y: float, z: float = 0.0,
+                         frame_id: str = "") -> bytes:
+    """``geometry_msgs/msg/PointStamped``."""
+    key = ("ps", frame_id)
+    layout = _encode_layouts.get(key)
+    if layout is not None:
+        return layout.write((sec, nanosec), (x, y, z))
+    w = _Writer()
+    w.stamp(sec, nanosec)
+    w.string(frame_id)
+    w.align(8)
+    start = len(w.buf)
+    w.buf += struct.pack("<3d", x, y, z)
+    data = bytes(w.buf)
+    _remember(_encode_layouts, key, _FixedLayout(data, [(4, "iI"), (start, "3d")]))
+    return data
 
 
 # Byte spans (offset of the first double, count) for bulk decoding of many messages

@@ -28,7 +28,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
-from ..cdr import decode_float64_multi_array, encode_joint_state
+from ..cdr import decode_float64_multi_array, encode_clock, encode_joint_state, encode_point_stamped
 from ..errors import BagError
 from ..safety import check_effort, safe_torque
 from ..simulator import PlantStepper, control_steps
@@ -83,6 +83,7 @@ class PlantNode:
         self.applied = np.zeros(self.robot.n)
         self.latest_effort = np.zeros(self.robot.n)
         self.names = list(self.robot.joint_names) + list(self.robot.passive_joint_names)
+        self.has_passive = bool(self.robot.passive_joint_names)
         self.done = False
         self.exit_code = EXIT_OK
         self.rejected = 0
@@ -119,19 +120,19 @@ class PlantNode:
         step = self.plant.steps
         sec, nanosec = step_stamp(step, self.spec.rate)
         if self.mode == "lockstep" and step % self.clock_every == 0:
-            self.pub_clock.publish(Clock(clock=Time(sec=sec, nanosec=nanosec)))
+            self.pub_clock.publish(encode_clock(sec, nanosec))
         q, qd = self.plant.q, self.plant.qd
-        passive_q, passive_qd = self.robot.passive_joints(q, qd)
-        self.pub_state.publish(encode_joint_state(
-            sec, nanosec, self.names, q.tolist() + passive_q.tolist(), qd.tolist() + passive_qd.tolist(),
-            self.applied.tolist() + [0.0] * len(passive_q)))
+        if self.has_passive:
+            passive_q, passive_qd = self.robot.passive_joints(q, qd)
+            position, velocity = q.tolist() + passive_q.tolist(), qd.tolist() + passive_qd.tolist()
+            effort = self.applied.tolist() + [0.0] * len(passive_q)
+        else:
+            position, velocity, effort = q.tolist(), qd.tolist(), self.applied.tolist()
+        self.pub_state.publish(encode_joint_state(sec, nanosec, self.names, position, velocity, effort))
         if step % self.ee_every and step != self.last_step:
             return  # the end-effector point goes out at the statistics rate
         x, y = self.robot.position(q)
-        ee = PointStamped()
-        ee.header.stamp = Time(sec=sec, nanosec=nanosec)
-        ee.point.x, ee.point.y = float(x), float(y)
-        self.pub_ee.publish(ee)
+        self.pub_ee.publish(encode_point_stamped(sec, nanosec, float(x), float(y)))
 
     def listeners_ready(self) -> bool:
         return (

@@ -25,13 +25,12 @@ import sys
 from collections.abc import Sequence
 
 import numpy as np
-from builtin_interfaces.msg import Time
 from geometry_msgs.msg import PointStamped
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory
 
-from ..cdr import decode_stamp, encode_joint_trajectory
+from ..cdr import decode_stamp, encode_joint_trajectory, encode_point_stamped
 from ..simulator import control_steps
 from .common import (
     GuardedPublisher,
@@ -110,10 +109,7 @@ class TrajectoryNode:
             self.refs.qdd[step].tolist()))
         if step % self.ee_every and step != self.last_step:
             return  # the desired end-effector point goes out at the statistics rate
-        ee = PointStamped()
-        ee.header.stamp = Time(sec=sec, nanosec=nanosec)
-        ee.point.x, ee.point.y = float(self.task[step, 0]), float(self.task[step, 1])
-        self.pub_ee.publish(ee)
+        self.pub_ee.publish(encode_point_stamped(sec, nanosec, float(self.task[step, 0]), float(self.task[step, 1])))
 
     def try_start(self) -> None:
         if (
