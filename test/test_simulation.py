@@ -339,3 +339,27 @@ def test_cli_bad_input_is_one_line_and_exit_2(args: list, message: str) -> None:
     assert message in proc.stderr
     assert len(proc.stderr.strip().splitlines()) == 1
     assert "Traceback" not in proc.stderr
+
+
+def test_gain_reading_changes_only_its_runs_and_keeps_the_printed_result() -> None:
+    """The vertical-ellipse PD runs use the read gains (before the scenario's factors); the
+    printed preset is untouched, and the printed-gain run gives the cells' defined values."""
+    from pdsmc_ros.reproduce import GAIN_READINGS, compare, matrix_specs, run_key, run_reproduction
+
+    read = {run_key(s): s for s in matrix_specs()}
+    printed = {run_key(s): s for s in matrix_specs(gain_readings=False)}
+    assert read.keys() == printed.keys()
+    changed = sorted(k for k in read if read[k].gains != printed[k].gains)
+    assert changed and all(k.startswith("parallel_5r/ellipse_vertical/") and k.endswith("/pd") for k in changed)
+    gains = GAIN_READINGS[("parallel_5r", "ellipse_vertical", "pd")][0]
+    assert list(read["parallel_5r/ellipse_vertical/nominal/pd"].gains.kp) == gains["kp"]
+    assert list(read["parallel_5r/ellipse_vertical/high_pd/pd"].gains.kd) == [1.5 * v for v in gains["kd"]]
+    assert make_run("parallel_5r", "ellipse_vertical", "pd").gains == printed["parallel_5r/ellipse_vertical/nominal/pd"].gains
+
+    rep = run_reproduction(only="parallel_5r/ellipse_vertical/nominal/pd", readings=False, workers=1)
+    as_printed = simulate(printed["parallel_5r/ellipse_vertical/nominal/pd"])
+    cells = {c.metric: c for c in rep.cells}
+    assert cells["contour_sd"].ours == rep.results[0].metrics.contour_sd
+    assert cells["contour_sd"].as_defined == as_printed.metrics.contour_sd != cells["contour_sd"].ours
+    # without a printed run the defined value is the run's own
+    assert all(c.as_defined == c.ours for c in compare([as_printed]))
