@@ -676,24 +676,11 @@ def _serve_loop(executor: SingleThreadedExecutor, group: Any,
         next_tick = clock() + period if period else float("inf")
         next_observe = 0.0
         while rclpy.ok() and not group.done:
-            took = False
-            for handle, msg_type, handler in inputs:
-                while True:
-                    taken = handle.take_message(msg_type, True)
-                    if taken is None:
-                        break
-                    handler(taken[0])
-                    took = True
+            took = _take_all(inputs)
             now = clock()
-            if observer_inputs and now >= next_observe:
-                for handle, msg_type, handler in observer_inputs:
-                    while True:
-                        taken = handle.take_message(msg_type, True)
-                        if taken is None:
-                            break
-                        handler(taken[0])
-                        next_observe = now + observe_every
-                        took = True
+            if observer_inputs and now >= next_observe and _take_all(observer_inputs):
+                next_observe = now + observe_every
+                took = True
             if took and group.done:
                 return
             now = clock()
@@ -739,6 +726,19 @@ def _serve_loop(executor: SingleThreadedExecutor, group: Any,
             group.wrappers[0].node.destroy_guard_condition(wake_guard)
         gc.enable()
         gc.unfreeze()
+
+
+def _take_all(inputs: Sequence[tuple[Any, Any, Callable[[bytes], None]]]) -> bool:
+    """Hand every waiting message of ``inputs`` to its handler; whether there was any."""
+    took = False
+    for handle, msg_type, handler in inputs:
+        while True:
+            taken = handle.take_message(msg_type, True)
+            if taken is None:
+                break
+            handler(taken[0])
+            took = True
+    return took
 
 
 def _drain(executor: Any, wrappers: Sequence[Any], timeout: float = DRAIN_TIMEOUT_S) -> None:
