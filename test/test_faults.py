@@ -363,3 +363,53 @@ def test_nice_applies_to_the_critical_path_only(ros_env: dict, tmp_path: Path) -
     raised = min(base + 5, 19)
     assert seen == {"plant": raised, "controller": raised, "trajectory": base, "recorder": base}
     assert read_run(out).complete
+
+
+TEARDOWN_HANG = r"""
+import sys, time
+from pdsmc_ros.nodes.common import arm_teardown_watch
+arm_teardown_watch(int(sys.argv[1]), seconds=0.3)
+time.sleep(30)  # a teardown that never ends
+"""
+
+
+@pytest.mark.timeout(60)
+@pytest.mark.parametrize("code", [0, 1])
+def test_teardown_watch_ends_a_hung_exit_and_tells_done_from_failed(code: int) -> None:
+    """After complete work a hang ends with SIGALRM (the orchestration's warning status);
+    after a failure with status 1; both with the stack of where it hung."""
+    proc = subprocess.run([sys.executable, "-c", TEARDOWN_HANG, str(code)], capture_output=True,
+                          text=True, timeout=30)
+    assert "Timeout (0:00:00" in proc.stderr and "time.sleep" not in proc.stdout
+    assert "line 5" in proc.stderr  # where it hung
+    assert proc.returncode == (-signal.SIGALRM if code == 0 else 1)
+
+
+FAKE_ROS2 = """#!/usr/bin/env bash
+# fake `ros2 run pdsmc_ros NAME ...`: FAKE_HANG names a node that ends like a hung teardown
+# (SIGALRM), FAKE_FAIL one that fails; the others finish at once
+[[ "$3" == "${FAKE_HANG:-}" ]] && kill -ALRM $$
+[[ "$3" == "${FAKE_FAIL:-}" ]] && exit 1
+exit 0
+"""
+
+
+@pytest.mark.timeout(60)
+@pytest.mark.parametrize(("env_extra", "ok"), [({"FAKE_HANG": "trajectory"}, True),
+                                               ({"FAKE_FAIL": "trajectory"}, False)])
+def test_orchestration_warns_about_a_teardown_hang_but_fails_a_failure(
+        tmp_path: Path, env_extra: dict, ok: bool) -> None:
+    fake = tmp_path / "bin" / "ros2"
+    fake.parent.mkdir()
+    fake.write_text(FAKE_ROS2)
+    fake.chmod(0o755)
+    env = {**os.environ, "PATH": f"{fake.parent}:{os.environ['PATH']}", **env_extra}
+    proc = subprocess.run(["bash", str(SCRIPT), "--robot", "serial_3r", "--contour", "circle", "--controller", "pd",
+                           "--out", str(tmp_path / "bag")],
+                          env=env, capture_output=True, text=True, timeout=30)
+    if ok:
+        assert proc.returncode == 0, proc.stderr
+        assert "warning: node 'trajectory' finished its work, then hung in DDS teardown" in proc.stderr
+    else:
+        assert proc.returncode == 1
+        assert "node 'trajectory' failed (exit 1)" in proc.stderr and "failed nodes: trajectory" in proc.stderr
