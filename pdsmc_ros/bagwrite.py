@@ -1,14 +1,14 @@
 """Appending messages to a rosbags MCAP bag without its per-message overhead (ROS-free).
 
 rosbags' ``Writer.write`` checks the connection against a list of dataclasses
-and builds each MCAP message record in a ``BytesIO`` of its own: about 20 us a
+and builds each MCAP message record in a ``BytesIO`` of its own: about 15 us a
 message here, and the recorder writes three or more per control step.
 :class:`MessageAppender` writes the very same bytes (one ``struct`` header and
 the payload into the open chunk) and keeps the writer's bookkeeping (message
 counts, start and end times, chunk index) exactly as ``Writer.write`` would,
 so ``Writer.close`` finishes the bag unchanged. It is used only on an
 uncompressed MCAP writer, the recorder's, and checked against rosbags' own
-output byte for byte (test/test_cdr.py); any other writer gets ``Writer.write``.
+output byte for byte (test/test_bagwrite.py); any other writer gets ``Writer.write``.
 """
 
 from __future__ import annotations

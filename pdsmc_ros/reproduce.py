@@ -274,11 +274,10 @@ def run_reproduction(
                 for s in specs
                 if s.controller == "smc" and s.scenario == "nominal"
             ]
-    # the runs a gain reading changed, once more with the gains as printed
+    # the runs a gain reading changed, once more with the gains as printed (run last)
     printed_specs = [p for p, s in zip(select(matrix_specs(smc, gain_readings=False), only), specs)
                      if p.gains != s.gains]
-    extra["(gains as printed)"] = printed_specs
-    everything = specs + [s for group in extra.values() for s in group]
+    everything = specs + [s for group in extra.values() for s in group] + printed_specs
     tables = load_config("thesis_tables")
 
     def report(done: int, total: int, res: RunResult) -> None:
@@ -310,15 +309,13 @@ def run_reproduction(
     else:
         results = simulate_many(everything, workers=workers, progress=report)
     main = results[: len(specs)]
-    chunks: dict[str, list[RunResult]] = {}
-    offset = len(specs)
-    for name, group in extra.items():
-        chunks[name] = results[offset : offset + len(group)]
-        offset += len(group)
-    printed = {run_key(r.spec): r for r in chunks.pop("(gains as printed)")}
+    printed = {run_key(r.spec): r for r in results[len(results) - len(printed_specs):]}
     cells = compare(main, printed)
     summary_by_reading = {smc: summarize(c for c in cells if c.controller == "smc" and c.scenario == "nominal")}
-    for name, chunk in chunks.items():
+    offset = len(specs)
+    for name, group in extra.items():
+        chunk = results[offset : offset + len(group)]
+        offset += len(group)
         summary_by_reading[name] = summarize(compare(chunk))
     return Reproduction(cells, main, smc, time.perf_counter() - start, summary_by_reading)
 

@@ -672,13 +672,14 @@ def _serve_loop(executor: SingleThreadedExecutor, group: Any,
     gc.disable()
     stop = threading.Event()
     cold_thread = None
+    guard_node = group.wrappers[0].node
     wake_guard = None
     if period:
         # the executor thread sleeps until it has work (timers, services); a guard condition
         # of one of its nodes ends that sleep when the loop ends (Executor.wake() does not
         # interrupt spin_once here). Waking every 0.1 s instead cost ~0.5 ms under the GIL
         # ten times a second -- a late control period each time.
-        wake_guard = group.wrappers[0].node.create_guard_condition(lambda: None)
+        wake_guard = guard_node.create_guard_condition(lambda: None)
 
         def spin_cold() -> None:
             while not stop.is_set() and rclpy.ok():
@@ -733,12 +734,12 @@ def _serve_loop(executor: SingleThreadedExecutor, group: Any,
             wait_set.wait(int(sleep * 1e9))
     finally:
         stop.set()
-        if cold_thread is not None and wake_guard is not None:
+        if wake_guard is not None:  # real time: stop the executor thread
             wake_guard.trigger()  # end its wait now
             cold_thread.join(timeout=2.0)
             if cold_thread.is_alive():
                 print("warning: the executor thread did not stop within 2 s", file=sys.stderr, flush=True)
-            group.wrappers[0].node.destroy_guard_condition(wake_guard)
+            guard_node.destroy_guard_condition(wake_guard)
         gc.enable()
         gc.unfreeze()
 
