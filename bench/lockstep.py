@@ -3,9 +3,9 @@
 Runs the real four-node system (plant with the serial arm's dynamics,
 trajectory, controller type:=pdsmc, recorder) through scripts/run_experiment.sh
 on a time-scaled serial circle at 10 kHz, in the multi-process default, in
-the composed mode and with only the plant and the controller composed, and
--- in the same run -- a plain two-process rclpy publish/echo round trip with
-default executors. Steps per second are taken
+the composed mode and with only the plant and the controller composed (each
+also with ``--intra-process``), and -- in the same run -- a plain two-process
+rclpy publish/echo round trip with default executors. Steps per second are taken
 from the recorder's receive times of /joint_states (start-up excluded).
 
 Last line: ``lockstep_steps_per_s=N rclpy_roundtrips_per_s=M`` (N: multi-process).
@@ -115,6 +115,16 @@ def lockstep_steps_per_s(steps: int, composition: Sequence[str] = ()) -> tuple[f
     return (len(stamps) - 1) / ((stamps[-1] - stamps[0]) * 1e-9), lost
 
 
+# the other arrangements measured beside the four processes (run_experiment.sh options)
+ARRANGEMENTS = (
+    ("composed (1 process)", ["--composed"]),
+    ("composed, intra-process (1 process, no DDS between the nodes)", ["--composed", "--intra-process"]),
+    ("plant+controller composed, trajectory and recorder apart (3 processes)", ["--compose", "plant,controller"]),
+    ("plant+controller composed intra-process, the others apart (3 processes)",
+     ["--compose", "plant,controller", "--intra-process"]),
+)
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--steps", type=int, default=20000)
@@ -128,11 +138,9 @@ def main() -> int:
     nice = [] if args.nice is None else ["--nice", str(args.nice)]
     multi, lost_multi = lockstep_steps_per_s(args.steps, nice)
     print(f"lockstep, 4 processes: {multi:,.0f} steps/s ({args.steps} steps, {lost_multi} messages lost)")
-    comp, lost_comp = lockstep_steps_per_s(args.steps, ["--composed", *nice])
-    print(f"lockstep, composed (1 process): {comp:,.0f} steps/s ({lost_comp} messages lost)")
-    loop, lost_loop = lockstep_steps_per_s(args.steps, ["--compose", "plant,controller", *nice])
-    print(f"lockstep, plant+controller composed, trajectory and recorder apart (3 processes): "
-          f"{loop:,.0f} steps/s ({lost_loop} messages lost)")
+    for label, options in ARRANGEMENTS:
+        rate, lost = lockstep_steps_per_s(args.steps, [*options, *nice])
+        print(f"lockstep, {label}: {rate:,.0f} steps/s ({lost} messages lost)")
     rt = roundtrips_per_s()
     print(f"plain rclpy publish/echo round trip, default executors: {rt:,.0f} round trips/s")
     print(f"lockstep_steps_per_s={multi:.0f} rclpy_roundtrips_per_s={rt:.0f}")

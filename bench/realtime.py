@@ -8,7 +8,8 @@ with the same analysis code as ``pdsmc analyze``.
 
 Last line: ``realtime_rate_hz=R jitter_p50_us=A jitter_p99_us=B missed_pct=C``.
 
-Usage: python bench/realtime.py [--rate 1000] [--duration-factor 0.5]   (inside the venv)
+Usage: python bench/realtime.py [--rate 1000] [--duration-factor 0.5] [--compose NODES [--intra-process]]
+       [--nice N]   (inside the venv)
 """
 
 from __future__ import annotations
@@ -34,6 +35,8 @@ def main() -> int:
                         help="fraction of the 10 s circle to run (default 0.5)")
     parser.add_argument("--compose", default="",
                         help="nodes to run in one process (run_experiment.sh --compose), e.g. plant,controller")
+    parser.add_argument("--intra-process", action="store_true",
+                        help="with --compose: hand messages between the composed nodes without DDS")
     parser.add_argument("--nice", type=int, default=None,
                         help="niceness of the plant and the controller (run_experiment.sh --nice; negative needs root)")
     args = parser.parse_args()
@@ -45,6 +48,8 @@ def main() -> int:
                "--param", f"sample_rate:={args.rate / 2:g}", "--out", str(out), "--timeout", "600"]
         if args.compose:
             cmd += ["--compose", args.compose]
+        if args.intra_process:
+            cmd += ["--intra-process"]
         if args.nice is not None:
             cmd += ["--nice", str(args.nice)]
         if subprocess.run(cmd, env=os.environ.copy()).returncode != 0:

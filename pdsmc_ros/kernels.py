@@ -461,6 +461,41 @@ def forward_dynamics(kind, p, q, qd, tau, out, work):  # noqa: ANN001, ANN201
     _solve_spd(mass, rhs[0:n], out, work[16:])
 
 
+OUTPUTS_SIZE = 6
+
+
+@njit(cache=_CACHE)
+def robot_outputs(kind, p, q, qd, out, work):  # noqa: ANN001, ANN201
+    """What the plant reports besides ``q``, ``qd``, into ``out`` (``OUTPUTS_SIZE`` floats).
+
+    ``out[0:2]``: end-effector ``(x, y)`` (serial: ``PlanarChain.tip`` with the
+    base at the origin; five-bar: Appendix Eqs. 26-34). Five-bar only:
+    ``out[2:4]`` the passive joints ``(q3, q4)`` wrapped to (-pi, pi] and
+    ``out[4:6]`` their rates (Eq. 3 of the reduced model, ``rho qd``). One call
+    instead of a dozen small numpy operations per published state.
+    """
+    if kind == ROBOT_SERIAL:
+        acc = 0.0
+        x = 0.0
+        y = 0.0
+        for a in range(3):
+            acc += q[a]
+            x += p[15 + a] * math.cos(acc)
+            y += p[15 + a] * math.sin(acc)
+        out[0] = x
+        out[1] = y
+        return
+    geo = work[0:FIVEBAR_GEOMETRY_SIZE]
+    _fivebar_geometry(p, q, qd, geo)
+    th13 = geo[0] + geo[1]
+    out[0] = p[8] * math.cos(geo[0]) + p[9] * math.cos(th13)
+    out[1] = p[8] * math.sin(geo[0]) + p[9] * math.sin(th13)
+    for i in range(2):
+        angle = geo[1 + 2 * i]
+        out[2 + i] = math.pi - (math.pi - angle) % (2.0 * math.pi)
+        out[4 + i] = geo[5 + 2 * i]
+
+
 @njit(cache=_CACHE)
 def rk4_step(kind, p, q, qd, tau, h, q_out, qd_out, work):  # noqa: ANN001, ANN201
     """One classical RK4 step of Eq. (4.1) with ``tau`` held (zero-order hold).

@@ -53,6 +53,7 @@ class PlantStepper:
         self._q_next = np.empty(robot.n)
         self._qd_next = np.empty(robot.n)
         self._work = kernels.workspace()
+        self._outputs = np.empty(kernels.OUTPUTS_SIZE)
         self.steps = 0
 
     def step(self, tau: FloatArray) -> None:
@@ -65,6 +66,15 @@ class PlantStepper:
         self.qd, self._qd_next = self._qd_next, self.qd
         self.steps += 1
 
+    def outputs(self) -> FloatArray:
+        """End-effector ``(x, y)`` and, for the five-bar, passive joints and rates now.
+
+        A view of ``kernels.OUTPUTS_SIZE`` floats overwritten by the next call
+        (layout: :func:`kernels.robot_outputs`).
+        """
+        kernels.robot_outputs(self.kind, self.params, self.q, self.qd, self._outputs, self._work)
+        return self._outputs
+
     def warm_up(self) -> None:
         """Load the compiled step now, leaving the state untouched.
 
@@ -75,6 +85,7 @@ class PlantStepper:
             self.kind, self.params, self.q, self.qd, np.zeros(self.robot.n), self.period,
             self._q_next, self._qd_next, self._work,
         )
+        self.outputs()
 
 
 class ControlLaw:

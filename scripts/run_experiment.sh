@@ -5,7 +5,7 @@
 #                          [--scenario S] [--mode lockstep|realtime] [--rate HZ]
 #                          [--duration-factor F] [--smc-reading NAME] [--timeout SECONDS]
 #                          [--param NAME:=VALUE ...] [--composed | --compose NODES] [--keep-going]
-#                          [--respawn controller] [--nice N]
+#                          [--respawn controller] [--nice N] [--intra-process]
 #
 # Starts the four nodes (each with `ros2 run pdsmc_ros ...`; with --composed, all four in one
 # process; with --compose plant,controller, those in one process and the others apart), waits
@@ -17,13 +17,15 @@
 # supervises the arm meanwhile and the run resumes when the new controller answers.
 # --nice N starts the plant and the controller (the loop's critical path) at niceness N, e.g.
 # -10 (negative values need root; without it they run at normal priority, with a warning).
+# --intra-process (with --composed or --compose) hands messages between the composed nodes
+# without DDS, like rclcpp's intra-process comms; nodes in other processes still get them.
 set -uo pipefail
 
 usage() { awk 'NR > 1 && /^#/ { sub(/^# ?/, ""); print; next } NR > 1 { exit }' "$0"; }
 die() { echo "run_experiment.sh: error: $*" >&2; exit 2; }
 
 ROBOT="" CONTOUR="" CONTROLLER="" OUT="" SCENARIO="nominal" MODE="lockstep" RATE=""
-FACTOR="" SMC_READING="" TIMEOUT="600" COMPOSE="" KEEP_GOING=0 NICE=""
+FACTOR="" SMC_READING="" TIMEOUT="600" COMPOSE="" KEEP_GOING=0 NICE="" INTRA=0
 EXTRA=()
 declare -A RESPAWN=()
 RESPAWN_MAX=3
@@ -45,6 +47,7 @@ while [[ $# -gt 0 ]]; do
     --compose) COMPOSE="${2:-}"; shift 2 ;;
     --keep-going) KEEP_GOING=1; shift ;;
     --nice) NICE="${2:-}"; shift 2 ;;
+    --intra-process) INTRA=1; shift ;;
     --respawn)
       case "${2:-}" in
         controller) RESPAWN[$2]=0 ;;
@@ -80,6 +83,7 @@ if [[ -n "$COMPOSE" ]]; then
   COMPOSE_LIST="$(for n in "${NODE_NAMES[@]}"; do [[ -n "${IN_GROUP[$n]:-}" ]] && printf '%s,' "$n"; done)"
   COMPOSE_LIST="${COMPOSE_LIST%,}"
 fi
+[[ "$INTRA" == 0 || -n "$COMPOSE" ]] || die "--intra-process needs --composed or --compose NODES (it joins nodes of one process)"
 for name in "${!RESPAWN[@]}"; do
   [[ -z "${IN_GROUP[$name]:-}" ]] || die "--respawn $name needs $name in a process of its own (not composed)"
 done
@@ -121,6 +125,7 @@ start_node() {
   local name="$1"; shift
   local pre=() launcher=()
   [[ "$name" == composed ]] && pre=(--nodes "$COMPOSE_LIST")
+  [[ "$name" == composed && "$INTRA" == 1 ]] && pre+=(--intra-process)
   # the loop's critical path (plant, controller, or the process composing them) may run niced
   if [[ -n "$NICE" && ( "$name" == plant || "$name" == controller || \
         ( "$name" == composed && ( -n "${IN_GROUP[plant]:-}" || -n "${IN_GROUP[controller]:-}" ) ) ) ]]; then

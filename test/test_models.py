@@ -271,6 +271,25 @@ def test_parallel_loop_closes_and_jacobian_is_consistent() -> None:
     assert np.allclose(j, j_fd, atol=1e-8)
 
 
+@pytest.mark.parametrize("payload", [0.0, 1.5])
+def test_plant_outputs_equal_the_models_kinematics(payload: float) -> None:
+    """PlantStepper.outputs (the compiled kernel the plant node publishes from) gives the
+    end effector and the five-bar's passive joints of the numpy models."""
+    rng = np.random.default_rng(RNG_SEED + 9)
+    serial = Serial3R(payload)
+    for q, qd in zip(*serial_states(rng, 100)):
+        out = PlantStepper(serial, 1e-4, q, qd).outputs()
+        assert np.max(np.abs(out[:2] - serial.position(q))) < 1e-14
+    parallel = Parallel5R(payload)
+    qs, qds = parallel_states(parallel, rng, 100)
+    passive_q, passive_qd = parallel.passive_joints(qs, qds)
+    for i in range(len(qs)):
+        out = PlantStepper(parallel, 1e-4, qs[i], qds[i]).outputs()
+        assert np.max(np.abs(out[:2] - parallel.position(qs[i]))) < 1e-13
+        assert np.max(np.abs(out[2:4] - passive_q[i])) < 1e-12
+        assert np.max(np.abs(out[4:6] - passive_qd[i])) < 1e-10
+
+
 # --------------------------------------------------------------------------- #
 # Inverse kinematics against Tables 4.4 and 4.6
 # --------------------------------------------------------------------------- #

@@ -132,14 +132,19 @@ def test_ros2_run_shim(ros_env: dict) -> None:
 
 
 @pytest.mark.timeout(300)
-@pytest.mark.parametrize("composition", [["--composed"], ["--compose", "plant,controller"]])
+@pytest.mark.parametrize("composition", [
+    ["--composed"],
+    ["--composed", "--intra-process"],
+    # intra-process between plant and controller, DDS to the trajectory and the recorder
+    ["--compose", "plant,controller", "--intra-process"],
+])
 def test_composed_mode_equals_multi_process(ros_env: dict, tmp_path: Path, composition: list) -> None:
     out = tmp_path / "composed"
     proc = run_experiment(ros_env, out, "--robot", "parallel_5r", "--contour", "ellipse_vertical",
                           "--controller", "smc", "--duration-factor", "0.1", *composition)
     assert proc.returncode == 0, proc.stderr
     logs = sorted(p.name for p in Path(f"{out}.logs").glob("*.log"))
-    assert logs == (["composed.log"] if composition == ["--composed"]
+    assert logs == (["composed.log"] if "--composed" in composition
                     else ["composed.log", "recorder.log", "trajectory.log"])
     run = read_run(out)
     assert run.complete and run.steps == 2000
@@ -241,6 +246,16 @@ def test_parameters_are_validated_at_run_time(ros_env: dict) -> None:
     assert result["controller.kd"] == [True, ""]
     assert result["controller.robot"][0] is False and "cannot change while it runs" in result["controller.robot"][1]
     assert result["plant.rate"][0] is False and "cannot change while it runs" in result["plant.rate"][1]
+
+
+@pytest.mark.timeout(60)
+def test_intra_process_needs_composition(ros_env: dict, tmp_path: Path) -> None:
+    proc = run_experiment(ros_env, tmp_path / "x", "--robot", "serial_3r", "--contour", "circle",
+                          "--controller", "pd", "--intra-process", timeout=50)
+    assert proc.returncode == 2
+    assert proc.stderr.splitlines()[0] == ("run_experiment.sh: error: --intra-process needs --composed or "
+                                           "--compose NODES (it joins nodes of one process)")
+    assert not (tmp_path / "x.logs").exists()
 
 
 @pytest.mark.timeout(120)

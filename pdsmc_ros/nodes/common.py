@@ -14,6 +14,7 @@ import signal
 import sys
 import threading
 import time
+from collections import deque
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -32,6 +33,7 @@ from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy_i
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.serialization import serialize_message
 
 from ..bagio import stamp_step
 from ..errors import ConfigError, InvalidInputError, PdsmcError
@@ -44,6 +46,7 @@ from ..presets import (
     RunSpec,
     make_run,
 )
+from . import intra
 
 # --------------------------------------------------------------------------- #
 # Topics (ros2_control conventions where they exist)
@@ -128,7 +131,7 @@ RUN_PARAMETERS: dict[str, tuple[Any, ParameterDescriptor]] = {
     "ellipse_error": ("nearest", _descriptor("ellipse contour error", constraints="nearest or osculating")),
     "waypoints_file": ("", _descriptor("CSV of task-space waypoints for contour csv")),
     "segment_duration": (2.0, _descriptor("seconds per CSV segment", lo=0.001, hi=1000.0)),
-    "clock_rate": (1000.0, _descriptor("lockstep: /clock publication rate in sim-time Hz", lo=1.0, hi=1.0e6)),
+    "clock_rate": (100.0, _descriptor("lockstep: /clock publication rate in sim-time Hz", lo=1.0, hi=1.0e6)),
 }
 GAIN_DESCRIPTIONS = {
     "kp": "proportional gains Kp, one per joint (empty: preset of Table 4.16 / 4.33)",
@@ -345,14 +348,22 @@ class GuardedPublisher:
         self.node = node
         self.failures = 0
         self._handle = publisher.handle
+        # composed with --intra-process: local subscribers get the bytes directly (nodes.intra)
+        domain = intra.current()
+        self._route = None if domain is None else domain.add_publisher(
+            publisher, publisher.msg_type, publisher.qos_profile)
 
     def publish(self, msg: Any) -> bool:
         try:
+            route = self._route
             if type(msg) is bytes:  # the loop's serialized messages: straight to rcl
-                with self._handle:
-                    self._handle.publish_raw(msg)
+                if route is None or route.deliver(msg):
+                    with self._handle:
+                        self._handle.publish_raw(msg)
             else:
-                self.publisher.publish(msg)
+                data = serialize_message(msg) if route is not None and route.queues else b""
+                if route is None or route.deliver(data):
+                    self.publisher.publish(msg)
             return True
         except RCLError as exc:
             self.failures += 1
@@ -362,7 +373,10 @@ class GuardedPublisher:
             return False
 
     def get_subscription_count(self) -> int:
-        return self.publisher.get_subscription_count()
+        """Matched subscribers: over DDS, plus those in this process on the intra-process path."""
+        if self._route is None:
+            return self.publisher.get_subscription_count()
+        return self._route.refresh() + len(self._route.queues)
 
 
 def description_json(spec: RunSpec, mode: str) -> str:
@@ -498,11 +512,24 @@ class Inputs:
         self.batch_s = batch_s
         self.io_node: Node | None = None
         self.hot: list[tuple[Any, Callable[[bytes], None]]] = []
+        # composed with --intra-process: inputs published in this process (nodes.intra)
+        self.local: list[tuple[deque, Callable[[bytes], None]]] = []
 
     def subscribe(self, msg_type: Any, topic: str, handler: Callable[[bytes], None],
                   qos: QoSProfile | None = None) -> None:
         if qos is None:
             qos = LOCKSTEP_QOS if self.mode == "lockstep" else LATEST_QOS
+        domain = intra.current()
+        if domain is None:
+            self._subscribe_dds(msg_type, topic, handler, qos)
+            return
+        domain.add_subscription(
+            self.node.resolve_topic_name(topic), msg_type, qos, handler,
+            local=lambda queue, handler: self.local.append((queue, handler)),
+            dds=lambda: self._subscribe_dds(msg_type, topic, handler, qos))
+
+    def _subscribe_dds(self, msg_type: Any, topic: str, handler: Callable[[bytes], None],
+                       qos: QoSProfile) -> None:
         if self.io_node is None:
             # no global arguments: the companion must not get use_sim_time (a /clock
             # subscription nobody serves); topics are resolved by the node itself
@@ -542,21 +569,28 @@ def run_nodes(
     name: str,
     factories: Sequence[Callable[[], Any]],
     args: Sequence[str] | None,
+    *,
+    intra_process: bool = False,
 ) -> int:
     """Run one or several node wrappers in this process with one executor.
 
     Several wrappers make the composed mode (the nodes stay separate rclpy
     nodes, as in a component container). They are closed in reverse order of
-    creation, so a recorder created first is closed last.
+    creation, so a recorder created first is closed last. ``intra_process``
+    hands the loop's messages between them without DDS (:mod:`.intra`).
     """
     rclpy.init(args=args)
     wrappers: list[Any] = []
     executor: SingleThreadedExecutor | None = None
+    domain = intra.IntraProcess(rclpy.get_default_context()) if intra_process else None
     code = EXIT_OK
     try:
         try:
+            intra.activate(domain)
             for factory in factories:
                 wrappers.append(factory())
+            if domain is not None:
+                domain.bind()
         except (InvalidInputError, ParameterException, InvalidParameterTypeException, ValueError,
                 TypeError) as exc:
             print(f"{name}: error: {exc}", file=sys.stderr, flush=True)
@@ -566,6 +600,8 @@ def run_nodes(
             print(f"{name}: error: {exc}", file=sys.stderr, flush=True)
             code = EXIT_FAILURE
             return code
+        finally:
+            intra.activate(None)
         group = _Group(wrappers)
         period = group.period
         # The loop's messages go through a hand-driven wait set (Inputs), the rest through
@@ -581,7 +617,11 @@ def run_nodes(
         loop_inputs = [item for inputs in with_inputs if not inputs.batch_s for item in inputs.hot]
         observed = [item for inputs in with_inputs if inputs.batch_s for item in inputs.hot]
         observe_every = min((inputs.batch_s for inputs in with_inputs if inputs.batch_s), default=0.0)
-        _serve_loop(executor, group, loop_inputs, period, observed, observe_every)
+        local = _LocalInputs(
+            [item for inputs in with_inputs if not inputs.batch_s for item in inputs.local],
+            [item for inputs in with_inputs if inputs.batch_s for item in inputs.local],
+            None if domain is None else domain.guard)
+        _serve_loop(executor, group, loop_inputs, period, observed, observe_every, local)
         code = group.exit_code
         if not group.stopped_by_signal:
             _drain(executor, wrappers)
@@ -600,8 +640,19 @@ def run_nodes(
             if inputs is not None:
                 inputs.destroy()
             wrapper.node.destroy_node()
+        if domain is not None:
+            domain.destroy()
         rclpy.try_shutdown()
     return code
+
+
+@dataclasses.dataclass(frozen=True)
+class _LocalInputs:
+    """Inputs on the intra-process path (queues filled by publishers of this process)."""
+
+    hot: Sequence[tuple[deque, Callable[[bytes], None]]] = ()
+    observed: Sequence[tuple[deque, Callable[[bytes], None]]] = ()
+    guard: Any = None  # triggered when a message is queued from another thread
 
 
 class _Group:
@@ -615,7 +666,10 @@ class _Group:
 
     @property
     def done(self) -> bool:
-        return all(w.done for w in self.wrappers)
+        for w in self.wrappers:  # checked at every pass of the loop: no generator
+            if not w.done:
+                return False
+        return True
 
     @done.setter
     def done(self, value: bool) -> None:  # set by the signal handler
@@ -642,7 +696,7 @@ COLD_WAIT_S = 5.0  # real time: the executor thread's longest sleep (it is woken
 def _serve_loop(executor: SingleThreadedExecutor, group: Any,
                 hot: Sequence[tuple[Any, Callable[[bytes], None]]], period: float | None,
                 observed: Sequence[tuple[Any, Callable[[bytes], None]]] = (),
-                observe_every: float = 0.0) -> None:
+                observe_every: float = 0.0, local: _LocalInputs | None = None) -> None:
     """Take the loop's inputs with a wait set of their own; serve the rest beside them.
 
     Every ready input of ``hot`` is drained (``take_message`` until empty) and
@@ -662,9 +716,17 @@ def _serve_loop(executor: SingleThreadedExecutor, group: Any,
     have given messages, they are left alone for ``observe_every`` seconds, so
     their messages are taken in batches -- whether the observer runs alone or
     composed with the loop's nodes, whose inputs are still taken at every pass.
+    ``local`` are the inputs on the intra-process path (composed
+    ``--intra-process``), taken from their queues the same way; their guard
+    condition wakes the loop when the real-time executor thread queues a message.
     """
     clock = time.perf_counter
-    wait_set = _rclpy_impl.WaitSet(len(hot) + len(observed), 0, 0, 0, 0, 0, executor.context.handle)
+    local = local or _LocalInputs()
+    local_hot, local_observed = list(local.hot), list(local.observed)
+    any_observed = bool(observed or local_observed)
+    guard = local.guard if period else None  # only the real-time executor thread publishes off the loop
+    wait_set = _rclpy_impl.WaitSet(len(hot) + len(observed), 0 if guard is None else 1, 0, 0, 0, 0,
+                                   executor.context.handle)
     inputs = [(sub.handle, sub.msg_type, handler) for sub, handler in hot]
     observer_inputs = [(sub.handle, sub.msg_type, handler) for sub, handler in observed]
     gc.collect()
@@ -691,22 +753,31 @@ def _serve_loop(executor: SingleThreadedExecutor, group: Any,
         next_cold = float("inf") if period else 0.0
         next_tick = clock() + period if period else float("inf")
         next_observe = 0.0
-        while rclpy.ok() and not group.done:
+        ok = executor.context.ok  # checked at ticks and executor turns, not at every pass
+        while not group.done:
             took = _take_all(inputs)
-            now = clock()
-            if observer_inputs and now >= next_observe and _take_all(observer_inputs):
-                next_observe = now + observe_every
+            if local_hot and _take_local(local_hot):
                 took = True
+            now = clock()
+            if any_observed and now >= next_observe:
+                observed_any = _take_all(observer_inputs)
+                if _take_local(local_observed) or observed_any:
+                    next_observe = now + observe_every
+                    took = True
             if took and group.done:
                 return
             now = clock()
             if now >= next_tick:
+                if not ok():
+                    return
                 group.tick(now - next_tick)
                 next_tick += period
                 if now - next_tick > period:  # more than a period behind: resynchronise
                     next_tick = now + period
                 continue
             if now >= next_cold:
+                if not ok():
+                    return
                 executor.spin_once(timeout_sec=0.0)
                 next_cold = now + COLD_PERIOD_S
                 continue
@@ -721,9 +792,11 @@ def _serve_loop(executor: SingleThreadedExecutor, group: Any,
             sleep = due - now
             if sleep <= 0.0:
                 continue  # busy-wait for the tick
+            if _pending(local_hot) or (observing and _pending(local_observed)):
+                continue
             waited = inputs + observer_inputs if observing else inputs
-            if not waited:
-                if cold_thread is None and not observer_inputs:
+            if not waited and guard is None:
+                if cold_thread is None and not any_observed:
                     executor.spin_once(timeout_sec=sleep)  # a node without inputs
                 else:
                     time.sleep(sleep)
@@ -731,6 +804,8 @@ def _serve_loop(executor: SingleThreadedExecutor, group: Any,
             wait_set.clear_entities()
             for handle, _, _ in waited:
                 wait_set.add_subscription(handle)
+            if guard is not None:
+                wait_set.add_guard_condition(guard)
             wait_set.wait(int(sleep * 1e9))
     finally:
         stop.set()
@@ -755,6 +830,20 @@ def _take_all(inputs: Sequence[tuple[Any, Any, Callable[[bytes], None]]]) -> boo
             handler(taken[0])
             took = True
     return took
+
+
+def _take_local(inputs: Sequence[tuple[deque, Callable[[bytes], None]]]) -> bool:
+    """:func:`_take_all` for intra-process inputs: empty each queue into its handler."""
+    took = False
+    for queue, handler in inputs:
+        while queue:
+            handler(queue.popleft())
+            took = True
+    return took
+
+
+def _pending(inputs: Sequence[tuple[deque, Callable[[bytes], None]]]) -> bool:
+    return any(queue for queue, _ in inputs)
 
 
 def _drain(executor: Any, wrappers: Sequence[Any], timeout: float = DRAIN_TIMEOUT_S) -> None:

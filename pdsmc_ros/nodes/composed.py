@@ -1,12 +1,12 @@
 """Several nodes in one process (composed mode), like a ROS 2 component container.
 
-``ros2 run pdsmc_ros composed [--nodes plant,controller] --ros-args ...``:
+``ros2 run pdsmc_ros composed [--nodes plant,controller] [--intra-process] --ros-args ...``:
 the listed nodes (default: all four) stay separate rclpy nodes with the same
 parameters, topics and QoS; they share one process and one executor, so a
-lockstep step between them costs no inter-process hand-off. Composing only
-the plant and the controller (the loop's critical path) and running the
-trajectory and the recorder apart was the fastest lockstep arrangement on
-two cores (docs/PERFORMANCE.md).
+lockstep step between them costs no inter-process hand-off. With
+``--intra-process`` their messages to each other skip DDS as well
+(:mod:`pdsmc_ros.nodes.intra`, rclcpp's intra-process comms); the figures of
+each arrangement are in docs/PERFORMANCE.md.
 """
 
 from __future__ import annotations
@@ -40,13 +40,16 @@ def main(args: Sequence[str] | None = None) -> int:
     argv = list(sys.argv if args is None else args)
     parser = OneLineParser(prog="composed", description=__doc__.splitlines()[0])
     parser.add_argument("--nodes", default=",".join(NODES), help="nodes to run in this process")
+    parser.add_argument("--intra-process", action="store_true",
+                        help="hand the loop's messages between these nodes without DDS "
+                             "(like rclcpp's use_intra_process_comms; peers in other processes still get them over DDS)")
     options = parser.parse_args(remove_ros_args(argv)[1:])
     try:
         names = parse_nodes(options.nodes)
     except ValueError as exc:
         print(f"composed: error: {exc}", file=sys.stderr, flush=True)
         return EXIT_BAD_INPUT
-    return run_nodes("composed", [NODES[n] for n in names], argv)
+    return run_nodes("composed", [NODES[n] for n in names], argv, intra_process=options.intra_process)
 
 
 if __name__ == "__main__":
