@@ -9,7 +9,7 @@ with the same analysis code as ``pdsmc analyze``.
 Last line: ``realtime_rate_hz=R jitter_p50_us=A jitter_p99_us=B missed_pct=C``.
 
 Usage: python bench/realtime.py [--rate 1000] [--duration-factor 0.5] [--compose NODES [--intra-process]]
-       [--nice N]   (inside the venv)
+       [--busy-wait S] [--nice N]   (inside the venv)
 """
 
 from __future__ import annotations
@@ -37,6 +37,9 @@ def main() -> int:
                         help="nodes to run in one process (run_experiment.sh --compose), e.g. plant,controller")
     parser.add_argument("--intra-process", action="store_true",
                         help="with --compose: hand messages between the composed nodes without DDS")
+    parser.add_argument("--busy-wait", type=float, default=None,
+                        help="seconds of each period busy-waited before the tick (node parameter busy_wait; "
+                             "default 0.0002)")
     parser.add_argument("--nice", type=int, default=None,
                         help="niceness of the plant and the controller (run_experiment.sh --nice; negative needs root)")
     args = parser.parse_args()
@@ -50,6 +53,8 @@ def main() -> int:
             cmd += ["--compose", args.compose]
         if args.intra_process:
             cmd += ["--intra-process"]
+        if args.busy_wait is not None:
+            cmd += ["--param", f"busy_wait:={args.busy_wait:g}"]
         if args.nice is not None:
             cmd += ["--nice", str(args.nice)]
         if subprocess.run(cmd, env=os.environ.copy()).returncode != 0:

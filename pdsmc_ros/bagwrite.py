@@ -14,10 +14,13 @@ output byte for byte (test/test_bagwrite.py); any other writer gets ``Writer.wri
 from __future__ import annotations
 
 import struct
+from collections import defaultdict
+from io import BytesIO
+from itertools import chain
 from typing import Any
 
 from rosbags.rosbag2 import Writer
-from rosbags.rosbag2.storage_mcap import McapWriter
+from rosbags.rosbag2.storage_mcap import McapWriter, PendingChunk
 from rosbags.rosbag2.writer import CompressionMode
 
 # MCAP Message record: opcode, record length, channel id, sequence, log time, publish time
@@ -25,6 +28,10 @@ _MESSAGE = struct.Struct("<BQHIQQ")
 _MESSAGE_FIELDS = _MESSAGE.size - 9  # the record length counts what follows opcode and length
 _OPCODE_MESSAGE = 0x05
 _CHUNK_LIMIT = 2**20  # rosbags closes a chunk beyond 1 MiB; so do we
+# MCAP Chunk record up to its compression string: opcode, length, start, end, uncompressed size, crc
+_CHUNK_HEAD = struct.Struct("<BQQQQI")
+_OPCODE_CHUNK = 0x06
+_OPCODE_MESSAGE_INDEX = 0x07
 
 
 class MessageAppender:
@@ -71,9 +78,46 @@ class MessageAppender:
         bio.write(_MESSAGE.pack(_OPCODE_MESSAGE, _MESSAGE_FIELDS + len(data), cid, 0, timestamp, timestamp))
         bio.write(data)
         if bio.tell() > _CHUNK_LIMIT:
-            storage.close_chunk()
+            close_chunk(storage)
         writer.counts[cid] += 1
         if timestamp < writer.min_timestamp:
             writer.min_timestamp = timestamp
         if timestamp > writer.max_timestamp:
             writer.max_timestamp = timestamp
+
+
+def close_chunk(storage: McapWriter) -> None:
+    """``storage.close_chunk()`` with each message index packed at once: the same bytes.
+
+    rosbags writes a chunk's message index eight bytes per call, about 2 us a
+    message: 3 ms for the half second of data the recorder flushes at a time,
+    which made a real-time control period late. Here one ``struct`` call per
+    connection (tested byte-identical, test/test_bagwrite.py).
+    """
+    pending = storage.chunk
+    data = pending.bio.getvalue()
+    compressed = storage.compressor(data)
+    compression = storage.compression.encode()
+    bio = storage.bio
+    chunk_start = bio.tell()
+    bio.write(_CHUNK_HEAD.pack(_OPCODE_CHUNK, 8 + 8 + 8 + 4 + 4 + len(compression) + 8 + len(compressed),
+                               pending.message_start_time, pending.message_end_time, len(data), 0))
+    bio.write(struct.pack(f"<I{len(compression)}sQ", len(compression), compression, len(compressed)))
+    bio.write(compressed)
+    chunk_end = bio.tell()
+    offsets = []
+    for cid, msgs in pending.msgs.items():
+        offsets.append((cid, bio.tell()))
+        count = 2 * len(msgs)
+        bio.write(struct.pack(f"<BQHI{count}Q", _OPCODE_MESSAGE_INDEX, 2 + 4 + 8 * count, cid, 8 * count,
+                              *chain.from_iterable(msgs)))
+    index = BytesIO()  # the chunk index record, kept for the summary as rosbags keeps it
+    index.write(struct.pack("<QQQQI", pending.message_start_time, pending.message_end_time, chunk_start,
+                            chunk_end - chunk_start, 10 * len(offsets)))
+    for cid, offset in offsets:
+        index.write(struct.pack("<HQ", cid, offset))
+    index.write(struct.pack("<Q", bio.tell() - chunk_end))
+    index.write(struct.pack(f"<I{len(compression)}s", len(compression), compression))
+    index.write(struct.pack("<QQ", len(compressed), len(data)))
+    storage.chunks.append(index)
+    storage.chunk = PendingChunk(2**63 - 1, 0, BytesIO(), defaultdict(list))

@@ -9,7 +9,7 @@ from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 
 from pdsmc_ros import cdr
-from pdsmc_ros.bagwrite import MessageAppender
+from pdsmc_ros.bagwrite import MessageAppender, close_chunk
 
 TOPICS = (("/joint_states", "sensor_msgs/msg/JointState"),
           ("/effort_controller/commands", "std_msgs/msg/Float64MultiArray"))
@@ -26,22 +26,27 @@ def _messages(count: int) -> list[tuple[int, int, bytes]]:
     return out
 
 
-def _write(path: Path, messages: list[tuple[int, int, bytes]], fast: bool) -> None:
+def _write(path: Path, messages: list[tuple[int, int, bytes]], fast: bool, flush_every: int = 0) -> None:
+    """Write ``messages`` with rosbags or with ours, closing a chunk every ``flush_every``
+    messages as the recorder's flush does (0: only when a chunk is full)."""
     store = get_typestore(Stores.ROS2_JAZZY)
     with Writer(path, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
         conns = [writer.add_connection(topic, msgtype, typestore=store) for topic, msgtype in TOPICS]
         appenders = [MessageAppender(writer, conn) for conn in conns]
-        for index, stamp, data in messages:
+        for k, (index, stamp, data) in enumerate(messages):
             if fast:
                 appenders[index].append(stamp, data)
             else:
                 writer.write(conns[index], stamp, data)
+            if flush_every and k % flush_every == flush_every - 1:
+                close_chunk(writer.storage) if fast else writer.storage.close_chunk()
 
 
-def test_appender_writes_the_bytes_rosbags_writes(tmp_path: Path) -> None:
+@pytest.mark.parametrize("flush_every", [0, 997])
+def test_appender_writes_the_bytes_rosbags_writes(tmp_path: Path, flush_every: int) -> None:
     messages = _messages(12_000)  # about 3.5 MB: several chunks
-    _write(tmp_path / "rosbags" / "bag", messages, fast=False)
-    _write(tmp_path / "fast" / "bag", messages, fast=True)
+    _write(tmp_path / "rosbags" / "bag", messages, fast=False, flush_every=flush_every)
+    _write(tmp_path / "fast" / "bag", messages, fast=True, flush_every=flush_every)
     for name in ("bag.mcap", "metadata.yaml"):  # same bag name: the metadata names the file
         ours = (tmp_path / "fast" / "bag" / name).read_bytes()
         theirs = (tmp_path / "rosbags" / "bag" / name).read_bytes()

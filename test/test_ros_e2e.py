@@ -270,3 +270,15 @@ def test_whole_number_parameters_are_checked(ros_env: dict, node: str, param: st
                           env=ros_env, capture_output=True, text=True, timeout=100)
     assert proc.returncode == 2, proc.stderr
     assert proc.stderr.strip() == f"{node}: error: {message}"
+
+
+@pytest.mark.timeout(120)
+@pytest.mark.parametrize(("value", "message"), [
+    ("fast", "parameter busy_wait must be a number of seconds in [0, 1], got 'fast'"),
+    ("2.0", "Parameter busy_wait out of range Min: 0.0, Max: 1.0, value: 2.0"),
+])
+def test_busy_wait_is_checked(ros_env: dict, value: str, message: str) -> None:
+    proc = subprocess.run(["ros2", "run", "pdsmc_ros", "trajectory", "--ros-args", "-p", f"busy_wait:={value}"],
+                          env=ros_env, capture_output=True, text=True, timeout=100)
+    assert proc.returncode == 2, proc.stderr
+    assert len(proc.stderr.strip().splitlines()) == 1 and message in proc.stderr

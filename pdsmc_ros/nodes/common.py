@@ -10,6 +10,7 @@ import dataclasses
 import faulthandler
 import gc
 import json
+import math
 import signal
 import sys
 import threading
@@ -203,6 +204,19 @@ def declare_int_parameter(node: Node, name: str, default: int, description: str,
     if isinstance(value, bool) or not isinstance(value, int) or not lo <= value <= hi:
         raise ConfigError(f"parameter {name} must be a whole number in [{lo}, {hi}], got {value!r}")
     return value
+
+
+def declare_busy_wait(node: Node) -> float:
+    """Declare ``busy_wait`` and return it: real time, seconds before each tick spent
+    busy-waiting instead of sleeping (see :func:`_serve_loop`); a ConfigError if bad."""
+    node.declare_parameter("busy_wait", BUSY_WAIT_S, _descriptor(
+        "real time: seconds before each tick spent busy-waiting instead of sleeping (absorbs late "
+        "wake-ups, costs that share of a core; a process running every ticking node: up to 0.8 of the period)",
+        lo=0.0, hi=1.0))
+    value = node.get_parameter("busy_wait").value
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0.0 <= value <= 1.0:
+        raise ConfigError(f"parameter busy_wait must be a number of seconds in [0, 1], got {value!r}")
+    return float(value)
 
 
 def torque_limit_from_parameters(node: Node, n: int) -> np.ndarray | None:
@@ -621,7 +635,8 @@ def run_nodes(
             [item for inputs in with_inputs if not inputs.batch_s for item in inputs.local],
             [item for inputs in with_inputs if inputs.batch_s for item in inputs.local],
             None if domain is None else domain.guard)
-        _serve_loop(executor, group, loop_inputs, period, observed, observe_every, local)
+        _serve_loop(executor, group, loop_inputs, period, observed, observe_every, local,
+                    busy_wait=group.busy_wait)
         code = group.exit_code
         if not group.stopped_by_signal:
             _drain(executor, wrappers)
@@ -663,6 +678,8 @@ class _Group:
         self.stopped_by_signal: str | None = None
         periods = {getattr(w, "period", None) for w in self.wrappers} - {None}
         self.period = min(periods) if periods else None
+        self.busy_wait = max((getattr(w, "busy_wait", BUSY_WAIT_S) for w in self.wrappers
+                              if getattr(w, "period", None)), default=BUSY_WAIT_S)
 
     @property
     def done(self) -> bool:
@@ -689,14 +706,16 @@ class _Group:
 COLD_PERIOD_S = 0.02  # lockstep: the executor's turn (timers, parameters, /clock) this often
 # (one turn costs 0.2-1 ms of Python; every 5 ms it took 15 % of the lockstep rate)
 MAX_BATCH_S = 0.05  # an observer lets its messages gather at most this long
-SPIN_BEFORE_TICK_S = 0.0002  # real time: busy-wait this last stretch before a tick
+BUSY_WAIT_S = 0.0002  # real time: default busy-wait before a tick (parameter busy_wait)
 COLD_WAIT_S = 5.0  # real time: the executor thread's longest sleep (it is woken to stop)
+GIL_SWITCH_S = 0.0001  # real time: longest the executor thread keeps the GIL from the loop
 
 
 def _serve_loop(executor: SingleThreadedExecutor, group: Any,
                 hot: Sequence[tuple[Any, Callable[[bytes], None]]], period: float | None,
                 observed: Sequence[tuple[Any, Callable[[bytes], None]]] = (),
-                observe_every: float = 0.0, local: _LocalInputs | None = None) -> None:
+                observe_every: float = 0.0, local: _LocalInputs | None = None, *,
+                busy_wait: float = BUSY_WAIT_S) -> None:
     """Take the loop's inputs with a wait set of their own; serve the rest beside them.
 
     Every ready input of ``hot`` is drained (``take_message`` until empty) and
@@ -706,8 +725,11 @@ def _serve_loop(executor: SingleThreadedExecutor, group: Any,
     of its turns builds a wait set of every entity of the node and took about
     1 ms, a missed deadline each time -- and ``group.tick(lateness)`` runs on a
     wall-clock schedule: the loop sleeps in the wait set until
-    ``SPIN_BEFORE_TICK_S`` before the deadline and busy-waits the rest, because
-    waking from a sleep is late by tens to hundreds of microseconds. Late ticks
+    ``busy_wait`` before the deadline and busy-waits the rest, because waking
+    from a sleep is late by tens of microseconds, and on this machine's VM now
+    and then by milliseconds (a plain Python loop that sleeps to 0.2 ms before
+    each 1 kHz tick: 0.4-0.8 % of periods off by > 100 us; spinning the last
+    0.8 ms: 0-2 in 5,000). Late ticks
     run at once (no burst catch-up beyond one period); ``tick`` may count missed
     deadlines from the lateness. The garbage collector is kept off the path (the
     loop creates no reference cycles) and its young generation collected now and then.
@@ -732,6 +754,11 @@ def _serve_loop(executor: SingleThreadedExecutor, group: Any,
     gc.collect()
     gc.freeze()
     gc.disable()
+    switch_interval = sys.getswitchinterval()
+    if period:
+        # the executor thread (timers, the recorder's flush) must hand the GIL back to the loop
+        # within a fraction of a period, not after CPython's default 5 ms
+        sys.setswitchinterval(GIL_SWITCH_S)
     stop = threading.Event()
     cold_thread = None
     guard_node = group.wrappers[0].node
@@ -760,10 +787,14 @@ def _serve_loop(executor: SingleThreadedExecutor, group: Any,
                 took = True
             now = clock()
             if any_observed and now >= next_observe:
-                observed_any = _take_all(observer_inputs)
-                if _take_local(local_observed) or observed_any:
-                    next_observe = now + observe_every
+                # real time: a batch must not delay the next tick; what is left waits for the
+                # pass after it (next_observe unchanged)
+                until = next_tick - busy_wait if period else math.inf
+                observed_any = _take_all(observer_inputs, until)
+                if _take_local(local_observed, until) or observed_any:
                     took = True
+                    if clock() < until:
+                        next_observe = now + observe_every
             if took and group.done:
                 return
             now = clock()
@@ -785,7 +816,7 @@ def _serve_loop(executor: SingleThreadedExecutor, group: Any,
                 gc.collect(0)
             if took:
                 continue
-            due = min(next_cold, next_tick - SPIN_BEFORE_TICK_S, now + 0.1)
+            due = min(next_cold, next_tick - busy_wait, now + 0.1)
             observing = now >= next_observe
             if not observing:
                 due = min(due, next_observe)
@@ -815,13 +846,18 @@ def _serve_loop(executor: SingleThreadedExecutor, group: Any,
             if cold_thread.is_alive():
                 print("warning: the executor thread did not stop within 2 s", file=sys.stderr, flush=True)
             guard_node.destroy_guard_condition(wake_guard)
+        sys.setswitchinterval(switch_interval)
         gc.enable()
         gc.unfreeze()
 
 
-def _take_all(inputs: Sequence[tuple[Any, Any, Callable[[bytes], None]]]) -> bool:
-    """Hand every waiting message of ``inputs`` to its handler; whether there was any."""
+def _take_all(inputs: Sequence[tuple[Any, Any, Callable[[bytes], None]]], until: float = math.inf) -> bool:
+    """Hand every waiting message of ``inputs`` to its handler; whether there was any.
+
+    Stops early once ``time.perf_counter()`` reaches ``until`` (real-time observers).
+    """
     took = False
+    bounded = until != math.inf
     for handle, msg_type, handler in inputs:
         while True:
             taken = handle.take_message(msg_type, True)
@@ -829,16 +865,21 @@ def _take_all(inputs: Sequence[tuple[Any, Any, Callable[[bytes], None]]]) -> boo
                 break
             handler(taken[0])
             took = True
+            if bounded and time.perf_counter() >= until:
+                return took
     return took
 
 
-def _take_local(inputs: Sequence[tuple[deque, Callable[[bytes], None]]]) -> bool:
+def _take_local(inputs: Sequence[tuple[deque, Callable[[bytes], None]]], until: float = math.inf) -> bool:
     """:func:`_take_all` for intra-process inputs: empty each queue into its handler."""
     took = False
+    bounded = until != math.inf
     for queue, handler in inputs:
         while queue:
             handler(queue.popleft())
             took = True
+            if bounded and time.perf_counter() >= until:
+                return took
     return took
 
 

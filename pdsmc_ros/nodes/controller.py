@@ -44,6 +44,7 @@ from .common import (
     TOPIC_JOINT_STATES,
     TOPIC_REFERENCE,
     TOPIC_TIMING,
+    declare_busy_wait,
     declare_int_parameter,
     declare_run_parameters,
     description_json,
@@ -69,6 +70,7 @@ class ControllerNode:
         self.node = Node("controller")
         node = self.node
         declare_run_parameters(node, gains=True)
+        self.busy_wait = declare_busy_wait(node)  # used in real time
         node.declare_parameter("torque_limit", None, ParameterDescriptor(
             description="optional per-joint torque limits in N m (empty: none)", dynamic_typing=True))
         self.stale_periods = declare_int_parameter(

@@ -44,6 +44,7 @@ from .common import (
     TOPIC_EFFORT,
     TOPIC_JOINT_STATES,
     decimation,
+    declare_busy_wait,
     declare_int_parameter,
     declare_run_parameters,
     declare_safety_parameters,
@@ -62,6 +63,7 @@ class PlantNode:
         self.node = Node("plant")
         node = self.node
         declare_run_parameters(node)
+        self.busy_wait = declare_busy_wait(node)  # used in real time
         self.expected = declare_int_parameter(
             node, "expected_subscribers", 3, "subscribers of /joint_states to wait for (trajectory, controller, recorder)",
             lo=0, hi=100)

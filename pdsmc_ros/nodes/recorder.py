@@ -29,7 +29,7 @@ from std_msgs.msg import Float64MultiArray, String
 from trajectory_msgs.msg import JointTrajectory
 
 from ..bagio import DESCRIPTION_KEY, effort_step, header_step
-from ..bagwrite import MessageAppender
+from ..bagwrite import MessageAppender, close_chunk
 from ..errors import BagError, ConfigError
 from ..simulator import control_steps
 from .common import (
@@ -153,7 +153,7 @@ class RecorderNode:
         try:
             with self.lock:
                 if storage.chunk.bio.tell():
-                    storage.close_chunk()
+                    close_chunk(storage)
                 storage.bio.flush()
         except OSError as exc:
             self.node.get_logger().error(f"write to {self.path} failed: {exc}")

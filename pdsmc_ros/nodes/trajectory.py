@@ -42,6 +42,7 @@ from .common import (
     TOPIC_EE_DESIRED,
     TOPIC_JOINT_STATES,
     TOPIC_REFERENCE,
+    declare_busy_wait,
     declare_int_parameter,
     declare_run_parameters,
     end_when_plant_leaves,
@@ -64,6 +65,7 @@ class TrajectoryNode:
         self.node = Node("trajectory")
         node = self.node
         declare_run_parameters(node)
+        self.busy_wait = declare_busy_wait(node)  # used in real time
         self.expected = declare_int_parameter(
             node, "expected_subscribers", 2, "subscribers of /reference to wait for (controller, recorder)",
             lo=0, hi=100)
