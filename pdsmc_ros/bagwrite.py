@@ -17,6 +17,7 @@ import struct
 from collections import defaultdict
 from io import BytesIO
 from itertools import chain
+from collections.abc import Sequence
 from typing import Any
 
 from rosbags.rosbag2 import Writer
@@ -80,6 +81,48 @@ class MessageAppender:
         if bio.tell() > _CHUNK_LIMIT:
             close_chunk(storage)
         writer.counts[cid] += 1
+        if timestamp < writer.min_timestamp:
+            writer.min_timestamp = timestamp
+        if timestamp > writer.max_timestamp:
+            writer.max_timestamp = timestamp
+
+    def append_many(self, timestamp: int, messages: Sequence[bytes]) -> None:
+        """Write several serialized messages, all received at ``timestamp`` (ns), in order.
+
+        The same bytes as :meth:`append` once per message, with the bookkeeping
+        looked up once (the recorder takes its messages in batches).
+        """
+        if not messages:
+            return
+        writer = self.writer
+        if not self.fast:
+            for data in messages:
+                writer.write(self.connection, timestamp, data)
+            return
+        storage = writer.storage
+        cid = self.connection.id
+        if timestamp < storage.message_start_time:
+            storage.message_start_time = timestamp
+        if timestamp > storage.message_end_time:
+            storage.message_end_time = timestamp
+        storage.channel_stats[cid] += len(messages)
+        pack = _MESSAGE.pack
+        chunk = storage.chunk
+        bio = chunk.bio
+        for data in messages:
+            if timestamp < chunk.message_start_time:
+                chunk.message_start_time = timestamp
+            if timestamp > chunk.message_end_time:
+                chunk.message_end_time = timestamp
+            # looked up per message: a new chunk gets this connection's index only with a message
+            chunk.msgs[cid].append((timestamp, bio.tell()))
+            bio.write(pack(_OPCODE_MESSAGE, _MESSAGE_FIELDS + len(data), cid, 0, timestamp, timestamp))
+            bio.write(data)
+            if bio.tell() > _CHUNK_LIMIT:
+                close_chunk(storage)
+                chunk = storage.chunk
+                bio = chunk.bio
+        writer.counts[cid] += len(messages)
         if timestamp < writer.min_timestamp:
             writer.min_timestamp = timestamp
         if timestamp > writer.max_timestamp:

@@ -148,7 +148,7 @@ class _FixedLayout:
     have one shape per run).
     """
 
-    __slots__ = ("size", "struct", "consts", "const_at", "groups")
+    __slots__ = ("size", "struct", "consts", "const_at", "groups", "write")
 
     def __init__(self, data: bytes, fields: Sequence[tuple[int, str]]) -> None:
         fmt, consts, const_idx, groups = "<", [], [], []
@@ -167,27 +167,53 @@ class _FixedLayout:
         self.size = len(data)
         self.struct = struct.Struct(fmt)
         self.consts = tuple(consts)
+        # C-level getters (itemgetter with several keys returns a tuple): about 2.5 us for a
+        # JointState read, against 5.6 us with a Python loop over the groups
         getter = itemgetter(*const_idx)
         self.const_at = getter if len(const_idx) > 1 else (lambda values: (values[const_idx[0]],))
-        self.groups = groups
+        groups_of = itemgetter(*groups)
+        self.groups = groups_of if len(groups) > 1 else (lambda values: (values[groups[0]],))
+        self.write = _writer(self.struct.pack, self.consts)
 
-    def read(self, data: bytes) -> list[tuple[float | int, ...]] | None:
+    def read(self, data: bytes) -> tuple[tuple[float | int, ...], ...] | None:
         """The variable fields of ``data`` (a tuple each), or None if it has another shape."""
         if len(data) != self.size:
             return None
         values = self.struct.unpack(data)
         if self.const_at(values) != self.consts:
             return None
-        return [values[group] for group in self.groups]
+        return self.groups(values)
 
-    def write(self, *fields: Sequence[float | int]) -> bytes:
-        """A message of this shape with the given variable fields (in order)."""
+
+def _writer(pack: Callable[..., bytes], consts: tuple[bytes, ...]) -> Callable[..., bytes]:
+    """``write(*fields)`` of a layout: its constant bytes around the given field values.
+
+    Spelled out for the loop's shapes (one to four variable fields: 1.9 us for a
+    JointState against 4.2 us building the argument list in a loop); any other
+    count takes the loop.
+    """
+    if len(consts) == 2:
+        c0, c1 = consts
+        return lambda f0: pack(c0, *f0, c1)
+    if len(consts) == 3:
+        c0, c1, c2 = consts
+        return lambda f0, f1: pack(c0, *f0, c1, *f1, c2)
+    if len(consts) == 4:
+        c0, c1, c2, c3 = consts
+        return lambda f0, f1, f2: pack(c0, *f0, c1, *f1, c2, *f2, c3)
+    if len(consts) == 5:
+        c0, c1, c2, c3, c4 = consts
+        return lambda f0, f1, f2, f3: pack(c0, *f0, c1, *f1, c2, *f2, c3, *f3, c4)
+
+    def write(*fields: Sequence[float | int]) -> bytes:
         args: list[object] = []
-        for const, values in zip(self.consts, fields):
+        for const, values in zip(consts, fields):
             args.append(const)
             args.extend(values)
-        args.append(self.consts[-1])
-        return self.struct.pack(*args)
+        args.append(consts[-1])
+        return pack(*args)
+
+    return write
 
 
 _LAYOUT_CACHE_SIZE = 32  # shapes kept per message kind (a run has one or two)
@@ -205,7 +231,7 @@ def _fields_of(spans: dict[str, tuple[int, int]], head: Sequence[tuple[int, str]
     return [*head, *((start, f"{count}d") for start, count in spans.values())]
 
 
-def _fast_decode(kind: str, data: bytes) -> list[tuple[float | int, ...]] | None:
+def _fast_decode(kind: str, data: bytes) -> tuple[tuple[float | int, ...], ...] | None:
     layout = _decode_layouts.get((kind, len(data)))
     return None if layout is None else layout.read(data)
 

@@ -54,6 +54,33 @@ def test_appender_writes_the_bytes_rosbags_writes(tmp_path: Path, flush_every: i
     assert len(theirs) > 0 and (tmp_path / "fast" / "bag" / "bag.mcap").stat().st_size > 3 * 2**20
 
 
+def test_batches_write_the_bytes_rosbags_writes(tmp_path: Path) -> None:
+    """append_many (the recorder's batches: runs of one topic at one receive time) against
+    rosbags writing the same messages one by one; batches cross chunk boundaries."""
+    messages = _messages(12_000)
+    batches: list[tuple[int, int, list[bytes]]] = []
+    for k, (index, _stamp, data) in enumerate(messages):
+        stamp = 2_000_000 + 1_000 * (k // 7)  # a few messages share a receive time
+        if batches and batches[-1][0] == index and batches[-1][1] == stamp:
+            batches[-1][2].append(data)
+        else:
+            batches.append((index, stamp, [data]))
+    store = get_typestore(Stores.ROS2_JAZZY)
+    for fast in (False, True):
+        with Writer(tmp_path / ("fast" if fast else "rosbags") / "bag", version=9,
+                    storage_plugin=StoragePlugin.MCAP) as writer:
+            conns = [writer.add_connection(topic, msgtype, typestore=store) for topic, msgtype in TOPICS]
+            appenders = [MessageAppender(writer, conn) for conn in conns]
+            for index, stamp, datas in batches:
+                if fast:
+                    appenders[index].append_many(stamp, datas)
+                else:
+                    for data in datas:
+                        writer.write(conns[index], stamp, data)
+    for name in ("bag.mcap", "metadata.yaml"):
+        assert (tmp_path / "fast" / "bag" / name).read_bytes() == (tmp_path / "rosbags" / "bag" / name).read_bytes()
+
+
 def test_appender_refuses_a_closed_bag_or_a_foreign_connection(tmp_path: Path) -> None:
     store = get_typestore(Stores.ROS2_JAZZY)
     writer = Writer(tmp_path / "a", version=9, storage_plugin=StoragePlugin.MCAP)

@@ -132,7 +132,7 @@ def test_the_loop_messages_take_the_one_pack_path() -> None:
     for values in ([0.5] * 3, [0.25] * 3, [0.0] * 3):
         general.doubles(values)
     assert again == bytes(general.buf)
-    assert cdr._decode_layouts[("js", len(first))].read(again) == [(5, 6), (0.5,) * 3, (0.25,) * 3, (0.0,) * 3]
+    assert cdr._decode_layouts[("js", len(first))].read(again) == ((5, 6), (0.5,) * 3, (0.25,) * 3, (0.0,) * 3)
 
 
 @pytest.mark.parametrize("frame_id", ["", "world", "base_link_x"])

@@ -515,7 +515,8 @@ class Inputs:
     messages gather for ``batch_s`` before it takes them again, so a node off
     the loop's critical path (the recorder) wakes a few hundred times a second
     instead of once per message, and leaves the cores to the nodes that are
-    on it. Its subscriptions must keep every sample (keep-all or deep queues).
+    on it. Its subscriptions must keep every sample (keep-all or deep queues),
+    and its handlers receive the messages of a batch as one list, in order.
     """
 
     def __init__(self, node: Node, mode: str, *, batch_s: float = 0.0) -> None:
@@ -790,8 +791,8 @@ def _serve_loop(executor: SingleThreadedExecutor, group: Any,
                 # real time: a batch must not delay the next tick; what is left waits for the
                 # pass after it (next_observe unchanged)
                 until = next_tick - busy_wait if period else math.inf
-                observed_any = _take_all(observer_inputs, until)
-                if _take_local(local_observed, until) or observed_any:
+                observed_any = _take_batches(observer_inputs, until)
+                if _take_local_batches(local_observed, until) or observed_any:
                     took = True
                     if clock() < until:
                         next_observe = now + observe_every
@@ -851,13 +852,9 @@ def _serve_loop(executor: SingleThreadedExecutor, group: Any,
         gc.unfreeze()
 
 
-def _take_all(inputs: Sequence[tuple[Any, Any, Callable[[bytes], None]]], until: float = math.inf) -> bool:
-    """Hand every waiting message of ``inputs`` to its handler; whether there was any.
-
-    Stops early once ``time.perf_counter()`` reaches ``until`` (real-time observers).
-    """
+def _take_all(inputs: Sequence[tuple[Any, Any, Callable[[bytes], None]]]) -> bool:
+    """Hand every waiting message of ``inputs`` to its handler; whether there was any."""
     took = False
-    bounded = until != math.inf
     for handle, msg_type, handler in inputs:
         while True:
             taken = handle.take_message(msg_type, True)
@@ -865,21 +862,62 @@ def _take_all(inputs: Sequence[tuple[Any, Any, Callable[[bytes], None]]], until:
                 break
             handler(taken[0])
             took = True
-            if bounded and time.perf_counter() >= until:
-                return took
     return took
 
 
-def _take_local(inputs: Sequence[tuple[deque, Callable[[bytes], None]]], until: float = math.inf) -> bool:
+def _take_local(inputs: Sequence[tuple[deque, Callable[[bytes], None]]]) -> bool:
     """:func:`_take_all` for intra-process inputs: empty each queue into its handler."""
     took = False
-    bounded = until != math.inf
     for queue, handler in inputs:
         while queue:
             handler(queue.popleft())
             took = True
-            if bounded and time.perf_counter() >= until:
+    return took
+
+
+BOUNDED_BATCH = 8  # real time: an observer's batch handed over while a tick is near
+
+
+def _take_batches(inputs: Sequence[tuple[Any, Any, Callable[[list[bytes]], None]]],
+                  until: float = math.inf) -> bool:
+    """Observers: each input's waiting messages to its handler as one list.
+
+    Once ``time.perf_counter()`` reaches ``until`` (a real-time tick is near),
+    at most ``BOUNDED_BATCH`` messages per input, and none after the first
+    input that had some; the rest stay queued for the next pass.
+    """
+    took = False
+    for handle, msg_type, handler in inputs:
+        limit = BOUNDED_BATCH if time.perf_counter() >= until else -1
+        batch = []
+        while len(batch) != limit:
+            taken = handle.take_message(msg_type, True)
+            if taken is None:
+                break
+            batch.append(taken[0])
+        if batch:
+            handler(batch)
+            took = True
+            if limit > 0:
                 return took
+    return took
+
+
+def _take_local_batches(inputs: Sequence[tuple[deque, Callable[[list[bytes]], None]]],
+                        until: float = math.inf) -> bool:
+    """:func:`_take_batches` for intra-process inputs."""
+    took = False
+    for queue, handler in inputs:
+        count = len(queue)
+        if not count:
+            continue
+        if time.perf_counter() >= until:
+            count = min(count, BOUNDED_BATCH)
+            handler([queue.popleft() for _ in range(count)])
+            return True
+        # popleft, not a copy and clear(): the real-time executor thread may append meanwhile
+        handler([queue.popleft() for _ in range(count)])
+        took = True
     return took
 
 

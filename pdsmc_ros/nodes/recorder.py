@@ -117,31 +117,42 @@ class RecorderNode:
         node.get_logger().info(f"recording {len(RECORDED)} topics into {self.path}")
 
     def _callback(self, topic: str):  # noqa: ANN202
-        append = MessageAppender(self.writer, self.connections[topic]).append
+        append_many = MessageAppender(self.writer, self.connections[topic]).append_many
         stepped = topic in STEPPED
 
-        def callback(data: bytes) -> None:
+        def callback(batch: list[bytes]) -> None:
+            """A batch of one topic's messages, in arrival order (taken now: one receive time)."""
             try:
                 with self.lock:
-                    append(time.time_ns(), data)
+                    append_many(time.time_ns(), batch)
             except OSError as exc:
                 self.node.get_logger().error(f"write to {self.path} failed: {exc}")
                 self.exit_code = EXIT_FAILURE
                 self.done = True
                 return
-            self.counts[topic] += 1
+            self.counts[topic] += len(batch)
             if topic == TOPIC_DESCRIPTION:
-                self.description = deserialize_message(data, String).data
+                self.description = deserialize_message(batch[-1], String).data
             if stepped:
-                try:
-                    step = effort_step(data) if topic == TOPIC_EFFORT else header_step(data, self.spec.rate)
-                except BagError:
-                    return  # not a message of this loop (e.g. an effort with layout dimensions)
-                # a step beyond the run is not this run's (a rogue publisher): recorded, not counted
-                if self.seen[topic] < step <= self.last_step:
+                # a topic's steps arrive in order, so the last message normally holds the newest;
+                # if it does not count, every message of the batch is looked at
+                step = step_of(batch[-1])
+                if step is None or step <= self.seen[topic]:
+                    step = max((k for k in map(step_of, batch) if k is not None), default=None)
+                if step is not None and step > self.seen[topic]:
                     self.seen[topic] = step
                     if step >= self.last_step and all(v >= self.last_step for v in self.seen.values()):
                         self.done = True
+
+        def step_of(data: bytes) -> int | None:
+            """The control step of a message of this run, or None (recorded, not counted): an
+            effort with layout dimensions is not this loop's, a step beyond the run is a rogue
+            publisher's."""
+            try:
+                step = effort_step(data) if topic == TOPIC_EFFORT else header_step(data, self.spec.rate)
+            except BagError:
+                return None
+            return step if step <= self.last_step else None
 
         return callback
 

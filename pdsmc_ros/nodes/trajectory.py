@@ -93,7 +93,9 @@ class TrajectoryNode:
         self.pub_ee = GuardedPublisher(node.create_publisher(PointStamped, TOPIC_EE_DESIRED, STREAM_QOS), node)
         # lockstep: off the critical path (references go out W steps ahead), so batched
         self.inputs = Inputs(node, self.mode, batch_s=TRAJECTORY_BATCH_S if self.mode == "lockstep" else 0.0)
-        self.inputs.subscribe(JointState, TOPIC_JOINT_STATES, self.on_state)
+        # lockstep: an observer's batches (see Inputs); real time: each state
+        self.inputs.subscribe(JointState, TOPIC_JOINT_STATES,
+                              self.on_states if self.mode == "lockstep" else self.on_state)
         if self.mode == "lockstep":
             self.timer = node.create_timer(0.01, self.try_start, clock=STEADY_CLOCK)
         else:
@@ -127,6 +129,10 @@ class TrajectoryNode:
         while self.next_step <= min(self.state_step + self.lookahead, self.last_step):
             self.publish(self.next_step)
             self.next_step += 1
+
+    def on_states(self, batch: list[bytes]) -> None:
+        for data in batch:
+            self.on_state(data)
 
     def on_state(self, data: bytes) -> None:
         step = stamp_to_step(*decode_stamp(data), self.spec.rate)
