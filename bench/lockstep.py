@@ -8,7 +8,9 @@ also with ``--intra-process``), and -- in the same run -- a plain two-process
 rclpy publish/echo round trip with default executors. Steps per second are taken
 from the recorder's receive times of /joint_states (start-up excluded).
 
-Last line: ``lockstep_steps_per_s=N rclpy_roundtrips_per_s=M`` (N: multi-process).
+Last line: ``lockstep_steps_per_s=N rclpy_roundtrips_per_s=M``, N of the composed
+intra-process arrangement (the fastest; the four-process and every other figure,
+with its N/M, are printed above it).
 
 Usage: python bench/lockstep.py [--steps 20000] [--nice -10]   (inside the venv, after make setup)
 """
@@ -115,14 +117,17 @@ def lockstep_steps_per_s(steps: int, composition: Sequence[str] = ()) -> tuple[f
     return (len(stamps) - 1) / ((stamps[-1] - stamps[0]) * 1e-9), lost
 
 
-# the other arrangements measured beside the four processes (run_experiment.sh options)
+# every arrangement of the four nodes measured (run_experiment.sh options)
 ARRANGEMENTS = (
+    ("4 processes", []),
     ("composed (1 process)", ["--composed"]),
     ("composed, intra-process (1 process, no DDS between the nodes)", ["--composed", "--intra-process"]),
     ("plant+controller composed, trajectory and recorder apart (3 processes)", ["--compose", "plant,controller"]),
     ("plant+controller composed intra-process, the others apart (3 processes)",
      ["--compose", "plant,controller", "--intra-process"]),
 )
+HEADLINE = "composed, intra-process (1 process, no DDS between the nodes)"
+"""The arrangement of the last line: the fastest (docs/PERFORMANCE.md); every one is printed above it."""
 
 
 def main() -> int:
@@ -136,14 +141,17 @@ def main() -> int:
         echo_main(args.echo)
         return 0
     nice = [] if args.nice is None else ["--nice", str(args.nice)]
-    multi, lost_multi = lockstep_steps_per_s(args.steps, nice)
-    print(f"lockstep, 4 processes: {multi:,.0f} steps/s ({args.steps} steps, {lost_multi} messages lost)")
+    rates = {}
     for label, options in ARRANGEMENTS:
         rate, lost = lockstep_steps_per_s(args.steps, [*options, *nice])
-        print(f"lockstep, {label}: {rate:,.0f} steps/s ({lost} messages lost)")
+        rates[label] = rate
+        print(f"lockstep, {label}: {rate:,.0f} steps/s ({args.steps} steps, {lost} messages lost)")
     rt = roundtrips_per_s()
     print(f"plain rclpy publish/echo round trip, default executors: {rt:,.0f} round trips/s")
-    print(f"lockstep_steps_per_s={multi:.0f} rclpy_roundtrips_per_s={rt:.0f}")
+    for label, rate in rates.items():
+        print(f"  N/M {rate / rt:4.1f}  {label}")
+    print(f"last line: {HEADLINE}")
+    print(f"lockstep_steps_per_s={rates[HEADLINE]:.0f} rclpy_roundtrips_per_s={rt:.0f}")
     return 0
 
 

@@ -3,7 +3,10 @@
 Serialized (raw) subscriptions are written as they arrive into rosbags'
 writer in MCAP mode (through :class:`~pdsmc_ros.bagwrite.MessageAppender`,
 which writes rosbags' bytes without its per-message overhead), so the bag
-holds exactly the CDR bytes that crossed DDS.
+holds exactly the CDR bytes that crossed DDS (or, composed with
+``--intra-process``, that the publisher handed over). The recorder is an
+observer: it takes its messages in batches of about 2 ms, and a message's log
+time is when its batch was taken; the run's timing lives in the header stamps.
 The run description (robot, contour, controller, gains, rates, scenario,
 package version) is stored twice: as the latched ``/pdsmc/run_description``
 message and in ``metadata.yaml``'s custom data, so analysis needs nothing
