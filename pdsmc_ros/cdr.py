@@ -23,6 +23,8 @@ import struct
 from collections.abc import Callable, Sequence
 from operator import itemgetter
 
+import numpy as np
+
 from .errors import BagError
 
 HEADER = b"\x00\x01\x00\x00"
@@ -320,6 +322,33 @@ def encode_joint_trajectory(
     data = bytes(w.buf)
     _remember(_encode_layouts, key, _FixedLayout(data, _joint_trajectory_fields(data)))
     return data
+
+
+def encode_joint_trajectories(
+    stamps: Sequence[tuple[int, int]], names: Sequence[str], positions: np.ndarray,
+    velocities: np.ndarray, accelerations: np.ndarray, frame_id: str = "",
+) -> list[bytes]:
+    """:func:`encode_joint_trajectory` of many references at once (rows of the arrays).
+
+    The same bytes, written with numpy into copies of the first message: the
+    trajectory encodes its references a window at a time instead of one per
+    control step (test/test_cdr.py checks them against the one-by-one encoder).
+    """
+    count = len(stamps)
+    if count == 0:
+        return []
+    columns = [np.ascontiguousarray(a, dtype="<f8").reshape(count, -1) for a in (positions, velocities, accelerations)]
+    first = encode_joint_trajectory(stamps[0][0], stamps[0][1], names, *(c[0].tolist() for c in columns),
+                                    frame_id=frame_id)
+    size = len(first)
+    block = np.tile(np.frombuffer(first, dtype=np.uint8), (count, 1))
+    stamp = np.array(stamps, dtype=np.int64)
+    block[:, 4:8] = stamp[:, 0].astype("<i4").view(np.uint8).reshape(count, 4)
+    block[:, 8:12] = stamp[:, 1].astype("<u4").view(np.uint8).reshape(count, 4)
+    for (start, width), column in zip(joint_trajectory_spans(first).values(), columns):
+        block[:, start:start + 8 * width] = column.view(np.uint8).reshape(count, 8 * width)
+    data = block.tobytes()
+    return [data[k:k + size] for k in range(0, count * size, size)]
 
 
 def _joint_trajectory_fields(data: bytes) -> list[tuple[int, str]]:

@@ -157,3 +157,17 @@ def test_clock_and_point_codecs_match_rclpy_and_rosbags(frame_id: str) -> None:
         assert (msg.point.x, msg.point.y, msg.point.z) == (x, y, 0.0)
         for ours, msgtype in ((clock, "rosgraph_msgs/msg/Clock"), (point, "geometry_msgs/msg/PointStamped")):
             assert store.serialize_cdr(store.deserialize_cdr(ours, msgtype), msgtype) == ours
+
+
+@pytest.mark.parametrize("n", [2, 3])
+def test_trajectory_block_encoder_equals_one_by_one(n: int) -> None:
+    """The trajectory's windowed encoder writes exactly encode_joint_trajectory's bytes."""
+    rng = np.random.default_rng(7 + n)
+    count = 50
+    names = [f"joint_{i + 1}" for i in range(n)]
+    q, qd, qdd = (rng.normal(scale=s, size=(count, n)) for s in (1.0, 10.0, 1e3))
+    stamps = [(int(s), int(ns)) for s, ns in zip(rng.integers(0, 2**31 - 1, count), rng.integers(0, 10**9, count))]
+    block = cdr.encode_joint_trajectories(stamps, names, q, qd, qdd)
+    assert block == [cdr.encode_joint_trajectory(s, ns, names, q[k].tolist(), qd[k].tolist(), qdd[k].tolist())
+                     for k, (s, ns) in enumerate(stamps)]
+    assert cdr.encode_joint_trajectories([], names, q[:0], qd[:0], qdd[:0]) == []
