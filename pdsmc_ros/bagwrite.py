@@ -58,33 +58,7 @@ class MessageAppender:
 
     def append(self, timestamp: int, data: bytes) -> None:
         """Write one serialized message at ``timestamp`` (ns), as ``Writer.write`` would."""
-        writer = self.writer
-        if not self.fast:
-            writer.write(self.connection, timestamp, data)
-            return
-        storage = writer.storage
-        cid = self.connection.id
-        if timestamp < storage.message_start_time:
-            storage.message_start_time = timestamp
-        if timestamp > storage.message_end_time:
-            storage.message_end_time = timestamp
-        storage.channel_stats[cid] += 1
-        chunk = storage.chunk
-        if timestamp < chunk.message_start_time:
-            chunk.message_start_time = timestamp
-        if timestamp > chunk.message_end_time:
-            chunk.message_end_time = timestamp
-        bio = chunk.bio
-        chunk.msgs[cid].append((timestamp, bio.tell()))
-        bio.write(_MESSAGE.pack(_OPCODE_MESSAGE, _MESSAGE_FIELDS + len(data), cid, 0, timestamp, timestamp))
-        bio.write(data)
-        if bio.tell() > _CHUNK_LIMIT:
-            close_chunk(storage)
-        writer.counts[cid] += 1
-        if timestamp < writer.min_timestamp:
-            writer.min_timestamp = timestamp
-        if timestamp > writer.max_timestamp:
-            writer.max_timestamp = timestamp
+        self.append_many(timestamp, (data,))
 
     def append_many(self, timestamp: int, messages: Sequence[bytes]) -> None:
         """Write several serialized messages, all received at ``timestamp`` (ns), in order.
