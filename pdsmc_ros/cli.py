@@ -92,7 +92,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     rep = sub.add_parser("reproduce", help="run the thesis matrix and write REPRODUCTION.md")
     rep.add_argument("--out", required=True, help="output directory")
-    rep.add_argument("--workers", type=positive_int, default=None, help="processes (default: cores)")
+    rep.add_argument("--workers", type=positive_int, default=None,
+                     help="processes (default: cores; with --ros 1, as a composed run takes a core)")
     rep.add_argument("--smc-reading", default="thesis_fit",
                      help="SMC model estimate for the SMC rows (default: thesis_fit)")
     rep.add_argument("--no-readings", action="store_true",

@@ -211,7 +211,7 @@ def declare_busy_wait(node: Node) -> float:
     busy-waiting instead of sleeping (see :func:`_serve_loop`); a ConfigError if bad."""
     node.declare_parameter("busy_wait", BUSY_WAIT_S, _descriptor(
         "real time: seconds before each tick spent busy-waiting instead of sleeping (absorbs late "
-        "wake-ups, costs that share of a core; a process running every ticking node: up to 0.8 of the period)",
+        "wake-ups, costs that share of a core; a process running every ticking node: up to the whole period)",
         lo=0.0, hi=1.0))
     value = node.get_parameter("busy_wait").value
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0.0 <= value <= 1.0:
