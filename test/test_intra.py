@@ -122,6 +122,6 @@ def test_subscriptions_after_bind_are_refused(contexts: tuple) -> None:
     domain = intra.IntraProcess(ctx)
     domain.bind()
     with pytest.raises(RuntimeError, match="before bind"):
-        domain.add_subscription("/joint_states", JointState, LOCKSTEP_QOS, print,
-                                local=lambda q, h: None, dds=lambda: None)
+        domain.add_subscription("/joint_states", JointState, LOCKSTEP_QOS,
+                                local=lambda q: None, dds=lambda: None)
     domain.destroy()

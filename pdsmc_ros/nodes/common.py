@@ -539,8 +539,8 @@ class Inputs:
             self._subscribe_dds(msg_type, topic, handler, qos)
             return
         domain.add_subscription(
-            self.node.resolve_topic_name(topic), msg_type, qos, handler,
-            local=lambda queue, handler: self.local.append((queue, handler)),
+            self.node.resolve_topic_name(topic), msg_type, qos,
+            local=lambda queue: self.local.append((queue, handler)),
             dds=lambda: self._subscribe_dds(msg_type, topic, handler, qos))
 
     def _subscribe_dds(self, msg_type: Any, topic: str, handler: Callable[[bytes], None],
@@ -911,13 +911,14 @@ def _take_local_batches(inputs: Sequence[tuple[deque, Callable[[list[bytes]], No
         count = len(queue)
         if not count:
             continue
-        if time.perf_counter() >= until:
+        bounded = time.perf_counter() >= until
+        if bounded:
             count = min(count, BOUNDED_BATCH)
-            handler([queue.popleft() for _ in range(count)])
-            return True
         # popleft, not a copy and clear(): the real-time executor thread may append meanwhile
         handler([queue.popleft() for _ in range(count)])
         took = True
+        if bounded:
+            return took
     return took
 
 

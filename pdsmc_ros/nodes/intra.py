@@ -39,8 +39,6 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile
 
 COUNT_REFRESH_S = 0.005  # how often a route re-reads its DDS subscriber count while publishing
 
-Handler = Callable[[bytes], None]
-
 
 class Route:
     """Where one publisher's messages go in this process (see the module docstring)."""
@@ -84,8 +82,7 @@ class IntraProcess:
 
     def __init__(self, context: Any) -> None:
         self.routes: dict[str, list[Route]] = {}
-        self.pending: list[tuple[str, Any, QoSProfile, Handler, Callable[[deque, Handler], None],
-                                 Callable[[], None]]] = []
+        self.pending: list[tuple[str, Any, QoSProfile, Callable[[deque], None], Callable[[], None]]] = []
         self.guard = _rclpy_impl.GuardCondition(context.handle)
         self.loop_thread = threading.get_ident()
         self.bound = False
@@ -98,18 +95,18 @@ class IntraProcess:
         self.routes.setdefault(publisher.topic_name, []).append(route)
         return route
 
-    def add_subscription(self, topic: str, msg_type: Any, qos: QoSProfile, handler: Handler, *,
-                         local: Callable[[deque, Handler], None], dds: Callable[[], None]) -> None:
-        """Register a loop input; at :meth:`bind`, ``local(queue, handler)`` or ``dds()`` is called."""
+    def add_subscription(self, topic: str, msg_type: Any, qos: QoSProfile, *,
+                         local: Callable[[deque], None], dds: Callable[[], None]) -> None:
+        """Register a loop input; at :meth:`bind`, ``local(queue)`` or ``dds()`` is called."""
         if self.bound:
             raise RuntimeError("intra-process subscriptions must be made before bind()")
-        self.pending.append((topic, msg_type, qos, handler, local, dds))
+        self.pending.append((topic, msg_type, qos, local, dds))
 
     def bind(self) -> dict[str, int]:
         """Connect the registered inputs; returns how many local subscribers each topic got."""
         self.bound = True
         local_counts: dict[str, int] = {}
-        for topic, msg_type, qos, handler, local, dds in self.pending:
+        for topic, msg_type, qos, local, dds in self.pending:
             routes = [r for r in self.routes.get(topic, ()) if r.msg_type is msg_type]
             if not routes:
                 dds()
@@ -118,7 +115,7 @@ class IntraProcess:
             queue: deque = deque(maxlen=depth)
             for route in routes:
                 route.queues.append(queue)
-            local(queue, handler)
+            local(queue)
             local_counts[topic] = local_counts.get(topic, 0) + 1
         self.pending.clear()
         return local_counts

@@ -86,7 +86,7 @@ class PlantNode:
         self.applied = np.zeros(self.robot.n)
         self.latest_effort = np.zeros(self.robot.n)
         self.names = list(self.robot.joint_names) + list(self.robot.passive_joint_names)
-        self.has_passive = bool(self.robot.passive_joint_names)
+        self.n_passive = len(self.robot.passive_joint_names)
         self.done = False
         self.exit_code = EXIT_OK
         self.rejected = 0
@@ -126,9 +126,9 @@ class PlantNode:
             self.pub_clock.publish(encode_clock(sec, nanosec))
         q, qd = self.plant.q, self.plant.qd
         outputs = None  # end effector and passive joints (kernels.robot_outputs), when needed
-        if self.has_passive:
+        if self.n_passive:
             outputs = self.plant.outputs().tolist()
-            passive = len(self.robot.passive_joint_names)
+            passive = self.n_passive
             position, velocity = q.tolist() + outputs[2:2 + passive], qd.tolist() + outputs[4:4 + passive]
             effort = self.applied.tolist() + [0.0] * passive
         else:
