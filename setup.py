@@ -9,8 +9,15 @@ PACKAGE = "pdsmc_ros"
 setup(
     name=PACKAGE,
     version="0.1.0",
-    packages=find_packages(exclude=["test", "test.*"]),
-    package_data={PACKAGE: ["py.typed"]},
+    # config/ and scripts/ also ship inside the package (pdsmc_ros/data/...), so the core
+    # finds them with importlib.resources and no ROS environment (pdsmc_ros/resources.py)
+    packages=find_packages(exclude=["test", "test.*"]) + [f"{PACKAGE}.data.config", f"{PACKAGE}.data.scripts"],
+    package_dir={f"{PACKAGE}.data.config": "config", f"{PACKAGE}.data.scripts": "scripts"},
+    package_data={
+        PACKAGE: ["py.typed"],
+        f"{PACKAGE}.data.config": ["*.yaml", "*.xml"],
+        f"{PACKAGE}.data.scripts": ["*.sh"],
+    },
     data_files=[
         ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
         (f"share/{PACKAGE}", ["package.xml"]),

@@ -16,10 +16,47 @@ from typing import Any
 import numpy as np
 
 from .bagio import RecordedRun, read_run, run_metrics
-from .errors import BagError
+from .errors import BagError, InvalidInputError
 from .metrics import Metrics
 from .presets import CONTROLLER_LABELS as LABEL
 
+
+def is_bag(path: Path) -> bool:
+    """A recorded bag: an ``.mcap`` file, or a directory with one (rosbag2 layout)."""
+    if path.is_dir():
+        return any(path.glob("*.mcap"))
+    return path.suffix == ".mcap" and path.is_file()
+
+
+def find_bags(paths: Sequence[str | Path]) -> tuple[list[Path], list[str]]:
+    """The bags named by ``paths``, and one line for each path that names none.
+
+    A bag stands for itself; a directory that is not a bag stands for the bags
+    directly inside it, in name order (``bags/demo-.../`` holds one run per
+    controller). Anything else -- a shell glob's ``*.logs`` directory, a stray
+    file -- is skipped, and said so.
+
+    Raises
+    ------
+    InvalidInputError
+        If a path does not exist (a typing mistake, not a glob's by-product).
+    """
+    bags: list[Path] = []
+    skipped: list[str] = []
+    for name in paths:
+        path = Path(name)
+        if not path.exists():
+            raise InvalidInputError(f"bag {str(path)!r} does not exist")
+        if is_bag(path):
+            bags.append(path)
+            continue
+        inside = sorted(p for p in path.iterdir() if is_bag(p)) if path.is_dir() else []
+        if inside:
+            bags += inside
+        else:
+            what = "a directory with no .mcap file and no bag inside" if path.is_dir() else "not an .mcap file"
+            skipped.append(f"skipping {str(path)!r}: {what}")
+    return bags, skipped
 
 
 @dataclass
@@ -78,10 +115,20 @@ def analyze_bag(path: str | Path) -> AnalyzedBag:
     run = read_run(path)
     if not np.any(~np.isnan(run.q[:, 0])):
         raise BagError(f"bag {str(path)!r} holds no joint states")
+    try:
+        metrics = run_metrics(run)
+    except InvalidInputError:
+        d = run.description
+        recorded = ", ".join(f"{topic} {count}" for topic, count in run.counts.items())
+        raise BagError(
+            f"bag {str(path)!r} ({d['robot']}/{d['contour']}/{d['controller']} run"
+            f"{', truncated' if run.truncated else ''}) holds no control step with its state, reference "
+            f"and torque: nothing to analyse (recorded: {recorded})"
+        ) from None
     timing = None
     if run.description.get("mode") == "realtime":
         timing = controller_timing(path, 1.0 / run.spec.rate)
-    return AnalyzedBag(path, run, run_metrics(run), timing)
+    return AnalyzedBag(path, run, metrics, timing)
 
 
 def comparison_table(bags: Sequence[AnalyzedBag]) -> str:

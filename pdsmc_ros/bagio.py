@@ -24,7 +24,7 @@ from . import cdr
 from .errors import BagError
 from .metrics import Metrics, Samples, compute_metrics
 from .models import FloatArray
-from .presets import RunSpec
+from .presets import RunSpec, control_steps
 
 DESCRIPTION_KEY = "pdsmc_ros.run_description"
 
@@ -136,7 +136,7 @@ def read_run(path: str | Path) -> RecordedRun:
     spec = RunSpec.from_description(description)
     n = len(spec.gains.kp)
     rate = spec.rate
-    steps = int(round(description["duration_s"] * rate))
+    steps = control_steps(float(description["duration_s"]), rate)
     q = np.full((steps + 1, n), np.nan)
     qd = np.full((steps + 1, n), np.nan)
     q_ref = np.full((steps + 1, n), np.nan)

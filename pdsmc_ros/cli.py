@@ -49,6 +49,20 @@ def positive_int(text: str) -> int:
     return value
 
 
+MAX_VALUES = 1000
+"""Values one sweep may take (one run each)."""
+
+MAX_WORKERS = 256
+"""Processes a command may start (each holds its own compiled kernels and run arrays)."""
+
+
+def worker_count(text: str) -> int:
+    value = positive_int(text)
+    if value > MAX_WORKERS:
+        raise argparse.ArgumentTypeError(f"expected at most {MAX_WORKERS} processes, got {text!r}")
+    return value
+
+
 def value_list(text: str) -> list[float]:
     try:
         values = [float(v) for v in text.split(",") if v.strip()]
@@ -56,6 +70,8 @@ def value_list(text: str) -> list[float]:
         raise argparse.ArgumentTypeError(f"expected comma-separated numbers, got {text!r}") from None
     if not values or any(not np.isfinite(v) or v < 0 for v in values):
         raise argparse.ArgumentTypeError(f"expected comma-separated numbers >= 0, got {text!r}")
+    if len(values) > MAX_VALUES:
+        raise argparse.ArgumentTypeError(f"expected at most {MAX_VALUES} values (one run each), got {len(values)}")
     return values
 
 
@@ -92,7 +108,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     rep = sub.add_parser("reproduce", help="run the thesis matrix and write REPRODUCTION.md")
     rep.add_argument("--out", required=True, help="output directory")
-    rep.add_argument("--workers", type=positive_int, default=None,
+    rep.add_argument("--workers", type=worker_count, default=None,
                      help="processes (default: cores; with --ros 1, as a composed run takes a core)")
     rep.add_argument("--smc-reading", default="thesis_fit",
                      help="SMC model estimate for the SMC rows (default: thesis_fit)")
@@ -106,7 +122,8 @@ def build_parser() -> argparse.ArgumentParser:
                      help="glob over robot/contour/scenario/controller, e.g. 'serial_3r/circle/*/*'")
 
     ana = sub.add_parser("analyze", help="statistics of recorded bags, compared thesis-style")
-    ana.add_argument("bags", nargs="+", help="bag directories written by the recorder")
+    ana.add_argument("bags", nargs="+",
+                     help="bags written by the recorder, or directories of bags (each inside, in name order)")
     ana.add_argument("--out", default=None, help="also write analysis.json and analysis.csv here")
     ana.add_argument("--json", action="store_true", help="print JSON instead of the table")
     ana.add_argument("--plots", action="store_true", help="write PNG figures into --out (default: analysis/)")
@@ -116,7 +133,7 @@ def build_parser() -> argparse.ArgumentParser:
     swp.add_argument("--robot", required=True, choices=("serial_3r", "parallel_5r"))
     swp.add_argument("--contour", required=True)
     swp.add_argument("--out", default=None, help="write sweep_<param>.csv and .png here")
-    swp.add_argument("--workers", type=positive_int, default=None)
+    swp.add_argument("--workers", type=worker_count, default=None)
     swp.add_argument("--values", type=value_list, default=None,
                      help="comma-separated values instead of the thesis's (e.g. 1,10,100)")
 
@@ -228,9 +245,15 @@ def cmd_check_gains(args: argparse.Namespace) -> int:
 
 
 def cmd_analyze(args: argparse.Namespace) -> int:
-    from .analysis import analyze_bag, comparison_table, write_outputs
+    from .analysis import analyze_bag, comparison_table, find_bags, write_outputs
 
-    bags = [analyze_bag(path) for path in args.bags]
+    paths, skipped = find_bags(args.bags)
+    for line in skipped:
+        print(f"pdsmc analyze: {line}", file=sys.stderr)
+    if not paths:
+        raise InvalidInputError(f"no bag among {', '.join(map(repr, args.bags))} (a bag is a directory "
+                                "written by the recorder, or a directory of such bags)")
+    bags = [analyze_bag(path) for path in paths]
     if args.plots:
         from .bagio import run_samples
         from .plots import plot_comparison, plot_run

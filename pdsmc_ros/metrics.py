@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from .errors import InvalidInputError
 from .models import FloatArray
 
 
@@ -60,7 +61,15 @@ def sample_times(duration: float, sample_rate: float) -> FloatArray:
 
 
 def compute_metrics(samples: Samples, bound: float) -> Metrics:
-    """Thesis-style statistics of sampled signals (NOTES.md section 4)."""
+    """Thesis-style statistics of sampled signals (NOTES.md section 4).
+
+    Raises
+    ------
+    InvalidInputError
+        If there is no sample (every statistic would be undefined).
+    """
+    if not len(samples.t):
+        raise InvalidInputError("statistics need at least one sampled instant; got none")
     axial = np.abs(samples.q_ref - samples.q)
     ex = np.abs(samples.xy_ref[:, 0] - samples.xy[:, 0])
     ey = np.abs(samples.xy_ref[:, 1] - samples.xy[:, 1])

@@ -19,6 +19,7 @@ import yaml
 
 from . import __version__
 from .errors import ConfigError
+from .resources import config_dir
 from .models import Manipulator, RobotParams, make_robot
 from .trajectories import Contour, EllipseContour, JointReference, SegmentContour
 
@@ -32,6 +33,10 @@ DEFAULT_CONTROL_RATE = {"serial_3r": 10000.0, "parallel_5r": 5000.0}
 """Control rates (Hz) that reproduce the continuous-time thesis (NOTES.md section 1):
 the serial arm's contour mean error changes by < 1e-5 (relative) from 10 to 40 kHz,
 the five-bar's by < 1e-5 from 5 to 40 kHz."""
+
+MAX_CONTROL_STEPS = 10_000_000
+"""Control steps one run may hold: the sampled reference and its temporaries take about
+400 bytes a step (4 GB here), 200 times the thesis's 50,001-step serial runs."""
 
 SAMPLE_RATE = {"serial_3r": 500.0, "parallel_5r": 5000.0}
 """Rates (Hz) at which the thesis sampled errors for its statistics (Section 4.2)."""
@@ -50,29 +55,6 @@ SMC_MODEL_DEFAULT = {
 
 CONTOUR_BOUND = {"serial_3r": 2.0e-4, "parallel_5r": 1.5e-4}
 """Contour error bounds (m) of the "% within bound" statistic."""
-
-
-def config_dir() -> Path:
-    """Directory holding the YAML presets.
-
-    The source tree's ``config/`` when running from a checkout; otherwise the
-    installed ``share/pdsmc_ros/config`` found through the ament index.
-    """
-    here = Path(__file__).resolve().parent.parent / "config"
-    if (here / "gains.yaml").is_file():
-        return here
-    try:
-        from ament_index_python.packages import get_package_share_directory
-
-        share = Path(get_package_share_directory("pdsmc_ros")) / "config"
-        if (share / "gains.yaml").is_file():
-            return share
-    except (ImportError, LookupError, ValueError):
-        pass
-    raise ConfigError(
-        "cannot find the pdsmc_ros presets: neither a source checkout nor an installed "
-        "share/pdsmc_ros/config (is AMENT_PREFIX_PATH set?)"
-    )
 
 
 @functools.lru_cache(maxsize=16)
@@ -300,6 +282,24 @@ class RunSpec:
             segment_duration=float(data.get("segment_duration", 2.0)),
             bound=float(data.get("contour_bound_m", CONTOUR_BOUND[robot])),
         )
+
+
+def control_steps(duration: float, rate: float) -> int:
+    """Number of control periods covering ``[0, duration]``.
+
+    Raises
+    ------
+    ConfigError
+        If the run would hold more than :data:`MAX_CONTROL_STEPS` steps (checked
+        before anything is allocated for them).
+    """
+    steps = duration * rate
+    if not np.isfinite(steps) or steps > MAX_CONTROL_STEPS:
+        raise ConfigError(
+            f"rate {rate:g} Hz over {duration:g} s is {steps:.3g} control steps; a run holds at most "
+            f"{MAX_CONTROL_STEPS:,} (lower the rate or the duration)"
+        )
+    return int(round(steps))
 
 
 def robot_params(robot: str) -> RobotParams:

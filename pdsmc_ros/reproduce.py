@@ -25,6 +25,7 @@ from . import __version__
 from .errors import BagError, ConfigError
 from .presets import CONTROLLER_LABELS as LABEL
 from .presets import CONTROLLER_NAMES, Gains, RunSpec, choice, load_config, make_run, preset_gains
+from .resources import ros_environment, script_path
 from .simulator import RunResult, simulate_many
 
 
@@ -331,11 +332,7 @@ def _ros_result(spec: RunSpec, bags: Path, report: Callable[[RunResult], None]) 
 
     start = time.perf_counter()
     out = bags / run_key(spec).replace("/", "-")
-    script = Path(__file__).resolve().parent.parent / "scripts" / "run_experiment.sh"
-    if not script.is_file():
-        from .presets import config_dir
-
-        script = config_dir().parent / "scripts" / "run_experiment.sh"
+    script = script_path()
     reading = "thesis_fit" if spec.smc_model == smc_reading("thesis_fit") else "literal"
     cmd = ["bash", str(script), "--robot", spec.robot, "--contour", spec.contour, "--controller",
            spec.controller, "--scenario", spec.scenario, "--smc-reading", reading, "--composed",
@@ -345,7 +342,7 @@ def _ros_result(spec: RunSpec, bags: Path, report: Callable[[RunResult], None]) 
         for name, values in spec.gains.as_dict().items():
             if values:
                 cmd += ["--param", f"{name}:=[{', '.join(repr(float(v)) for v in values)}]"]
-    proc = subprocess.run(cmd, capture_output=True, text=True)
+    proc = subprocess.run(cmd, capture_output=True, text=True, env=ros_environment())
     if proc.returncode != 0:
         raise BagError(f"{run_key(spec)} over DDS failed: {proc.stderr.strip().splitlines()[-1:]}")
     run = read_run(out)

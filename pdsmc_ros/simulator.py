@@ -22,7 +22,7 @@ from . import kernels
 from .errors import InvalidInputError
 from .metrics import Metrics, Samples, compute_metrics
 from .models import FloatArray, Manipulator, as_vector
-from .presets import RunSpec
+from .presets import RunSpec, control_steps
 from .trajectories import JointReference
 from .stability import check_rate
 
@@ -138,11 +138,6 @@ class RunResult:
         return out
 
 
-def control_steps(duration: float, rate: float) -> int:
-    """Number of control periods covering ``[0, duration]``."""
-    return int(round(duration * rate))
-
-
 def simulate(spec: RunSpec, *, check_stability: bool = True) -> RunResult:
     """Run the discrete closed loop of ``spec`` and compute its statistics.
 
@@ -237,7 +232,8 @@ def simulate_many(
     progress: Callable[[int, int, RunResult], None] | None = None,
 ) -> list[RunResult]:
     """Simulate several runs, on ``workers`` processes (default: all cores)."""
-    workers = workers or os.cpu_count() or 1
+    # a process per run at the most: a pool forks all its workers up front
+    workers = min(workers or os.cpu_count() or 1, max(len(specs), 1))
     results: list[RunResult | None] = [None] * len(specs)
     if workers == 1 or len(specs) == 1:
         for i, spec in enumerate(specs):

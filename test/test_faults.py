@@ -239,6 +239,57 @@ def test_killed_recorder_loses_at_most_a_second(ros_env: dict, tmp_path: Path) -
     assert np.max(np.abs(run.q[::every][seen] - sim.samples.q[seen])) <= 1e-9
 
 
+FIRST_STATE = r"""
+import rclpy
+from rclpy.node import Node
+from sensor_msgs.msg import JointState
+rclpy.init()
+node = Node("first_state_watch")
+seen = []
+node.create_subscription(JointState, "joint_states", lambda msg: seen.append(msg), 10)
+print("ready", flush=True)
+while not seen:
+    rclpy.spin_once(node, timeout_sec=0.001)
+print("first", flush=True)
+"""
+
+
+@pytest.mark.timeout(300)
+def test_recorder_killed_at_the_first_state_leaves_a_bag_that_names_its_run(ros_env: dict, tmp_path: Path) -> None:
+    """Killed 50 ms after the first state is on the wire, long before the 0.5 s periodic flush."""
+    out = tmp_path / "killfirst"
+    env = run_env(ros_env, out)
+    watch = subprocess.Popen([sys.executable, "-c", FIRST_STATE], env=env, stdout=subprocess.PIPE,
+                             stderr=subprocess.PIPE, text=True, start_new_session=True)
+    try:
+        assert watch.stdout.readline().strip() == "ready", watch.stderr.read()  # type: ignore[union-attr]
+        proc = start_experiment(env, out, "--duration-factor", "0.4")
+        recorder = node_pid(out, "recorder")
+        assert watch.stdout.readline().strip() == "first"  # type: ignore[union-attr]
+        time.sleep(0.05)
+        os.kill(recorder, signal.SIGKILL)
+    finally:
+        if watch.poll() is None:
+            os.killpg(watch.pid, signal.SIGKILL)
+        watch.communicate()
+    wait_finish(proc)
+    run = read_run(out)  # the run description reached the disk as it arrived
+    assert run.truncated and run.description["controller"] == "pdsmc"
+    assert run.counts["/joint_states"] >= 1  # so did the first states
+    analyzed = subprocess.run([sys.executable, "-m", "pdsmc_ros.cli", "analyze", str(out)], env=env,
+                              capture_output=True, text=True, timeout=120)
+    assert "not a pdsmc_ros run" not in analyzed.stderr and "Traceback" not in analyzed.stderr
+    if analyzed.returncode == 1 and "truncated" in analyzed.stderr and "PD-SMC (killfirst)" in analyzed.stdout:
+        return  # enough complete steps reached the disk to compute statistics
+    # killed before any step was complete: one line naming the run, no statistics
+    assert analyzed.returncode == 1, analyzed.stderr
+    assert analyzed.stderr.strip().splitlines() == [
+        f"pdsmc analyze: error: bag {str(out)!r} (serial_3r/circle/pdsmc run, truncated) holds no control "
+        "step with its state, reference and torque: nothing to analyse (recorded: "
+        + ", ".join(f"{topic} {count}" for topic, count in run.counts.items()) + ")"
+    ]
+
+
 ROGUE = r"""
 import sys, time, math
 import rclpy

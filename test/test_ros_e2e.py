@@ -169,7 +169,7 @@ def test_analyze_cli_on_missing_and_corrupt_bags(tmp_path: Path) -> None:
 
     missing = subprocess.run([sys.executable, "-m", "pdsmc_ros.cli", "analyze", str(tmp_path / "nope")],
                              capture_output=True, text=True, timeout=120)
-    assert missing.returncode == 1 and "does not exist" in missing.stderr
+    assert missing.returncode == 2 and "does not exist" in missing.stderr  # bad input
     bad = tmp_path / "bad"
     bad.mkdir()
     (bad / "metadata.yaml").write_text("not: [a bag")

@@ -9,7 +9,8 @@ observer: it takes its messages in batches of about 2 ms, and a message's log
 time is when its batch was taken; the run's timing lives in the header stamps.
 The run description (robot, contour, controller, gains, rates, scenario,
 package version) is stored twice: as the latched ``/pdsmc/run_description``
-message and in ``metadata.yaml``'s custom data, so analysis needs nothing
+message, written to disk as soon as it arrives (as is every topic's first
+batch), and in ``metadata.yaml``'s custom data, so analysis needs nothing
 else. The bag is closed cleanly on completion, SIGINT or SIGTERM.
 """
 
@@ -133,9 +134,14 @@ class RecorderNode:
                 self.exit_code = EXIT_FAILURE
                 self.done = True
                 return
+            first = not self.counts[topic]
             self.counts[topic] += len(batch)
             if topic == TOPIC_DESCRIPTION:
                 self.description = deserialize_message(batch[-1], String).data
+            if first:
+                # a topic's first messages (the run description above all) go to disk at once,
+                # so a recorder killed at any moment after start leaves a bag that names its run
+                self.flush()
             if stepped:
                 # a topic's steps arrive in order, so the last message normally holds the newest;
                 # if it does not count, every message of the batch is looked at
