@@ -22,9 +22,9 @@ from .presets import CONTROLLER_LABELS as LABEL
 
 
 def is_bag(path: Path) -> bool:
-    """A recorded bag: an ``.mcap`` file, or a directory with one (rosbag2 layout)."""
+    """A recorded bag: an ``.mcap`` file, or a directory with one or a ``metadata.yaml`` (rosbag2)."""
     if path.is_dir():
-        return any(path.glob("*.mcap"))
+        return (path / "metadata.yaml").is_file() or any(path.glob("*.mcap"))
     return path.suffix == ".mcap" and path.is_file()
 
 
