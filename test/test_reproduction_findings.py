@@ -171,6 +171,15 @@ def test_a_reading_explains_a_cell_only_where_it_fits_the_whole_row_no_worse() -
     assert classify(Reproduction([_cell("contour_mean", 1.0, 1.04)], [], "x", 0.0, {}))[0].verdict == "reproduced"
 
 
+def test_link_com_reading_is_refused_over_ros(tmp_path: Path) -> None:
+    from pdsmc_ros.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="--payload-reading link_com runs in-process only"):
+        run_reproduction(only="serial_3r/ellipse/payload/pd", readings=False, ros_bags=tmp_path,
+                         payload_reading="link_com")
+    assert not any(tmp_path.iterdir())
+
+
 # --------------------------------------------------------------------------- #
 # CLI flag
 # --------------------------------------------------------------------------- #
