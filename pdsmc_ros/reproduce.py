@@ -666,12 +666,15 @@ def write_report(rep: Reproduction, out: Path) -> dict[str, Path]:
         "ours, and the relative deviation (ours - thesis) / thesis. "
         f"{len(rep.results)} runs, {sum(r.steps for r in rep.results):,} control steps, "
         f"{rep.wall_s:.1f} s wall time on {os.cpu_count()} cores"
-        + (" (including the SMC-reading comparison below)." if rep.readings and len(rep.readings) > 1 else ".")
+        + (" (including the SMC-reading and payload-reading comparisons and the continuous-time check below)."
+           if rep.readings and len(rep.readings) > 1 else ".")
     )
     add("")
     add("Setup: discrete loop with zero-order hold, RK4 plant between control instants; control at "
-        "10 kHz (serial) / 5 kHz (parallel), within about 1e-5 (relative) of the continuous-time "
-        "solution (see *Discrete loop against the continuous-time limit*); statistics sampled at 500 Hz / 5 kHz over [0, T] inclusive (NOTES.md section 1). "
+        "10 kHz (serial) / 5 kHz (parallel); the serial circle PD-SMC run lies within about 1e-5 "
+        "(relative) of its continuous-time limit (see *Discrete loop against the continuous-time "
+        "limit*); statistics sampled at 500 Hz / "
+        "5 kHz over [0, T] inclusive (NOTES.md section 1). "
         "Contour error: Eq. 2.9 against the active segment (linear contours), Eq. 2.10 (circles), "
         "exact nearest point (ellipses).")
     add("")
@@ -914,7 +917,8 @@ def _torque_section(rep: Reproduction, verdicts: list[Verdict]) -> list[str]:
              "every control instant. A run that tracks the trajectory to the printed errors needs about "
              f"that torque: on {len(close)} of the {len(torque)} max-torque cells our run's max lies within "
              f"0.5 % of it{'; the others: ' + apart if apart else ''}. PD's torque is Kp e + Kd edot alone, so "
-             "the feedback must supply it. A printed max below the needed torque (by more than our run's own gap to it) "
+             "the feedback must supply it. A printed max below the needed torque (by more than our run's own "
+             "gap to it) "
              "cannot come from a run that tracks the trajectory: **infeasible**. Where the printed max lies "
              "above, a peak the runs do not show would be needed; those cells stay open. The same rows' "
              "tracking errors are reproduced, so the max-torque column does not come from the runs that "

@@ -110,10 +110,11 @@ def test_loaded_params_add_the_load_at_the_last_links_centre_of_mass() -> None:
     y3 = (links[0].length * np.sin(q[0]) + links[1].length * np.sin(q[0] + q[1])
           + links[2].com * np.sin(q.sum()))
     rest = np.zeros(3)
-    gained = com.robot_model().total_energy(q, rest) - make_run("serial_3r", "ellipse", "pd").robot_model().total_energy(q, rest)
+    nominal = make_run("serial_3r", "ellipse", "pd").robot_model()
+    gained = com.robot_model().total_energy(q, rest) - nominal.total_energy(q, rest)
     assert gained == pytest.approx(1.5 * 9.81 * y3, rel=1e-12)
     # the SMC's model: nominal with the tip mass, rebuilt with the load with link_com
-    assert np.allclose(tip.nominal_model().gravity(q), make_run("serial_3r", "ellipse", "pd").robot_model().gravity(q))
+    assert np.allclose(tip.nominal_model().gravity(q), nominal.gravity(q))
     assert np.allclose(com.nominal_model().gravity(q), com.robot_model().gravity(q))
     assert not np.allclose(tip.robot_model().gravity(q), com.robot_model().gravity(q))
     assert RunSpec.from_description(com.describe()) == com
