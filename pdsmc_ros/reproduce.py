@@ -42,9 +42,9 @@ REPRODUCED = 0.05
 VERDICTS = ("reproduced", "reading", "misprint", "infeasible", "open")
 """What a cell's comparison shows (:func:`classify`): reproduced; reproduced only under a
 reading the primary cells do not use (the other payload reading, the gains as printed or the
-statistic as defined) that fits its row no worse; a misprint (the printed value repeats another printed statistic of
-its row, and ours of that statistic matches it); infeasible (a printed max torque below the
-torque needed to follow the trajectory); open."""
+statistic as defined) that fits its row no worse; a misprint (the printed value repeats
+another printed statistic of its row, and ours of that statistic matches it); infeasible (a
+printed max torque below the torque needed to follow the trajectory); open."""
 
 MISPRINT_DIGITS = 5e-4
 """Relative gap within which two printed values (four significant digits) are the same number."""
@@ -325,6 +325,11 @@ def _reproduced(c: Cell) -> bool:
     return abs(c.deviation) <= REPRODUCED
 
 
+def _joint(metric: str) -> int:
+    """Index (from 0) of the joint a per-joint statistic such as ``max_torque[2]`` names."""
+    return int(metric[:-1].split("[")[1]) - 1
+
+
 def _same_print(a: float, b: float) -> bool:
     return abs(a - b) <= MISPRINT_DIGITS * max(abs(a), abs(b))
 
@@ -333,7 +338,7 @@ def _error_series(res: RunResult, metric: str) -> np.ndarray | None:
     """The absolute error whose mean and S.D. ``metric`` names (None for other statistics)."""
     smp = res.samples
     if metric.startswith(("axial_mean", "axial_sd")):
-        i = int(metric[:-1].split("[")[1]) - 1
+        i = _joint(metric)
         return np.abs(smp.q_ref[:, i] - smp.q[:, i])
     if metric.startswith(("task_mean", "task_sd")):
         e = np.abs(smp.xy_ref - smp.xy)
@@ -353,7 +358,8 @@ def classify(rep: Reproduction) -> list[Verdict]:
     needed torque (:func:`needed_torque`) by more than our run's own max differs from it.
     Reading: reproduced under another payload reading or with the gains as printed / the
     statistic as defined, which fits the cell's row (robot, contour, scenario, controller)
-    with a median |deviation| no larger than the primary cells'. Everything else is open (with what was measured on it).
+    with a median |deviation| no larger than the primary cells'. Everything else is open,
+    with what was measured on it.
     """
     rows: dict[tuple[str, str, str, str], dict[str, Cell]] = {}
     for c in rep.cells:
@@ -382,13 +388,14 @@ def classify(rep: Reproduction) -> list[Verdict]:
             continue
         needed = rep.needed_torque.get(f"{c.robot}/{c.contour}/{c.scenario}")
         if c.metric.startswith("max_torque") and needed is not None:
-            need = needed[int(c.metric[:-1].split("[")[1]) - 1]
+            need = needed[_joint(c.metric)]
             if c.thesis < need - abs(c.ours - need):
                 axial = summarize(o for o in row.values() if o.metric.startswith("axial"))
                 verdicts.append(Verdict("infeasible", (
                     f"printed {c.thesis:.4g} N m is {100 * (1 - c.thesis / need):.1f} % below the "
                     f"{need:.4g} N m needed to follow the trajectory at all; our run's max is "
-                    f"{c.ours:.4g}; this row's axial errors: median abs. deviation {_pct(axial['median_abs_dev'])}")))
+                    f"{c.ours:.4g}; this row's axial errors: median abs. deviation "
+                    f"{_pct(axial['median_abs_dev'])}")))
                 continue
         readings = [(f"payload reading {name}", o[_cell_key(c)],
                      [o[_cell_key(r)] for r in row.values()]) for name, o in others.items() if _cell_key(c) in o]
@@ -413,7 +420,7 @@ def classify(rep: Reproduction) -> list[Verdict]:
         if skew:
             notes.append(skew)
         if c.metric.startswith("max_torque") and needed is not None:
-            need = needed[int(c.metric[:-1].split("[")[1]) - 1]
+            need = needed[_joint(c.metric)]
             notes.append(f"needed torque {need:.4g} N m; our run's max {c.ours:.4g}")
         verdicts.append(Verdict("open", "; ".join(notes)))
     return verdicts
@@ -909,8 +916,9 @@ def _torque_section(rep: Reproduction, verdicts: list[Verdict]) -> list[str]:
     torque = [(c, v) for c, v in zip(rep.cells, verdicts) if c.metric.startswith("max_torque")
               and f"{c.robot}/{c.contour}/{c.scenario}" in rep.needed_torque]
     close = [c for c, _ in torque if abs(c.ours / _needed(rep, c) - 1.0) <= 0.005]
-    apart = "; ".join(f"{c.robot} {c.contour} {LABEL[c.controller]} joint {c.metric[-2]}: {c.ours:.4g} against "
-                      f"{_needed(rep, c):.4g} N m (printed {c.thesis:.4g})" for c, _ in torque if c not in close)
+    apart = "; ".join(f"{c.robot} {c.contour} {LABEL[c.controller]} joint {_joint(c.metric) + 1}: {c.ours:.4g} "
+                      f"against {_needed(rep, c):.4g} N m (printed {c.thesis:.4g})"
+                      for c, _ in torque if c not in close)
     lines = ["## Max torques against the torque needed to follow the trajectory", "",
              "Needed torque: Eq. (4.1) solved for the torque along the desired motion, "
              "tau = Mbar(q_d) qdd_d + C(q_d, qd_d) qd_d + G(q_d) + B qd_d, its max |tau| per joint over "
@@ -929,14 +937,15 @@ def _torque_section(rep: Reproduction, verdicts: list[Verdict]) -> list[str]:
         if v.verdict == "reproduced":
             continue
         need = _needed(rep, c)
-        lines.append(f"| {c.robot} | {c.contour} | {LABEL[c.controller]} | {c.metric[-2]} | {c.thesis:.4g} | "
+        lines.append(f"| {c.robot} | {c.contour} | {LABEL[c.controller]} | {_joint(c.metric) + 1} | "
+                     f"{c.thesis:.4g} | "
                      f"{need:.4g} | {c.ours:.4g} | {c.thesis / need:.3f} | {v.verdict} |")
     lines += ["", "(Cells within 5 % are left out.)", ""]
     return lines
 
 
 def _needed(rep: Reproduction, c: Cell) -> float:
-    return rep.needed_torque[f"{c.robot}/{c.contour}/{c.scenario}"][int(c.metric[:-1].split("[")[1]) - 1]
+    return rep.needed_torque[f"{c.robot}/{c.contour}/{c.scenario}"][_joint(c.metric)]
 
 
 def _misprint_section(rep: Reproduction, verdicts: list[Verdict]) -> list[str]:
