@@ -198,6 +198,9 @@ def test_cli_payload_reading_flag() -> None:
     bad = subprocess.run([*base, "--payload-reading", "wrist"], capture_output=True, text=True, timeout=120)
     assert bad.returncode == 2 and "--payload-reading" in bad.stderr and "link_com" in bad.stderr
     assert len(bad.stderr.strip().splitlines()) == 1
+    bad = subprocess.run([sys.executable, "-m", "pdsmc_ros.cli", "reproduce", "--out", "unused",
+                          "--payload-reading", "wrist"], capture_output=True, text=True, timeout=120)
+    assert bad.returncode == 2 and "--payload-reading" in bad.stderr and len(bad.stderr.strip().splitlines()) == 1
 
 
 # --------------------------------------------------------------------------- #
