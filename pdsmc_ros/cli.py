@@ -75,6 +75,12 @@ def value_list(text: str) -> list[float]:
     return values
 
 
+def _add_payload_reading(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--payload-reading", choices=("tip", "link_com"), default="tip",
+                   help="where the payload scenario puts its load: tip (point mass at the end-effector, "
+                   "default) or link_com (on the last link's centre of mass, the SMC's model rebuilt for it)")
+
+
 def _add_run_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--robot", required=True, choices=("serial_3r", "parallel_5r"))
     p.add_argument(
@@ -90,6 +96,7 @@ def _add_run_arguments(p: argparse.ArgumentParser) -> None:
                    help="control rate in Hz (default 10000 serial, 5000 parallel)")
     p.add_argument("--smc-reading", default="literal",
                    help="SMC model estimate from config/smc_readings.yaml (default: literal)")
+    _add_payload_reading(p)
     p.add_argument("--ellipse-error", choices=("nearest", "osculating"), default="nearest",
                    help="contour error of ellipses: exact nearest point or osculating circle")
     p.add_argument("--waypoints", default=None, help="CSV of task-space waypoints (--contour csv)")
@@ -112,6 +119,7 @@ def build_parser() -> argparse.ArgumentParser:
                      help="processes (default: cores; with --ros 1, as a composed run takes a core)")
     rep.add_argument("--smc-reading", default="thesis_fit",
                      help="SMC model estimate for the SMC rows (default: thesis_fit)")
+    _add_payload_reading(rep)
     rep.add_argument("--no-readings", action="store_true",
                      help="skip the comparison of SMC readings")
     rep.add_argument("--quiet", action="store_true", help="no progress lines")
@@ -156,6 +164,7 @@ def _spec_from_args(args: argparse.Namespace):  # noqa: ANN202
         ellipse_error=args.ellipse_error,
         waypoints_file=args.waypoints,
         segment_duration=args.segment_duration,
+        payload_reading=args.payload_reading,
     )
 
 
@@ -184,7 +193,8 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         return 0
     d = spec.describe()
     print(
-        f"{spec.robot} / {spec.contour} / {spec.controller} / {spec.scenario}: "
+        f"{spec.robot} / {spec.contour} / {spec.controller} / {spec.scenario}"
+        f"{f' ({spec.payload:g} kg, {spec.payload_reading})' if spec.payload > 0.0 else ''}: "
         f"{d['duration_s']:g} s at {spec.rate:g} Hz control, statistics at {spec.sample_rate:g} Hz "
         f"({result.metrics.samples} samples), {result.wall_s:.2f} s wall"
     )
@@ -205,6 +215,7 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
         progress=None if args.quiet else progress,
         only=args.only,
         ros_bags=Path(args.bags) if args.ros else None,
+        payload_reading=args.payload_reading,
     )
     paths = write_report(rep, Path(args.out))
     main = summarize(c for c in rep.cells if c.controller != "smc")

@@ -350,6 +350,15 @@ class Manipulator:
             as_vector(q, self.n, "q"), as_vector(qd, self.n, "qd"), as_vector(tau, self.n, "tau")
         )
 
+    def inverse_dynamics(self, q: ArrayLike, qd: ArrayLike, qdd: ArrayLike) -> FloatArray:
+        """Torque of Eq. (4.1) that produces ``qdd`` at ``(q, qd)``:
+        ``tau = Mbar qdd + C qd + G + B qd`` (the inverse of :meth:`forward_dynamics`)."""
+        q = as_vector(q, self.n, "q")
+        qd = as_vector(qd, self.n, "qd")
+        qdd = as_vector(qdd, self.n, "qdd")
+        m, bias = self._bias(q, qd)
+        return np.einsum("...ij,...j->...i", m, qdd) + bias + self.B * qd
+
     def total_energy(self, q: ArrayLike, qd: ArrayLike) -> FloatArray:
         """Kinetic (links and motors) plus potential energy (J)."""
         q = as_vector(q, self.n, "q")

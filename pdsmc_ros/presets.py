@@ -30,9 +30,16 @@ GAIN_NAMES = ("kp", "kd", "ks", "lam", "phi")
 REQUIRED_GAINS = {"pd": ("kp", "kd"), "smc": ("ks", "lam", "phi"), "pdsmc": GAIN_NAMES}
 
 DEFAULT_CONTROL_RATE = {"serial_3r": 10000.0, "parallel_5r": 5000.0}
-"""Control rates (Hz) that reproduce the continuous-time thesis (NOTES.md section 1):
-the serial arm's contour mean error changes by < 1e-5 (relative) from 10 to 40 kHz,
-the five-bar's by < 1e-5 from 5 to 40 kHz."""
+"""Control rates (Hz) that reproduce the continuous-time thesis (NOTES.md section 1).
+
+Measured on the nominal thesis runs, relative change of the mean errors from these rates
+to 40 kHz: serial PD and PD-SMC, contour mean 1.2e-5 to 7.2e-5 (circle PD-SMC 1.24e-5,
+1.32e-5 on joint 3's mean error); five-bar PD and PD-SMC, contour mean 2e-6 to 1.7e-5,
+axial means up to 2.3e-5; the SMC runs, whose switching term reacts to the hold, up to
+2.9e-4 (serial) and 5.6e-4 (five-bar). Against the continuous-time limit (Radau, rtol
+1e-10) the serial circle PD-SMC run at 10 kHz deviates by about 1e-5 on the axial means
+and 1.6e-5 on the contour mean (docs/REPRODUCTION.md, "Discrete loop against the
+continuous-time limit"): all far below the deviations from the thesis's tables."""
 
 MAX_CONTROL_STEPS = 10_000_000
 """Control steps one run may hold: the sampled reference and its temporaries take about
@@ -52,6 +59,19 @@ SMC_MODEL_DEFAULT = {
 }
 """The SMC's model estimate of Sections 4.3/4.4: 0.9 Mbar (motor inertia included),
 0.9 C, 1.1 G of the nominal robot at the measured state, no damping term."""
+
+PAYLOAD_READINGS = {
+    "tip": "a point mass at the end-effector; the SMC's model estimate stays the nominal robot's",
+    "link_com": "the load added to the mass of the link that carries the end-effector (serial "
+    "link 3, five-bar link 3), at that link's centre of mass with its inertia unchanged; the "
+    "SMC's model estimate is rebuilt with it",
+}
+"""Readings of Section 4.5.2's "a simulated load of 1.5 kg was added at the end-effector"
+(``--payload-reading``); ``tip`` is the physical one and the default."""
+
+PAYLOAD_LINK = {"serial_3r": 2, "parallel_5r": 2}
+"""Index (from 0) of the link carrying the end-effector: the serial arm's last link, the
+five-bar's left distal link, which carries the tip point mass in :class:`models.Parallel5R`."""
 
 CONTOUR_BOUND = {"serial_3r": 2.0e-4, "parallel_5r": 1.5e-4}
 """Contour error bounds (m) of the "% within bound" statistic."""
@@ -157,7 +177,9 @@ class RunSpec:
     sample_rate : float
         Rate (Hz) of the statistics samples over ``[0, T]``.
     payload : float
-        Point mass at the end-effector (kg) of the simulated plant.
+        Load (kg) of the simulated plant, placed as ``payload_reading`` says.
+    payload_reading : str
+        ``tip`` or ``link_com`` (:data:`PAYLOAD_READINGS`).
     duration_factor : float
         Multiplies the contour's duration.
     smc_model : dict
@@ -178,6 +200,7 @@ class RunSpec:
     rate: float
     sample_rate: float
     payload: float = 0.0
+    payload_reading: str = "tip"
     duration_factor: float = 1.0
     smc_model: Mapping[str, float] = field(default_factory=lambda: dict(SMC_MODEL_DEFAULT))
     ellipse_error: str = "nearest"
@@ -199,6 +222,7 @@ class RunSpec:
             )
         if not np.isfinite(self.payload) or self.payload < 0.0:
             raise ConfigError(f"payload must be >= 0 kg, got {self.payload!r}")
+        choice(self.payload_reading, tuple(PAYLOAD_READINGS), "payload reading")
         if not np.isfinite(self.duration_factor) or self.duration_factor <= 0.0:
             raise ConfigError(f"duration_factor must be > 0, got {self.duration_factor!r}")
         unknown = set(self.smc_model) - set(SMC_MODEL_KEYS)
@@ -215,11 +239,16 @@ class RunSpec:
         return int(round(self.rate / self.sample_rate))
 
     def robot_model(self) -> Manipulator:
-        """The simulated plant (with the scenario's payload)."""
+        """The simulated plant (with the scenario's payload, placed as ``payload_reading`` says)."""
+        if self.payload_reading == "link_com":
+            return make_robot(self.robot, params=loaded_params(self.robot, self.payload))
         return make_robot(self.robot, payload=self.payload, params=robot_params(self.robot))
 
     def nominal_model(self) -> Manipulator:
-        """The model the SMC knows: the nominal robot, never the payload."""
+        """The model the SMC knows: the nominal robot (``tip``: never the payload;
+        ``link_com``: rebuilt with the load on its link)."""
+        if self.payload_reading == "link_com":
+            return make_robot(self.robot, params=loaded_params(self.robot, self.payload))
         return make_robot(self.robot, params=robot_params(self.robot))
 
     def contour_model(self) -> Contour:
@@ -252,6 +281,7 @@ class RunSpec:
             "control_rate_hz": self.rate,
             "sample_rate_hz": self.sample_rate,
             "payload_kg": self.payload,
+            "payload_reading": self.payload_reading,
             "duration_factor": self.duration_factor,
             "duration_s": contour.duration,
             "smc_model": dict(self.smc_model),
@@ -275,6 +305,7 @@ class RunSpec:
             rate=float(data["control_rate_hz"]),
             sample_rate=float(data["sample_rate_hz"]),
             payload=float(data.get("payload_kg", 0.0)),
+            payload_reading=data.get("payload_reading", "tip"),
             duration_factor=float(data.get("duration_factor", 1.0)),
             smc_model=dict(data.get("smc_model", {})),
             ellipse_error=data.get("ellipse_error", "nearest"),
@@ -306,6 +337,16 @@ def robot_params(robot: str) -> RobotParams:
     data = load_config("robots")
     choice(robot, list(data), "robot")
     return RobotParams.from_mapping(data[robot], name=f"robots.yaml:{robot}")
+
+
+def loaded_params(robot: str, payload: float) -> RobotParams:
+    """Parameters of ``robot`` with ``payload`` kg added to the mass of the link that carries
+    the end-effector (:data:`PAYLOAD_LINK`), at its centre of mass; its inertia unchanged."""
+    params = robot_params(robot)
+    links = list(params.links)
+    k = PAYLOAD_LINK[robot]
+    links[k] = dataclasses.replace(links[k], mass=links[k].mass + payload)
+    return dataclasses.replace(params, links=tuple(links))
 
 
 def contour_names(robot: str) -> tuple[str, ...]:
@@ -375,6 +416,7 @@ def make_run(
     waypoints_file: str | None = None,
     segment_duration: float = 2.0,
     sample_rate: float | None = None,
+    payload_reading: str = "tip",
 ) -> RunSpec:
     """A run from preset names, with the scenario of Section 4.5 applied."""
     choice(robot, ROBOT_NAMES, "robot")
@@ -397,6 +439,7 @@ def make_run(
         rate=float(rate or DEFAULT_CONTROL_RATE[robot]),
         sample_rate=float(sample_rate or SAMPLE_RATE[robot]),
         payload=float(sc.get("payload", 0.0)),
+        payload_reading=payload_reading,
         duration_factor=float(sc.get("duration_factor", 1.0)),
         smc_model=model,
         ellipse_error=ellipse_error,
