@@ -72,14 +72,14 @@ class JointTrajectoryReference:
     def __init__(self, times: FloatArray, positions: Sequence[FloatArray],
                  velocities: Sequence[FloatArray | None], accelerations: Sequence[FloatArray | None],
                  start_time: float, start_q: FloatArray, start_qd: FloatArray) -> None:
-        self.times = times  # absolute, strictly increasing
+        self.times = times  # from receipt, strictly increasing
         self.positions = positions
         self.velocities = velocities
         self.accelerations = accelerations
-        self.start_time = start_time  # receipt: the state the motion starts from
+        self.start_time = start_time  # receipt on the controller's clock: the motion starts there
         self.start_q = start_q
         self.start_qd = start_qd
-        self.end_time = float(times[-1])
+        self.end_time = start_time + float(times[-1])
 
     @classmethod
     def from_message(cls, selector: JointSelector, stamp: float, names: tuple[str, ...],
@@ -106,7 +106,9 @@ class JointTrajectoryReference:
             return None, "a trajectory without points"
         if len(set(names)) != len(names):
             return None, f"joint_names repeats a joint: {list(names)}"
-        start = now if stamp == 0.0 else stamp
+        # times relative to receipt: absolute clock readings (1.8e9 s of epoch time) carry only
+        # 0.2 us of resolution, which would bend the segments' durations
+        start = 0.0 if stamp == 0.0 else stamp - now
         times = np.empty(len(points))
         positions: list[FloatArray] = []
         velocities: list[FloatArray | None] = []
@@ -132,8 +134,8 @@ class JointTrajectoryReference:
                 return None, f"time_from_start of point {k} is not after point {k - 1}'s"
         if not math.isfinite(times[-1]):
             return None, "time_from_start or header.stamp out of range"
-        if times[-1] < now:
-            return None, (f"the trajectory ends {now - times[-1]:.3f} s before it was received "
+        if times[-1] < 0.0:
+            return None, (f"the trajectory ends {-times[-1]:.3f} s before it was received "
                           "(header.stamp in the past?)")
         return cls(times, positions, velocities, accelerations, now,
                    np.asarray(q, dtype=float).copy(), np.asarray(qd, dtype=float).copy()), ""
@@ -141,7 +143,8 @@ class JointTrajectoryReference:
     def sample(self, t: float) -> tuple[FloatArray, FloatArray, FloatArray]:
         """Reference ``(q, qd, qdd)`` at time ``t`` (seconds on the controller's clock)."""
         times = self.times
-        if t >= self.end_time:
+        t = t - self.start_time
+        if t >= times[-1]:
             last = self.positions[-1]
             return last.copy(), np.zeros_like(last), np.zeros_like(last)
         k = int(np.searchsorted(times, t, side="right"))  # times[k - 1] <= t < times[k]
@@ -149,7 +152,7 @@ class JointTrajectoryReference:
         if k == 0:
             # from the state at receipt to the first point: cubic where the point gives a
             # velocity (the measured state has none of acceleration), else linear
-            t0 = min(self.start_time, t)
+            t0 = min(0.0, t)
             return _segment(t - t0, times[0] - t0, self.start_q, self.start_qd, None,
                             self.positions[0], v[0], None)
         return _segment(t - times[k - 1], times[k] - times[k - 1], self.positions[k - 1], v[k - 1],

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import math
 import sys
+import threading
 import time
 from collections.abc import Sequence
 
@@ -122,6 +123,9 @@ class ControllerNode(ManagedEntity):
         self.law: ControlLaw | None = None
         self.active = False
         self.commanding = False  # a non-zero command may be the last one on the wire
+        # real time: lifecycle transitions run in the executor's thread; no torque may follow
+        # the zero command of a deactivation
+        self.command_lock = threading.Lock()
         self.non_finite = 0
         self.clamped = 0
         self.stale = False
@@ -179,7 +183,8 @@ class ControllerNode(ManagedEntity):
         return TransitionCallbackReturn.SUCCESS
 
     def on_deactivate(self, state: LifecycleState) -> TransitionCallbackReturn:  # noqa: ARG002
-        self.active = False
+        with self.command_lock:
+            self.active = False
         self.stop_commanding("deactivated")
         return TransitionCallbackReturn.SUCCESS
 
@@ -239,7 +244,7 @@ class ControllerNode(ManagedEntity):
         except BagError as exc:
             self.report_input(f"malformed /joint_states message ({exc})")
             return
-        (q, qd), problem = self.selector.select(names, ("position", position), ("velocity", velocity))
+        arrays, problem = self.selector.select(names, ("position", position), ("velocity", velocity))
         if problem:
             self.report_input(f"/joint_states: {problem}")
             if self.mode == "realtime":
@@ -253,6 +258,7 @@ class ControllerNode(ManagedEntity):
                 return
         else:
             step = -1  # real time: stamps are the source's; no step is read from them
+        q, qd = arrays
         if self.input_error is not None:
             self.report_input(None)
         self.states_received += 1
@@ -365,11 +371,12 @@ class ControllerNode(ManagedEntity):
     def stop_commanding(self, why: str) -> bool:
         """Publish one zero-effort command if the last one on the wire may be a torque
         (whether it did)."""
-        if not self.commanding:
-            return False
-        offset = self.next_offset if self.mode == "lockstep" else 0
-        self.pub_effort.publish(encode_float64_multi_array([0.0] * self.n, offset))
-        self.commanding = False
+        with self.command_lock:
+            if not self.commanding:
+                return False
+            offset = self.next_offset if self.mode == "lockstep" else 0
+            self.pub_effort.publish(encode_float64_multi_array([0.0] * self.n, offset))
+            self.commanding = False
         self.node.get_logger().warn(f"{why}: zero effort published, output stopped")
         return True
 
@@ -410,7 +417,10 @@ class ControllerNode(ManagedEntity):
             return
         _, q, qd = state
         ref = self.latest_ref if source == "reference" else self.trajectory.sample(self.now())
-        self.publish(law.torque(q, qd, *ref), 0)
+        tau = law.torque(q, qd, *ref)
+        with self.command_lock:
+            if self.active:
+                self.publish(tau, 0)
         period = 0.0 if self.last_tick is None else now - self.last_tick
         self.last_tick = now
         self.timing_rows += [time.time(), period, time.perf_counter() - now, lateness, float(self.missed)]
