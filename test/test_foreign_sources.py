@@ -359,3 +359,43 @@ def test_lockstep_controller_survives_a_wall_stamped_state(ros_env: dict, domain
                 proc.wait(timeout=20)
             except subprocess.TimeoutExpired:
                 stop(proc)
+
+
+@pytest.mark.timeout(90)
+def test_trajectory_node_keeps_its_own_clock_next_to_a_wall_stamped_plant(
+        ros_env: dict, domain: int, tmp_path: Path) -> None:
+    """Before: it read the wall-clock stamp as a step and jumped to the contour's last reference."""
+    from trajectory_msgs.msg import JointTrajectory
+
+    log = tmp_path / "trajectory.log"
+    args = ["ros2", "run", "pdsmc_ros", "trajectory", "--ros-args", "-p", "robot:=parallel_5r",
+            "-p", "mode:=realtime", "-p", f"rate:={RATE}", "-p", f"sample_rate:={RATE}"]
+    proc = subprocess.Popen(args, env=dict(ros_env, ROS_DOMAIN_ID=str(domain)), stdout=log.open("w"),
+                            stderr=subprocess.STDOUT, start_new_session=True)
+    driver = Driver(domain)
+    steps: list[tuple[float, int]] = []
+    driver.node.create_subscription(
+        JointTrajectory, "/reference",
+        lambda m: steps.append((time.monotonic(), round((m.header.stamp.sec + m.header.stamp.nanosec * 1e-9) * RATE))),
+        100)
+    try:
+        driver.spin(30, until=lambda: len(steps) > 20)
+        assert steps and all(k == 0 for _, k in steps), log.read_text()  # no state yet: the start
+        driver.state = lambda: joint_state(driver, ["joint1", "joint2", "joint3", "joint4"], Q, QD)
+        started = time.monotonic()
+        driver.spin(1.0)
+        assert proc.poll() is None, log.read_text()
+        last_step = round(spec("pd").reference().duration * RATE)
+        elapsed = time.monotonic() - started
+        newest = steps[-1][1]
+        assert 0 < newest < last_step
+        # one step ahead of a clock started with the driver's second state (5 ms apart)
+        assert abs(newest / RATE - elapsed) < 0.25, (newest, elapsed)
+    finally:
+        driver.close()
+        if proc.poll() is None:
+            os.kill(proc.pid, signal.SIGINT)
+            try:
+                proc.wait(timeout=20)
+            except subprocess.TimeoutExpired:
+                stop(proc)
