@@ -64,6 +64,9 @@ from .common import (
 )
 
 
+MAX_CATCH_UP = 100  # real time: periods a late tick integrates at most besides its own
+
+
 class PlantNode:
     """Thin wrapper: parameters, QoS and topics around :class:`PlantStepper`."""
 
@@ -278,12 +281,24 @@ class PlantNode:
         self.node.get_logger().info(text)
         self.diagnose(DiagnosticStatus.OK, text)
 
-    def tick(self, lateness: float) -> None:  # noqa: ARG002
+    def tick(self, lateness: float) -> None:
         """Real time: publish the state, then integrate one period with the latest effort.
 
         Until the first effort arrives the arm is held at its initial state (the
-        controller may still be starting), so the run begins under control.
+        controller may still be starting), so the run begins under control. When
+        the loop was more than two periods late it skips the ticks it missed
+        (:func:`~pdsmc_ros.nodes.common._serve_loop` resynchronises); the arm's
+        time does not stop meanwhile, so the plant integrates those periods too
+        (at most ``MAX_CATCH_UP``): its time stays the wall clock's, which the
+        nodes downstream keep on their own clocks.
         """
+        missed = min(int(lateness / self.period), MAX_CATCH_UP) if lateness > 2.0 * self.period else 0
+        for _ in range(1 + missed):
+            self.step_once()
+            if self.done or not self.started:
+                return
+
+    def step_once(self) -> None:
         self.publish_state()
         if not self.started:
             # start once everyone listens (the recorder too) and the controller answers
