@@ -399,3 +399,53 @@ def test_trajectory_node_keeps_its_own_clock_next_to_a_wall_stamped_plant(
                 proc.wait(timeout=20)
             except subprocess.TimeoutExpired:
                 stop(proc)
+
+
+@pytest.mark.timeout(90)
+def test_lockstep_controller_follows_a_standard_trajectory_in_sim_time(
+        ros_env: dict, domain: int, tmp_path: Path) -> None:
+    """Lockstep: states stamped with sim time k / rate; the trajectory sampled at the state's time."""
+    from sensor_msgs.msg import JointState
+    from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+
+    rate = 5000.0  # the five-bar's preset rate
+    log = tmp_path / "controller.log"
+    args = ["ros2", "run", "pdsmc_ros", "controller", "--ros-args", "-p", "robot:=parallel_5r", "-p", "type:=pd"]
+    proc = subprocess.Popen(args, env=dict(ros_env, ROS_DOMAIN_ID=str(domain)), stdout=log.open("w"),
+                            stderr=subprocess.STDOUT, start_new_session=True)
+    driver = Driver(domain)
+    step = [0]
+
+    def sim_state() -> JointState:
+        msg = JointState(name=["joint2", "joint1"], position=[Q["joint2"], Q["joint1"]],
+                         velocity=[QD["joint2"], QD["joint1"]])
+        msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(step[0] * 200_000, 1_000_000_000)  # k / 5 kHz
+        step[0] += 1
+        return msg
+
+    try:
+        driver.state = sim_state
+        driver.spin(30, until=lambda: driver.pub_traj.get_subscription_count() > 0 and step[0] > 100)
+        assert driver.efforts == [], log.read_text()  # no reference source yet
+        msg = JointTrajectory(joint_names=["joint1", "joint2"], points=[JointTrajectoryPoint(
+            positions=[0.4, 1.0], time_from_start=rclpy.duration.Duration(seconds=0.01).to_msg())])
+        driver.pub_traj.publish(msg)
+        driver.spin(30, until=lambda: len(driver.efforts) > 200)  # 10 ms of sim time is 50 states
+        assert len(driver.efforts) > 200, log.read_text()
+        # offsets are the states' steps: consecutive, in order
+        offsets = [e[2] for e in driver.efforts]
+        assert offsets == list(range(offsets[0], offsets[0] + len(offsets)))
+        law = ControlLaw(make_run("parallel_5r", "circle", "pd"))
+        q, qd = np.array([Q["joint1"], Q["joint2"]]), np.array([QD["joint1"], QD["joint2"]])
+        hold = law.torque(q, qd, np.array([0.4, 1.0]), np.zeros(2), np.zeros(2))
+        np.testing.assert_allclose(driver.efforts[-1][1], hold, rtol=0, atol=1e-9)
+        assert not np.allclose(driver.efforts[0][1], hold)  # the ramp from the state at receipt
+        assert "points until t" in log.read_text() and proc.poll() is None
+    finally:
+        driver.close()
+        if proc.poll() is None:
+            os.kill(proc.pid, signal.SIGINT)
+            try:
+                proc.wait(timeout=20)
+            except subprocess.TimeoutExpired:
+                stop(proc)
