@@ -122,7 +122,8 @@ class JointTrajectoryReference:
                     columns.append((field, values))
             if len(p) != len(names):
                 return None, f"point {k} has {len(p)} positions for {len(names)} joint_names"
-            arrays, reason = selector.select(names, *columns)
+            arrays, reason = selector.select(
+                names, tuple(field for field, _ in columns), *(values for _, values in columns))
             if reason:
                 return None, f"point {k}: {reason}"
             given = dict(zip((field for field, _ in columns), arrays))

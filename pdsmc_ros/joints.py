@@ -60,6 +60,7 @@ class JointSelector:
         self._cache: dict[tuple[str, ...], tuple[np.ndarray | None, str]] = {}
         self._last_names: tuple[str, ...] | None = None
         self._last: tuple[np.ndarray | None, str] = (None, "")
+        self._last_need = 0  # values a column needs for the last index
 
     def index(self, names: tuple[str, ...]) -> tuple[np.ndarray | None, str]:
         """``(index, "")`` with ``names[index[i]] == joints[i]``, or ``(None, reason)``.
@@ -76,6 +77,7 @@ class JointSelector:
                 self._cache.clear()
             self._cache[names] = found
         self._last_names, self._last = names, found
+        self._last_need = 0 if found[0] is None else int(found[0].max()) + 1
         return found
 
     def _match(self, names: tuple[str, ...]) -> tuple[np.ndarray | None, str]:
@@ -90,40 +92,60 @@ class JointSelector:
                 else f"joints {missing} missing (message names: {list(names)})"
         return np.array([position[j] for j in self.joints], dtype=np.intp), ""
 
-    def select(self, names: tuple[str, ...],
-               *columns: tuple[tuple[str, Sequence[float]], ...]) -> tuple[list[FloatArray], str]:
-        """The controlled joints' values of each ``(field name, values)`` column.
+    def select(self, names: tuple[str, ...], fields: tuple[str, ...],
+               *columns: Sequence[float]) -> tuple[list[FloatArray], str]:
+        """The controlled joints' values of each column (``fields`` names them, for errors).
 
-        Returns ``(arrays, "")``, or ``([], reason)`` when a joint is missing, a
+        Returns ``(arrays, "")`` (one per column, in ``joints`` order), or
+        ``([], reason)`` when a joint is missing, a
         column is shorter than the name list needs, or a value is not finite; the
-        reason names the joint and the field.
+        reason names the joint and the field. On the control loop's path once per
+        message: the checks are a few Python builtins over the short tuples.
         """
-        index, reason = self.index(names)
+        if names is self._last_names:
+            index, reason = self._last
+        else:
+            index, reason = self.index(names)
         if reason:
             return [], reason
-        arrays = []
-        need = self.n if index is None else self._required(index)
-        for field, values in columns:
-            if len(values) < need:
-                return [], (f"{field} has {len(values)} values for {len(names)} names "
-                            f"(joint {self._first_uncovered(names, index, len(values))!r} has none)")
-            array = np.array(values[: self.n]) if index is None else np.array(values)[index]
-            total = float(array.sum())
-            if total - total != 0.0:  # NaN or inf somewhere (or a sum overflowing: looked at below)
-                bad = [self.joints[i] for i in range(self.n) if not math.isfinite(float(array[i]))]
-                if bad:
-                    return [], f"{field} of joint {bad[0]!r} is not finite ({float(array[self.joints.index(bad[0])])})"
-            arrays.append(array)
-        return arrays, ""
-
-    @staticmethod
-    def _required(index: np.ndarray) -> int:
-        return int(index.max()) + 1
-
-    def _first_uncovered(self, names: tuple[str, ...], index: np.ndarray | None, count: int) -> str:
+        # NaN or inf anywhere makes a sum non-finite; a column too short, a NaN of an extra
+        # joint or finite values whose sum overflows are sorted out by the exact check. (Python
+        # sums of the short tuples and one numpy call per column: a 2-D array and its rows
+        # cost more.)
+        total = 0.0
         if index is None:
-            return self.joints[count]
-        for joint, i in zip(self.joints, index):
-            if i >= count:
-                return joint
-        return self.joints[0]  # pragma: no cover - select only calls this when one is uncovered
+            n = self.n
+            for column in columns:
+                if len(column) < n:
+                    total = math.nan
+                    break
+                total += sum(column)
+            if total - total == 0.0:
+                return [np.array(column[:n]) for column in columns], ""
+        else:
+            need = self._last_need  # self.index() just cached it
+            for column in columns:
+                if len(column) < need:
+                    total = math.nan
+                    break
+                total += sum(column)
+            if total - total == 0.0:
+                return [np.array(column)[index] for column in columns], ""
+        reason = self._problem(names, index, fields, columns)
+        if reason:
+            return [], reason
+        return [np.array(column)[: self.n] if index is None else np.array(column)[index]
+                for column in columns], ""
+
+    def _problem(self, names: tuple[str, ...], index: np.ndarray | None, fields: tuple[str, ...],
+                 columns: Sequence[Sequence[float]]) -> str:
+        """Why the columns cannot be used, or "" (the quick check's false alarm)."""
+        positions = range(self.n) if index is None else [int(i) for i in index]
+        for field, values in zip(fields, columns):
+            for joint, i in zip(self.joints, positions):
+                if i >= len(values):
+                    return (f"{field} has {len(values)} values for {len(names)} names "
+                            f"(joint {joint!r} has none)")
+                if not math.isfinite(values[i]):
+                    return f"{field} of joint {joint!r} is not finite ({values[i]})"
+        return ""

@@ -24,12 +24,12 @@ JOINTS = ("joint1", "joint2", "joint3")
 def test_selector_matches_by_name_in_any_order_and_ignores_extra_joints() -> None:
     sel = JointSelector(JOINTS)
     names = ("gripper", "joint3", "joint1", "joint2")
-    (q, qd), reason = sel.select(names, ("position", (9.0, 3.0, 1.0, 2.0)), ("velocity", (9.0, 30.0, 10.0, 20.0)))
+    (q, qd), reason = sel.select(names, ("position", "velocity"), (9.0, 3.0, 1.0, 2.0), (9.0, 30.0, 10.0, 20.0))
     assert reason == ""
     np.testing.assert_array_equal(q, [1.0, 2.0, 3.0])
     np.testing.assert_array_equal(qd, [10.0, 20.0, 30.0])
     # in order with extra joints after: a prefix
-    (q,), reason = sel.select(JOINTS + ("joint4",), ("position", (1.0, 2.0, 3.0, 4.0)))
+    (q,), reason = sel.select(JOINTS + ("joint4",), ("position",), (1.0, 2.0, 3.0, 4.0))
     np.testing.assert_array_equal(q, [1.0, 2.0, 3.0])
 
 
@@ -51,18 +51,19 @@ def test_selector_caches_the_permutation_per_name_list() -> None:
     ((), (), (), "missing"),
 ])
 def test_selector_refuses_incomplete_or_non_finite_states(names, position, velocity, needle) -> None:  # noqa: ANN001
-    arrays, reason = JointSelector(JOINTS).select(names, ("position", position), ("velocity", velocity))
-    assert arrays == [] and needle in reason
+    arrays, reason = JointSelector(JOINTS).select(names, ("position", "velocity"), position, velocity)
+    assert len(arrays) == 0 and needle in reason
 
 
 @settings(max_examples=200, deadline=None)
 @given(st.lists(st.text(max_size=4), max_size=6),
        st.lists(st.floats(allow_nan=True, allow_infinity=True), max_size=8))
 def test_selector_never_raises(names: list[str], values: list[float]) -> None:
-    arrays, reason = JointSelector(JOINTS).select(tuple(names), ("position", values), ("velocity", values))
-    assert (arrays == []) == bool(reason)
-    for array in arrays:
-        assert array.shape == (3,) and np.all(np.isfinite(array))
+    arrays, reason = JointSelector(JOINTS).select(tuple(names), ("position", "velocity"), values, values)
+    if reason:
+        assert len(arrays) == 0
+    else:
+        assert len(arrays) == 2 and all(a.shape == (3,) and np.all(np.isfinite(a)) for a in arrays)
 
 
 def test_check_joint_names() -> None:

@@ -82,6 +82,8 @@ from .common import (
 # go out in batches (one publish costs about as much as the control law's whole tick)
 TIMING_FIELDS = 5
 TIMING_BATCH = 50
+STATE_FIELDS = ("position", "velocity")
+REFERENCE_FIELDS = ("positions", "velocities", "accelerations")
 MAX_STEP = 2**32 - 1  # layout.data_offset is a uint32
 ERROR_THROTTLE_S = 1.0  # one log line per second for a repeated input error
 STOP_ACK_S = 0.5  # how long a stopping controller waits for its zero command to be acknowledged
@@ -244,7 +246,7 @@ class ControllerNode(ManagedEntity):
         except BagError as exc:
             self.report_input(f"malformed /joint_states message ({exc})")
             return
-        arrays, problem = self.selector.select(names, ("position", position), ("velocity", velocity))
+        arrays, problem = self.selector.select(names, STATE_FIELDS, position, velocity)
         if problem:
             self.report_input(f"/joint_states: {problem}")
             if self.mode == "realtime":
@@ -276,8 +278,7 @@ class ControllerNode(ManagedEntity):
         if decoded is None:
             return
         names, sec, nanosec, positions, velocities, accelerations = decoded
-        arrays, problem = self.selector.select(
-            names, ("positions", positions), ("velocities", velocities), ("accelerations", accelerations))
+        arrays, problem = self.selector.select(names, REFERENCE_FIELDS, positions, velocities, accelerations)
         if problem:
             self.report_input(f"/reference: {problem}")
             return
