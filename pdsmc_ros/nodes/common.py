@@ -549,12 +549,13 @@ class Inputs:
     and its handlers receive the messages of a batch as one list, in order.
     """
 
-    def __init__(self, node: Node, mode: str, *, batch_s: float = 0.0) -> None:
+    def __init__(self, node: Node, mode: str, *, batch_s: float = 0.0, suffix: str = "_io") -> None:
         if not 0.0 <= batch_s <= MAX_BATCH_S:
             raise ValueError(f"batch_s must be in [0, {MAX_BATCH_S}] s, got {batch_s!r}")
         self.node = node
         self.mode = mode
         self.batch_s = batch_s
+        self.suffix = suffix  # of the companion node's name (one per Inputs of a node)
         self.io_node: Node | None = None
         self.hot: list[tuple[Any, Callable[[bytes], None]]] = []
         # composed with --intra-process: inputs published in this process (nodes.intra)
@@ -578,7 +579,7 @@ class Inputs:
         if self.io_node is None:
             # no global arguments: the companion must not get use_sim_time (a /clock
             # subscription nobody serves); topics are resolved by the node itself
-            self.io_node = Node(f"{self.node.get_name()}_io", namespace=self.node.get_namespace(),
+            self.io_node = Node(f"{self.node.get_name()}{self.suffix}", namespace=self.node.get_namespace(),
                                 context=self.node.context, use_global_arguments=False,
                                 start_parameter_services=False, enable_rosout=False)
         name = self.node.resolve_topic_name(topic)
@@ -657,7 +658,7 @@ def run_nodes(
         for wrapper in wrappers:
             executor.add_node(wrapper.node)
         _install_signal_handlers(group)
-        with_inputs = [w.inputs for w in wrappers if getattr(w, "inputs", None)]
+        with_inputs = [inputs for w in wrappers for inputs in _inputs_of(w)]
         # the loop's own inputs are taken at every pass; observers' (composed or alone) in batches
         loop_inputs = [item for inputs in with_inputs if not inputs.batch_s for item in inputs.hot]
         observed = [item for inputs in with_inputs if inputs.batch_s for item in inputs.hot]
@@ -682,14 +683,19 @@ def run_nodes(
         if executor is not None:
             executor.shutdown(timeout_sec=1.0)  # before the nodes go (rclpy's order)
         for wrapper in reversed(wrappers):
-            inputs = getattr(wrapper, "inputs", None)
-            if inputs is not None:
+            for inputs in _inputs_of(wrapper):
                 inputs.destroy()
             wrapper.node.destroy_node()
         if domain is not None:
             domain.destroy()
         rclpy.try_shutdown()
     return code
+
+
+def _inputs_of(wrapper: Any) -> list[Inputs]:
+    """A wrapper's ``inputs`` and, if it has them, its ``observed_inputs`` (taken in batches)."""
+    return [inputs for inputs in (getattr(wrapper, "inputs", None), getattr(wrapper, "observed_inputs", None))
+            if inputs is not None]
 
 
 @dataclasses.dataclass(frozen=True)

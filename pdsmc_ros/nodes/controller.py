@@ -86,6 +86,7 @@ STATE_FIELDS = ("position", "velocity")
 REFERENCE_FIELDS = ("positions", "velocities", "accelerations")
 MAX_STEP = 2**32 - 1  # layout.data_offset is a uint32
 ERROR_THROTTLE_S = 1.0  # one log line per second for a repeated input error
+GOAL_BATCH_S = 0.002  # ~/joint_trajectory is looked at every 2 ms
 STOP_ACK_S = 0.5  # how long a stopping controller waits for its zero command to be acknowledged
 
 
@@ -117,6 +118,7 @@ class ControllerNode(ManagedEntity):
             raise ConfigError(f"parameter autostart must be true or false, got {autostart!r}")
         self.torque_limit = torque_limit_from_parameters(node, len(self.spec.gains.kp))
         self.mode = node.get_parameter("mode").value
+        self.lockstep = self.mode == "lockstep"
         self.reference = self.spec.reference()
         check_rate(self.spec, self.reference)  # refuse gains unstable at this rate
         self.gain_updates = GainUpdates(node, self.spec, self.check_gains, self.apply_gains)
@@ -155,7 +157,11 @@ class ControllerNode(ManagedEntity):
         self.inputs = Inputs(node, self.mode)
         self.inputs.subscribe(JointState, TOPIC_JOINT_STATES, self.on_state)
         self.inputs.subscribe(JointTrajectory, TOPIC_REFERENCE, self.on_reference)
-        self.inputs.subscribe(JointTrajectory, TOPIC_JOINT_TRAJECTORY, self.on_joint_trajectory, TRAJECTORY_QOS)
+        # off the loop's path: a goal is rare, and an input taken at every pass of the loop costs
+        # a take per pass even when empty (about a tenth of the lockstep rate)
+        self.observed_inputs = Inputs(node, self.mode, batch_s=GOAL_BATCH_S, suffix="_goals")
+        self.observed_inputs.subscribe(JointTrajectory, TOPIC_JOINT_TRAJECTORY, self.on_joint_trajectories,
+                                       TRAJECTORY_QOS)
         self.pub_desc.publish(String(data=description_json(self.spec, self.mode)))
         if self.mode == "realtime":
             self.period = 1.0 / self.spec.rate  # run_node paces tick() at this period
@@ -252,7 +258,7 @@ class ControllerNode(ManagedEntity):
             if self.mode == "realtime":
                 self.state = None  # no torque from an older state meanwhile
             return
-        if self.mode == "lockstep":
+        if self.lockstep:
             step = stamp_to_step(sec, nanosec, self.spec.rate)
             if not 0 <= step <= MAX_STEP:
                 self.report_input(f"/joint_states stamp {sec}.{nanosec:09d} s is not a lockstep step "
@@ -265,9 +271,10 @@ class ControllerNode(ManagedEntity):
             self.report_input(None)
         self.states_received += 1
         self.state = self.last_state = (step, q, qd)
-        self.state_time = time.perf_counter()
-        if self.mode == "lockstep":
+        if self.lockstep:
             self.try_compute()
+        else:
+            self.state_time = time.perf_counter()
 
     def on_reference(self, data: bytes) -> None:
         try:
@@ -282,21 +289,26 @@ class ControllerNode(ManagedEntity):
         if problem:
             self.report_input(f"/reference: {problem}")
             return
-        ref = (arrays[0], arrays[1], arrays[2])
-        self.latest_ref = ref
-        self.ref_time = time.perf_counter()
         self.source = "reference"
-        if self.mode == "lockstep":
+        if self.lockstep:
             step = stamp_to_step(sec, nanosec, self.spec.rate)
             if 0 <= step <= MAX_STEP:
-                self.refs[step] = ref
+                self.refs[step] = arrays
                 self.try_compute()
+        else:
+            self.latest_ref = arrays
+            self.ref_time = time.perf_counter()
 
     def now(self) -> float:
         """The controller's time in seconds: the lockstep state's sim time, else the node's clock."""
-        if self.mode == "lockstep":
+        if self.lockstep:
             return (self.last_state[0] if self.last_state is not None else 0) / self.spec.rate
         return self.node.get_clock().now().nanoseconds * 1e-9
+
+    def on_joint_trajectories(self, batch: list[bytes]) -> None:
+        """Goals taken in a batch: each replaces the previous one, in order."""
+        for data in batch:
+            self.on_joint_trajectory(data)
 
     def on_joint_trajectory(self, data: bytes) -> None:
         topic = self.node.resolve_topic_name(TOPIC_JOINT_TRAJECTORY)
@@ -319,7 +331,7 @@ class ControllerNode(ManagedEntity):
         self.source = "trajectory"
         self.node.get_logger().info(
             f"{topic}: {len(points)} points until t = {reference.end_time:.3f} s; driving from it")
-        if self.mode == "lockstep":
+        if self.lockstep:
             self.try_compute()
 
     # -- control -------------------------------------------------------------- #
@@ -343,7 +355,7 @@ class ControllerNode(ManagedEntity):
                 break
             del self.refs[oldest]
         self.state = None
-        self.next_offset = min(step + 1, MAX_STEP)
+        self.next_offset = step + 1
         law = self.law
         if self.active and law is not None:
             self.publish(law.torque(q, qd, *ref), step)
@@ -375,7 +387,7 @@ class ControllerNode(ManagedEntity):
         with self.command_lock:
             if not self.commanding:
                 return False
-            offset = self.next_offset if self.mode == "lockstep" else 0
+            offset = min(self.next_offset, MAX_STEP) if self.lockstep else 0
             self.pub_effort.publish(encode_float64_multi_array([0.0] * self.n, offset))
             self.commanding = False
         self.node.get_logger().warn(f"{why}: zero effort published, output stopped")
