@@ -111,6 +111,20 @@ class _Reader:
         for _ in range(self.u32()):
             self.skip_string()
 
+    def string(self) -> str:
+        length = self.u32()
+        start = self.pos
+        self.pos += length
+        if self.pos > len(self.data):
+            raise BagError("truncated CDR string")
+        return self.data[start:self.pos].rstrip(b"\x00").decode("utf-8", errors="replace")
+
+    def strings(self) -> tuple[str, ...]:
+        count = self.u32()
+        if count > len(self.data):  # each string takes at least 4 bytes: a corrupt count
+            raise BagError("CDR string sequence longer than its message")
+        return tuple(self.string() for _ in range(count))
+
     def double_span(self) -> tuple[int, int]:
         """``(byte offset of the elements, count)`` of a double sequence; skips it."""
         count = self.u32()
@@ -118,6 +132,8 @@ class _Reader:
             self.align(8)
         start = self.pos
         self.pos += 8 * count
+        if self.pos > len(self.data):
+            raise BagError("truncated CDR double sequence")
         return start, count
 
     def doubles(self) -> tuple[float, ...]:
@@ -150,7 +166,7 @@ class _FixedLayout:
     have one shape per run).
     """
 
-    __slots__ = ("size", "struct", "consts", "const_at", "groups", "write")
+    __slots__ = ("size", "struct", "consts", "const_at", "groups", "write", "names")
 
     def __init__(self, data: bytes, fields: Sequence[tuple[int, str]]) -> None:
         fmt, consts, const_idx, groups = "<", [], [], []
@@ -176,6 +192,7 @@ class _FixedLayout:
         groups_of = itemgetter(*groups)
         self.groups = groups_of if len(groups) > 1 else (lambda values: (values[groups[0]],))
         self.write = _writer(self.struct.pack, self.consts)
+        self.names: tuple[str, ...] | None = None  # joint names, constant bytes of the shape
 
     def read(self, data: bytes) -> tuple[tuple[float | int, ...], ...] | None:
         """The variable fields of ``data`` (a tuple each), or None if it has another shape."""
@@ -238,9 +255,22 @@ def _fast_decode(kind: str, data: bytes) -> tuple[tuple[float | int, ...], ...] 
     return None if layout is None else layout.read(data)
 
 
-def _learn(kind: str, data: bytes, fields: Callable[[bytes], list[tuple[int, str]]]) -> None:
+def _learn(kind: str, data: bytes, fields: Callable[[bytes], list[tuple[int, str]]],
+           names: tuple[str, ...] | None = None) -> None:
     """Remember the shape of a message that the general decoder has just read."""
-    _remember(_decode_layouts, (kind, len(data)), _FixedLayout(data, fields(data)))
+    layout = _FixedLayout(data, fields(data))
+    layout.names = names
+    _remember(_decode_layouts, (kind, len(data)), layout)
+
+
+def _fast_decode_named(kind: str, data: bytes) -> tuple[tuple[str, ...], tuple[tuple[float | int, ...], ...]] | None:
+    """:func:`_fast_decode` with the joint names of the shape (the same tuple object for
+    every message of one shape, so name matching can be cached per name list)."""
+    layout = _decode_layouts.get((kind, len(data)))
+    if layout is None or layout.names is None:
+        return None
+    fields = layout.read(data)
+    return None if fields is None else (layout.names, fields)
 
 
 def decode_stamp(data: bytes) -> tuple[int, int]:
@@ -295,10 +325,32 @@ def decode_joint_state(data: bytes) -> tuple[int, int, tuple[float, ...], tuple[
     if fast is not None:
         (sec, nanosec), position, velocity, effort = fast
         return sec, nanosec, position, velocity, effort  # type: ignore[return-value]
+    return decode_joint_state_named(data)[1:]
+
+
+def decode_joint_state_named(
+    data: bytes,
+) -> tuple[tuple[str, ...], int, int, tuple[float, ...], tuple[float, ...], tuple[float, ...]]:
+    """``(names, sec, nanosec, position, velocity, effort)`` of a ``JointState``.
+
+    Raises
+    ------
+    BagError
+        If ``data`` is not a well-formed message (truncated, corrupt counts).
+    """
+    fast = _fast_decode_named("js", data)
+    if fast is not None:
+        names, ((sec, nanosec), position, velocity, effort) = fast
+        return names, sec, nanosec, position, velocity, effort  # type: ignore[return-value]
     r = _Reader(data)
-    sec, nanosec = r.header_and_names()
-    decoded = sec, nanosec, r.doubles(), r.doubles(), r.doubles()
-    _learn("js", data, _joint_state_fields)
+    try:
+        sec, nanosec = r.stamp()
+        r.skip_string()  # frame_id
+        names = r.strings()
+        decoded = names, sec, nanosec, r.doubles(), r.doubles(), r.doubles()
+    except struct.error as exc:
+        raise BagError(f"truncated JointState ({exc})") from None
+    _learn("js", data, _joint_state_fields, names)
     return decoded
 
 
@@ -363,13 +415,76 @@ def decode_joint_trajectory(
     if fast is not None:
         (sec, nanosec), positions, velocities, accelerations = fast
         return sec, nanosec, positions, velocities, accelerations  # type: ignore[return-value]
+    named = decode_joint_trajectory_named(data)
+    return None if named is None else named[1:]
+
+
+def decode_joint_trajectory_named(
+    data: bytes,
+) -> tuple[tuple[str, ...], int, int, tuple[float, ...], tuple[float, ...], tuple[float, ...]] | None:
+    """``(names, sec, nanosec, positions, velocities, accelerations)`` of the first point,
+    or None without points (the one-point reference stream's fast path).
+
+    Raises
+    ------
+    BagError
+        If ``data`` is not a well-formed message.
+    """
+    fast = _fast_decode_named("jt", data)
+    if fast is not None:
+        names, ((sec, nanosec), positions, velocities, accelerations) = fast
+        return names, sec, nanosec, positions, velocities, accelerations  # type: ignore[return-value]
     r = _Reader(data)
-    sec, nanosec = r.header_and_names()
-    if r.u32() == 0:
-        return None
-    decoded = sec, nanosec, r.doubles(), r.doubles(), r.doubles()
-    _learn("jt", data, _joint_trajectory_fields)
+    try:
+        sec, nanosec = r.stamp()
+        r.skip_string()  # frame_id
+        names = r.strings()
+        if r.u32() == 0:
+            return None
+        decoded = names, sec, nanosec, r.doubles(), r.doubles(), r.doubles()
+    except struct.error as exc:
+        raise BagError(f"truncated JointTrajectory ({exc})") from None
+    if _joint_trajectory_is_one_point(data):
+        _learn("jt", data, _joint_trajectory_fields, names)
     return decoded
+
+
+def _joint_trajectory_is_one_point(data: bytes) -> bool:
+    r = _Reader(data)
+    r.header_and_names()
+    return r.u32() == 1
+
+
+def decode_joint_trajectory_points(
+    data: bytes,
+) -> tuple[int, int, tuple[str, ...], list[tuple[tuple[float, ...], tuple[float, ...], tuple[float, ...], int, int]]]:
+    """Every point of a ``JointTrajectory``: ``(sec, nanosec, names, points)``.
+
+    Each point is ``(positions, velocities, accelerations, tfs_sec, tfs_nanosec)``
+    (``time_from_start``; the point's effort is skipped).
+
+    Raises
+    ------
+    BagError
+        If ``data`` is not a well-formed message.
+    """
+    r = _Reader(data)
+    try:
+        sec, nanosec = r.stamp()
+        r.skip_string()  # frame_id
+        names = r.strings()
+        count = r.u32()
+        if count > len(data):
+            raise BagError("JointTrajectory point count longer than its message")
+        points = []
+        for _ in range(count):
+            positions, velocities, accelerations = r.doubles(), r.doubles(), r.doubles()
+            r.doubles()  # effort
+            tfs_sec, tfs_nanosec = r.stamp()
+            points.append((positions, velocities, accelerations, tfs_sec, tfs_nanosec))
+    except struct.error as exc:
+        raise BagError(f"truncated JointTrajectory ({exc})") from None
+    return sec, nanosec, names, points
 
 
 def encode_float64_multi_array(data: Sequence[float], data_offset: int = 0) -> bytes:

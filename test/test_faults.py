@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -391,7 +392,8 @@ def test_realtime_trajectory_ends_when_the_plant_leaves(ros_env: dict, tmp_path:
                     proc.wait()
     text = log.read_text()
     assert code == 0, text
-    assert "the plant has left (last state received: step 10 of 500); stopping" in text
+    # no step is read from the stamps in real time: the node counts the states it received
+    assert re.search(r"the plant has left \(\d+ states received\); stopping", text), text
 
 
 def niceness(pid: int) -> int:

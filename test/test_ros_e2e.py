@@ -66,6 +66,17 @@ def test_lockstep_run_equals_in_process_simulation(ros_env: dict, tmp_path: Path
     assert summary.schemas[topics["/joint_states"].schema_id].encoding == "ros2msg"
     assert summary.statistics.channel_message_counts[topics["/joint_states"].id] == steps + 1
     assert "pdsmc_ros.run_description" in (out / "metadata.yaml").read_text()
+    # the plant's URDF (transient local) is in the bag: the arm of this run
+    import xml.etree.ElementTree as ET
+
+    from pdsmc_ros.cdr import decode_string
+
+    with (out / f"{out.name}.mcap").open("rb") as handle:
+        urdfs = [decode_string(m.data) for _, _, m in make_reader(handle).iter_messages(topics=["/robot_description"])]
+    assert len(urdfs) == 1
+    robot = ET.fromstring(urdfs[0])
+    assert robot.get("name") == "serial_3r"
+    assert [j.get("name") for j in robot.iter("joint") if j.get("type") == "revolute"] == ["joint1", "joint2", "joint3"]
 
 
 @pytest.mark.timeout(300)

@@ -60,6 +60,8 @@ TOPIC_EE_ACTUAL = "end_effector/actual"
 TOPIC_DESCRIPTION = "pdsmc/run_description"
 TOPIC_TIMING = "pdsmc/controller_timing"
 TOPIC_DIAGNOSTICS = "diagnostics"
+TOPIC_JOINT_TRAJECTORY = "~/joint_trajectory"  # joint_trajectory_controller's topic interface
+TOPIC_ROBOT_DESCRIPTION = "robot_description"
 
 MODES = ("lockstep", "realtime")
 
@@ -96,6 +98,15 @@ LATCHED_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST,
     depth=1,
     durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
+
+# Standard trajectories (joint_trajectory_controller subscribes with the system default QoS:
+# reliable, volatile, keep last 10)
+TRAJECTORY_QOS = QoSProfile(
+    reliability=ReliabilityPolicy.RELIABLE,
+    history=HistoryPolicy.KEEP_LAST,
+    depth=10,
+    durability=DurabilityPolicy.VOLATILE,
 )
 
 # Start-up polling must not wait for /clock, which starts only once everyone is there.
@@ -313,41 +324,58 @@ def run_spec_from_parameters(node: Node) -> RunSpec:
     return spec
 
 
-def gains_callback(
-    spec: RunSpec, apply: Callable[[Gains], None]
-) -> Callable[[list[Parameter]], SetParametersResult]:
-    """Set-parameters callback: validate gain changes, refuse run-defining ones.
+class GainUpdates:
+    """Run-time gain changes, ros2/demos style: the on-set callback validates, the
+    post-set callback applies.
 
-    A valid change is passed to ``apply``; an invalid one is refused with the
-    reason (shown by ``ros2 param set``).
+    A change passes exactly the checks of start-up (:meth:`Gains.from_mapping`
+    and the zero-order-hold stability check at the running rate,
+    :func:`~pdsmc_ros.stability.check_rate`) or is refused with the reason
+    (``ros2 param set`` shows it: for an unstable gain, the lowest stable
+    rate). ``apply`` receives the accepted gains only after the parameters are
+    set, from the post-set callback.
     """
-    current = {"gains": spec.gains}
 
-    def callback(params: list[Parameter]) -> SetParametersResult:
-        merged = current["gains"].as_dict()
+    def __init__(self, node: Node, spec: RunSpec, check: Callable[[RunSpec], object],
+                 apply: Callable[[Gains], None]) -> None:
+        self.spec = spec
+        self.check = check
+        self.apply = apply
+        self.pending: Gains | None = None
+        node.add_on_set_parameters_callback(self.validate)
+        node.add_post_set_parameters_callback(self.applied)
+
+    def validate(self, params: list[Parameter]) -> SetParametersResult:
+        merged = self.spec.gains.as_dict()
         changed = False
         for param in params:
             if param.name in GAIN_NAMES:
                 merged[param.name] = list(param.value or [])
                 changed = True
-            elif param.name in RUN_PARAMETERS:
+            elif param.name in RUN_PARAMETERS or param.name in ("joints", "autostart"):
                 return SetParametersResult(
                     successful=False,
                     reason=f"{param.name} defines the run and cannot change while it runs",
                 )
+        self.pending = None
         if not changed:
             return SetParametersResult(successful=True)
         try:
             gains = Gains.from_mapping(
-                {k: v for k, v in merged.items() if v}, len(spec.gains.kp), spec.controller
+                {k: v for k, v in merged.items() if v}, len(self.spec.gains.kp), self.spec.controller
             )
-        except InvalidInputError as exc:
+            self.check(dataclasses.replace(self.spec, gains=gains))
+        except (InvalidInputError, TypeError) as exc:
             return SetParametersResult(successful=False, reason=str(exc))
-        current["gains"] = gains
-        apply(gains)
+        self.pending = gains
         return SetParametersResult(successful=True)
 
-    return callback
+    def applied(self, params: list[Parameter]) -> None:
+        if self.pending is None or not any(p.name in GAIN_NAMES for p in params):
+            return
+        gains, self.pending = self.pending, None
+        self.spec = dataclasses.replace(self.spec, gains=gains)
+        self.apply(gains)
 
 
 RCLError = _rclpy_impl.RCLError
@@ -485,16 +513,18 @@ class UpstreamWatch:
             self.on_gone()
 
 
-def end_when_plant_leaves(wrapper: Any, last_state: Callable[[], int]) -> UpstreamWatch:
+def end_when_plant_leaves(wrapper: Any, received: Callable[[], int]) -> UpstreamWatch:
     """Real time: once the plant has left, no state will come, so ``wrapper`` is done.
 
-    ``last_state()`` gives the last state step the node received, for the log line.
+    ``received()`` gives the number of states the node received, for the log line.
+    Composed with the plant in one process, the plant's node stays in the graph
+    until the process ends: :class:`_Group` calls the watch's ``on_gone`` once
+    the plant is done instead.
     """
 
     def on_gone() -> None:
         if not wrapper.done:
-            wrapper.node.get_logger().info(
-                f"the plant has left (last state received: step {last_state()} of {wrapper.last_step}); stopping")
+            wrapper.node.get_logger().info(f"the plant has left ({received()} states received); stopping")
             wrapper.done = True
 
     return UpstreamWatch(wrapper.node, TOPIC_JOINT_STATES, on_gone)
@@ -519,12 +549,13 @@ class Inputs:
     and its handlers receive the messages of a batch as one list, in order.
     """
 
-    def __init__(self, node: Node, mode: str, *, batch_s: float = 0.0) -> None:
+    def __init__(self, node: Node, mode: str, *, batch_s: float = 0.0, suffix: str = "_io") -> None:
         if not 0.0 <= batch_s <= MAX_BATCH_S:
             raise ValueError(f"batch_s must be in [0, {MAX_BATCH_S}] s, got {batch_s!r}")
         self.node = node
         self.mode = mode
         self.batch_s = batch_s
+        self.suffix = suffix  # of the companion node's name (one per Inputs of a node)
         self.io_node: Node | None = None
         self.hot: list[tuple[Any, Callable[[bytes], None]]] = []
         # composed with --intra-process: inputs published in this process (nodes.intra)
@@ -548,7 +579,7 @@ class Inputs:
         if self.io_node is None:
             # no global arguments: the companion must not get use_sim_time (a /clock
             # subscription nobody serves); topics are resolved by the node itself
-            self.io_node = Node(f"{self.node.get_name()}_io", namespace=self.node.get_namespace(),
+            self.io_node = Node(f"{self.node.get_name()}{self.suffix}", namespace=self.node.get_namespace(),
                                 context=self.node.context, use_global_arguments=False,
                                 start_parameter_services=False, enable_rosout=False)
         name = self.node.resolve_topic_name(topic)
@@ -627,7 +658,7 @@ def run_nodes(
         for wrapper in wrappers:
             executor.add_node(wrapper.node)
         _install_signal_handlers(group)
-        with_inputs = [w.inputs for w in wrappers if getattr(w, "inputs", None)]
+        with_inputs = [inputs for w in wrappers for inputs in _inputs_of(w)]
         # the loop's own inputs are taken at every pass; observers' (composed or alone) in batches
         loop_inputs = [item for inputs in with_inputs if not inputs.batch_s for item in inputs.hot]
         observed = [item for inputs in with_inputs if inputs.batch_s for item in inputs.hot]
@@ -652,14 +683,19 @@ def run_nodes(
         if executor is not None:
             executor.shutdown(timeout_sec=1.0)  # before the nodes go (rclpy's order)
         for wrapper in reversed(wrappers):
-            inputs = getattr(wrapper, "inputs", None)
-            if inputs is not None:
+            for inputs in _inputs_of(wrapper):
                 inputs.destroy()
             wrapper.node.destroy_node()
         if domain is not None:
             domain.destroy()
         rclpy.try_shutdown()
     return code
+
+
+def _inputs_of(wrapper: Any) -> list[Inputs]:
+    """A wrapper's ``inputs`` and, if it has them, its ``observed_inputs`` (taken in batches)."""
+    return [inputs for inputs in (getattr(wrapper, "inputs", None), getattr(wrapper, "observed_inputs", None))
+            if inputs is not None]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -681,6 +717,10 @@ class _Group:
         self.period = min(periods) if periods else None
         self.busy_wait = max((getattr(w, "busy_wait", BUSY_WAIT_S) for w in self.wrappers
                               if getattr(w, "period", None)), default=BUSY_WAIT_S)
+        # real time, composed: the plant's node stays in the graph after its run, so the
+        # nodes that watch for it to leave are told when it is done
+        self.state_sources = [w for w in self.wrappers if getattr(w, "publishes_states", False)]
+        self.watchers = [w.plant_watch for w in self.wrappers if getattr(w, "plant_watch", None)]
 
     @property
     def done(self) -> bool:
@@ -702,6 +742,11 @@ class _Group:
         for w in self.wrappers:
             if getattr(w, "period", None) and not w.done:
                 w.tick(lateness)
+        if self.watchers and self.state_sources and all(w.done for w in self.state_sources):
+            for watch in self.watchers:
+                if not watch.gone:
+                    watch.gone = True
+                    watch.on_gone()
 
 
 COLD_PERIOD_S = 0.02  # lockstep: the executor's turn (timers, parameters, /clock) this often

@@ -12,6 +12,10 @@ Lockstep: state ``k`` is published, the plant waits for the effort of step
 ``k`` (``layout.data_offset == k``), integrates one period with it held and
 publishes state ``k + 1``. Real time: a wall-clock timer integrates with the
 latest effort at the control rate.
+
+``/robot_description`` (``std_msgs/String``, transient local, as
+robot_state_publisher publishes it): the URDF of the arm, generated from
+``config/robots.yaml`` (:mod:`pdsmc_ros.urdf`: the arms in the x-z plane, z up).
 """
 
 from __future__ import annotations
@@ -27,18 +31,22 @@ from geometry_msgs.msg import PointStamped
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Float64MultiArray
+from std_msgs.msg import Float64MultiArray, String
 
 from ..cdr import decode_float64_multi_array, encode_clock, encode_joint_state, encode_point_stamped
 from ..errors import BagError
+from ..presets import robot_params
+from ..urdf import robot_urdf
 from ..safety import check_effort, safe_torque
 from ..simulator import PlantStepper, control_steps
 from .common import (
     GuardedPublisher,
     Inputs,
+    LATCHED_QOS,
     STEADY_CLOCK,
     EXIT_OK,
     STREAM_QOS,
+    TOPIC_ROBOT_DESCRIPTION,
     TOPIC_EE_ACTUAL,
     TOPIC_DIAGNOSTICS,
     TOPIC_EFFORT,
@@ -56,8 +64,13 @@ from .common import (
 )
 
 
+MAX_CATCH_UP = 100  # real time: periods a late tick integrates at most besides its own
+
+
 class PlantNode:
     """Thin wrapper: parameters, QoS and topics around :class:`PlantStepper`."""
+
+    publishes_states = True  # composed in real time: its end is the end of the states
 
     def __init__(self) -> None:
         self.node = Node("plant")
@@ -105,6 +118,9 @@ class PlantNode:
         self.pub_ee = GuardedPublisher(node.create_publisher(PointStamped, TOPIC_EE_ACTUAL, STREAM_QOS), node)
         self.pub_clock = GuardedPublisher(node.create_publisher(Clock, "/clock", STREAM_QOS), node)
         self.pub_diag = GuardedPublisher(node.create_publisher(DiagnosticArray, TOPIC_DIAGNOSTICS, STREAM_QOS), node)
+        self.pub_urdf = node.create_publisher(String, TOPIC_ROBOT_DESCRIPTION, LATCHED_QOS)
+        self.pub_urdf.publish(String(data=robot_urdf(
+            self.spec.robot, robot_params(self.spec.robot), self.spec.payload)))
         self.inputs = Inputs(node, self.mode)
         self.inputs.subscribe(Float64MultiArray, TOPIC_EFFORT, self.on_effort)
 
@@ -265,12 +281,24 @@ class PlantNode:
         self.node.get_logger().info(text)
         self.diagnose(DiagnosticStatus.OK, text)
 
-    def tick(self, lateness: float) -> None:  # noqa: ARG002
+    def tick(self, lateness: float) -> None:
         """Real time: publish the state, then integrate one period with the latest effort.
 
         Until the first effort arrives the arm is held at its initial state (the
-        controller may still be starting), so the run begins under control.
+        controller may still be starting), so the run begins under control. When
+        the loop was more than two periods late it skips the ticks it missed
+        (:func:`~pdsmc_ros.nodes.common._serve_loop` resynchronises); the arm's
+        time does not stop meanwhile, so the plant integrates those periods too
+        (at most ``MAX_CATCH_UP``): its time stays the wall clock's, which the
+        nodes downstream keep on their own clocks.
         """
+        missed = min(int(lateness / self.period), MAX_CATCH_UP) if lateness > 2.0 * self.period else 0
+        for _ in range(1 + missed):
+            self.step_once()
+            if self.done or not self.started:
+                return
+
+    def step_once(self) -> None:
         self.publish_state()
         if not self.started:
             # start once everyone listens (the recorder too) and the controller answers

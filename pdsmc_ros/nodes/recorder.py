@@ -44,6 +44,7 @@ from .common import (
     LOCKSTEP_QOS,
     STEADY_CLOCK,
     TOPIC_DESCRIPTION,
+    TOPIC_ROBOT_DESCRIPTION,
     TOPIC_DIAGNOSTICS,
     TOPIC_EE_ACTUAL,
     TOPIC_EE_DESIRED,
@@ -67,6 +68,7 @@ RECORDED = {
     TOPIC_TIMING: (Float64MultiArray, "std_msgs/msg/Float64MultiArray", LOCKSTEP_QOS),
     TOPIC_DIAGNOSTICS: (DiagnosticArray, "diagnostic_msgs/msg/DiagnosticArray", LOCKSTEP_QOS),
     TOPIC_DESCRIPTION: (String, "std_msgs/msg/String", LATCHED_QOS),
+    TOPIC_ROBOT_DESCRIPTION: (String, "std_msgs/msg/String", LATCHED_QOS),
 }
 FLUSH_PERIOD_S = 0.5
 RECORDER_BATCH_S = 0.002  # the recorder wakes at most ~500 times a second (bench/lockstep.py)

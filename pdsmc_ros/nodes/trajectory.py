@@ -13,15 +13,20 @@ trajectory is off the loop's critical path: it takes the plant's states in
 batches (like the recorder) instead of waking once per step. ``W`` stays well
 below the publishers' history depth, so nothing sent ahead can be lost.
 
-Real time: a wall-clock timer at the control rate publishes the reference one
-step ahead of the latest plant state, so the reference follows the plant's
-clock; the node ends with the plant's last state or, should that never arrive,
-when the plant leaves the graph.
+Real time: at the control rate, the reference one step ahead of the node's
+own clock, which starts when the plant's time does -- at the first state whose
+stamp differs from the first state's (this package's plant holds its initial
+state, stamp unchanged, until the controller answers; a driver's wall-clock
+stamps change with every message). Stamps are compared, never read as a step,
+so the thesis's contours can drive any arm. After the contour's end the last
+reference is held; the node ends when the plant leaves the graph.
 """
 
 from __future__ import annotations
 
+import struct
 import sys
+import time
 from collections.abc import Sequence
 
 import numpy as np
@@ -31,6 +36,7 @@ from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory
 
 from ..cdr import decode_stamp, encode_joint_trajectories, encode_point_stamped
+from ..errors import BagError
 from ..simulator import control_steps
 from .common import (
     GuardedPublisher,
@@ -86,6 +92,9 @@ class TrajectoryNode:
         self.ee_every = self.spec.sample_every
         self.next_step = 0
         self.state_step = -1
+        self.states_received = 0
+        self.first_stamp: tuple[int, int] | None = None  # real time: the plant's first state
+        self.clock_start: float | None = None  # real time: perf_counter() at the plant's t = 0
         self.window_start, self.window = 0, []  # encoded references (see encoded())
         self.started = False
         self.done = False
@@ -102,7 +111,7 @@ class TrajectoryNode:
             self.timer = node.create_timer(0.01, self.try_start, clock=STEADY_CLOCK)
         else:
             self.period = 1.0 / self.spec.rate  # run_node paces tick() at this period
-            self.plant_watch = end_when_plant_leaves(self, lambda: self.state_step)
+            self.plant_watch = end_when_plant_leaves(self, lambda: self.states_received)
         node.get_logger().info(
             f"{self.spec.contour} for {self.spec.robot}: {reference.duration:g} s, "
             f"{self.last_step + 1} references"
@@ -147,11 +156,23 @@ class TrajectoryNode:
             self.on_state(data)
 
     def on_state(self, data: bytes) -> None:
-        step = stamp_to_step(*decode_stamp(data), self.spec.rate)
+        try:
+            stamp = decode_stamp(data)
+        except (BagError, struct.error):
+            self.node.get_logger().error("malformed /joint_states message ignored", throttle_duration_sec=1.0)
+            return
+        self.states_received += 1
+        if self.mode != "lockstep":
+            if self.first_stamp is None:
+                self.first_stamp = stamp
+            elif self.clock_start is None and stamp != self.first_stamp:
+                # the plant's time has started: this state is one period after its start
+                self.clock_start = time.perf_counter() - self.period
+                self.node.get_logger().info("the plant's time has started: contour clock running")
+            return
+        step = stamp_to_step(*stamp, self.spec.rate)
         repeated = step == self.state_step
         self.state_step = max(self.state_step, step)
-        if self.mode != "lockstep":
-            return
         if self.started:
             if repeated and step < self.next_step:
                 # the plant offers this state again (a controller came back after safe
@@ -163,11 +184,12 @@ class TrajectoryNode:
             self.done = True
 
     def tick(self, lateness: float) -> None:  # noqa: ARG002
-        """Real time: at the control rate, the reference one step ahead of the plant."""
-        step = min(self.state_step + 1, self.last_step)
-        self.publish(max(step, 0))
-        if self.state_step >= self.last_step:
-            self.done = True
+        """Real time: at the control rate, the reference one step ahead of the own clock
+        (the first reference until the plant's time starts; the last one after the end)."""
+        step = 0
+        if self.clock_start is not None:
+            step = min(int((time.perf_counter() - self.clock_start) * self.spec.rate) + 1, self.last_step)
+        self.publish(step)
         self.plant_watch.poll()
 
 
