@@ -23,6 +23,8 @@ from .errors import ConfigError
 
 FloatArray = np.ndarray
 
+STATE_FIELDS = ("position", "velocity")  # a JointState's columns the controller reads
+REFERENCE_FIELDS = ("positions", "velocities", "accelerations")  # a trajectory point's
 _CACHE_SIZE = 16  # distinct name lists remembered (a source has one; a fuzzer endless ones)
 
 
@@ -80,6 +82,30 @@ class JointSelector:
         self._last_need = 0 if found[0] is None else int(found[0].max()) + 1
         return found
 
+    def state(self, names: tuple[str, ...], position: Sequence[float],
+              velocity: Sequence[float]) -> tuple[tuple[FloatArray, ...], str]:
+        """:meth:`select` of a JointState's ``position`` and ``velocity``.
+
+        Once per control step: a message naming exactly ``joints``, in order, takes a short path.
+        """
+        n = self.n
+        if len(position) == n and len(velocity) == n and names == self.joints:
+            total = sum(position) + sum(velocity)
+            if total - total == 0.0:  # NaN or inf makes the sum non-finite
+                return (np.array(position), np.array(velocity)), ""
+        return self.select(names, STATE_FIELDS, position, velocity)
+
+    def reference(self, names: tuple[str, ...], positions: Sequence[float], velocities: Sequence[float],
+                  accelerations: Sequence[float]) -> tuple[tuple[FloatArray, ...], str]:
+        """:meth:`select` of a one-point JointTrajectory's positions, velocities and accelerations
+        (the short path of :meth:`state`)."""
+        n = self.n
+        if len(positions) == n and len(velocities) == n and len(accelerations) == n and names == self.joints:
+            total = sum(positions) + sum(velocities) + sum(accelerations)
+            if total - total == 0.0:
+                return (np.array(positions), np.array(velocities), np.array(accelerations)), ""
+        return self.select(names, REFERENCE_FIELDS, positions, velocities, accelerations)
+
     def _match(self, names: tuple[str, ...]) -> tuple[np.ndarray | None, str]:
         if names[: self.n] == self.joints:
             return None, ""
@@ -108,22 +134,6 @@ class JointSelector:
             index, reason = self.index(names)
         if reason:
             return (), reason
-        if index is None:
-            # the loop's states and references from a source in the controller's order: the
-            # checks below, unrolled (the loop's whole Python per lockstep step is ~20 us)
-            n = self.n
-            if len(columns) == 2:
-                a, b = columns
-                if len(a) >= n and len(b) >= n:
-                    total = sum(a) + sum(b)
-                    if total - total == 0.0:
-                        return (np.array(a[:n]), np.array(b[:n])), ""
-            elif len(columns) == 3:
-                a, b, c = columns
-                if len(a) >= n and len(b) >= n and len(c) >= n:
-                    total = sum(a) + sum(b) + sum(c)
-                    if total - total == 0.0:
-                        return (np.array(a[:n]), np.array(b[:n]), np.array(c[:n])), ""
         # NaN or inf anywhere makes a sum non-finite; a column too short, a NaN of an extra
         # joint or finite values whose sum overflows are sorted out by the exact check. (Python
         # sums of the short tuples and one numpy call per column: a 2-D array and its rows

@@ -200,3 +200,29 @@ def test_urdf_tips_match_the_models_kinematics() -> None:
     np.testing.assert_allclose(right, out[:2], atol=1e-9)
     with pytest.raises(ValueError, match="no URDF"):
         robot_urdf("delta", robot_params("serial_3r"))
+
+
+@pytest.mark.parametrize("names", [JOINTS, ("joint2", "joint1", "joint3"), JOINTS + ("joint4",)])
+@pytest.mark.parametrize("bad", [None, math.nan, math.inf, "short"])
+def test_state_and_reference_short_paths_equal_select(names: tuple[str, ...], bad: object) -> None:
+    """The controller's per-step calls give select's arrays and reasons, whichever path they take."""
+    sel, ref_sel = JointSelector(JOINTS), JointSelector(JOINTS)
+    values = [float(i + 1) for i in range(len(names))]
+    if bad == "short":
+        values = values[:-1]
+    elif bad is not None:
+        values[1] = bad
+    columns = (tuple(values), tuple(v * 10 for v in values), tuple(v * 100 for v in values))
+    usable = bad is None or (bad == "short" and len(names) > len(JOINTS))  # only joint4 lost a value
+    for _ in range(2):  # the first call learns the name list, the second takes the short path
+        got, reason = sel.state(names, *columns[:2])
+        want, want_reason = JointSelector(JOINTS).select(names, ("position", "velocity"), *columns[:2])
+        assert reason == want_reason and usable == (reason == "")
+        for a, b in zip(got, want):
+            np.testing.assert_array_equal(a, b)
+        got, reason = ref_sel.reference(names, *columns)
+        want, want_reason = JointSelector(JOINTS).select(
+            names, ("positions", "velocities", "accelerations"), *columns)
+        assert reason == want_reason and usable == (reason == "")
+        for a, b in zip(got, want):
+            np.testing.assert_array_equal(a, b)

@@ -630,6 +630,11 @@ def run_nodes(
     executor: SingleThreadedExecutor | None = None
     domain = intra.IntraProcess(rclpy.get_default_context()) if intra_process else None
     code = EXIT_OK
+    # our handlers from the start: a signal arriving while rclpy builds a node or the executor
+    # would otherwise interrupt its __init__ (and rclpy's __del__ of the half-built object
+    # prints a traceback); it is noted here and ends the loop as soon as the loop starts
+    signalled = _SignalNote()
+    _install_signal_handlers(signalled)
     try:
         try:
             intra.activate(domain)
@@ -657,6 +662,8 @@ def run_nodes(
         executor = SingleThreadedExecutor()
         for wrapper in wrappers:
             executor.add_node(wrapper.node)
+        if signalled.stopped_by_signal:
+            group.done, group.stopped_by_signal = True, signalled.stopped_by_signal
         _install_signal_handlers(group)
         with_inputs = [inputs for w in wrappers for inputs in _inputs_of(w)]
         # the loop's own inputs are taken at every pass; observers' (composed or alone) in batches
@@ -990,6 +997,13 @@ def _drain(executor: Any, wrappers: Sequence[Any], timeout: float = DRAIN_TIMEOU
     end = time.perf_counter() + 0.1
     while rclpy.ok() and time.perf_counter() < end:
         executor.spin_once(timeout_sec=0.02)
+
+
+class _SignalNote:
+    """Where a signal that arrives before the node group exists is noted."""
+
+    done = False
+    stopped_by_signal: str | None = None
 
 
 def _install_signal_handlers(wrapper: Any) -> None:

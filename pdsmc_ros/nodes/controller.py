@@ -82,8 +82,6 @@ from .common import (
 # go out in batches (one publish costs about as much as the control law's whole tick)
 TIMING_FIELDS = 5
 TIMING_BATCH = 50
-STATE_FIELDS = ("position", "velocity")
-REFERENCE_FIELDS = ("positions", "velocities", "accelerations")
 MAX_STEP = 2**32 - 1  # layout.data_offset is a uint32
 ERROR_THROTTLE_S = 1.0  # one log line per second for a repeated input error
 GOAL_BATCH_S = 0.002  # ~/joint_trajectory is looked at every 2 ms
@@ -252,7 +250,7 @@ class ControllerNode(ManagedEntity):
         except BagError as exc:
             self.report_input(f"malformed /joint_states message ({exc})")
             return
-        arrays, problem = self.selector.select(names, STATE_FIELDS, position, velocity)
+        arrays, problem = self.selector.state(names, position, velocity)
         if problem:
             self.report_input(f"/joint_states: {problem}")
             if self.mode == "realtime":
@@ -285,7 +283,7 @@ class ControllerNode(ManagedEntity):
         if decoded is None:
             return
         names, sec, nanosec, positions, velocities, accelerations = decoded
-        arrays, problem = self.selector.select(names, REFERENCE_FIELDS, positions, velocities, accelerations)
+        arrays, problem = self.selector.reference(names, positions, velocities, accelerations)
         if problem:
             self.report_input(f"/reference: {problem}")
             return

@@ -117,6 +117,7 @@ class RecorderNode:
             name = "/" + topic
             self.connections[topic] = self.writer.add_connection(name, type_name, typestore=typestore)
             self.inputs.subscribe(msg_type, topic, self._callback(topic), qos)
+        self.flush()  # the MCAP header and channels on disk now: a bag from any moment on
         # rosbags closes an MCAP chunk only at 1 MiB (seconds of data); close and flush one
         # every 0.5 s so a killed recorder loses at most that much (see mcapscan)
         self.flush_timer = node.create_timer(FLUSH_PERIOD_S, self.flush, clock=STEADY_CLOCK)
