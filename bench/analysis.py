@@ -15,7 +15,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from pdsmc_ros.bagio import read_run, run_metrics  # noqa: E402
+from pdsmc_ros.bag.reader import read_run, run_metrics  # noqa: E402
 
 
 def main() -> int:

@@ -1,7 +1,7 @@
 """Offline analysis of recorded runs: thesis-style tables comparing bags.
 
 Every statistic comes from :mod:`pdsmc_ros.metrics` through
-:func:`pdsmc_ros.bagio.run_metrics`, the same code as the in-process simulator.
+:func:`pdsmc_ros.bag.reader.run_metrics`, the same code as the in-process simulator.
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from .bagio import RecordedRun, read_run, run_metrics
+from .bag.reader import RecordedRun, read_run, run_metrics
 from .errors import BagError, InvalidInputError
 from .metrics import Metrics
 from .presets import CONTROLLER_LABELS as LABEL

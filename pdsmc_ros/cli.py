@@ -266,7 +266,7 @@ def cmd_analyze(args: argparse.Namespace) -> int:
                                 "written by the recorder, or a directory of such bags)")
     bags = [analyze_bag(path) for path in paths]
     if args.plots:
-        from .bagio import run_samples
+        from .bag.reader import run_samples
         from .plots import plot_comparison, plot_run
 
         out = Path(args.out or "analysis")

@@ -33,3 +33,7 @@ class UnstableRateError(InvalidInputError):
 
 class BagError(PdsmcError, OSError):
     """A bag cannot be read or written."""
+
+
+class CdrError(PdsmcError, ValueError):
+    """A serialized message is malformed (a live message's content, not an I/O failure)."""

@@ -1,7 +1,7 @@
 """PNG figures of the thesis's kinds (analysis layer; matplotlib is imported lazily).
 
 Not part of the numeric core: nothing here computes a statistic, it only draws
-what :mod:`pdsmc_ros.metrics` and :mod:`pdsmc_ros.bagio` produced.
+what :mod:`pdsmc_ros.metrics` and :mod:`pdsmc_ros.bag.reader` produced.
 """
 
 from __future__ import annotations

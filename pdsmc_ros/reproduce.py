@@ -602,7 +602,7 @@ def _ros_result(spec: RunSpec, bags: Path, report: Callable[[RunResult], None]) 
     """One run over DDS, analysed from its bag and checked against the in-process loop."""
     import subprocess
 
-    from .bagio import read_run, run_samples
+    from .bag.reader import read_run, run_samples
     from .metrics import compute_metrics
     from .simulator import simulate
 

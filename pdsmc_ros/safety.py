@@ -93,3 +93,110 @@ def limit_torque(tau: FloatArray, limit: FloatArray | None) -> tuple[FloatArray,
         return tau, False
     clamped = np.clip(tau, -limit, limit)
     return clamped, bool(np.any(clamped != tau))
+
+
+class Watchdog:
+    """The plant's supervision of its controller: when to enter and leave safe mode.
+
+    ROS-free state machine; the plant node feeds it times and events and does the
+    stepping, logging and diagnostics. Armed once a controller has answered
+    (start-up may take seconds). In lockstep a controller is lost when no effort
+    was applied for ``timeout_s`` of wall time; the arm then advances with the
+    safe torque at ``time_scale`` x wall-clock pace (:meth:`safe_steps_owed`).
+    In real time it is lost after ``periods`` control periods without an effort.
+
+    Parameters
+    ----------
+    rate : float
+        Control rate (Hz).
+    timeout_s : float
+        Lockstep: wall time without an applied effort that loses the controller.
+    periods : int
+        Real time: control periods without an effort that lose the controller.
+    time_scale : float
+        Lockstep safe mode: sim time per wall time (1 real time, 0 frozen).
+    """
+
+    def __init__(self, *, rate: float, timeout_s: float, periods: int, time_scale: float) -> None:
+        self.rate = rate
+        self.timeout_s = timeout_s
+        self.periods = periods
+        self.time_scale = time_scale
+        self.armed = False  # a controller has answered
+        self.safe = False
+        self.awaiting_resume = False  # lockstep: a controller is back, offered the current state
+        self.last_progress = 0.0
+        self.periods_without_effort = 0
+        self._debt = 0.0  # lockstep safe-mode steps owed to the wall clock
+        self._since = 0.0
+
+    def effort(self, now: float) -> bool:
+        """An effort was applied at ``now``; whether it ends safe mode."""
+        self.armed = True
+        self.last_progress = now
+        self.periods_without_effort = 0
+        if not self.safe:
+            return False
+        self.safe = self.awaiting_resume = False
+        return True
+
+    def lost_in_lockstep(self, now: float) -> bool:
+        """Lockstep: whether the controller is lost now (it was not before)."""
+        return self.armed and not self.safe and now - self.last_progress > self.timeout_s
+
+    def lost_in_period(self) -> bool:
+        """Real time: one period passed; whether the controller is lost now (it was not before)."""
+        self.periods_without_effort += 1
+        return not self.safe and self.periods_without_effort > self.periods
+
+    def enter(self, now: float) -> None:
+        """Safe mode from ``now`` on."""
+        self.safe = True
+        self.awaiting_resume = False
+        self._debt = 0.0
+        self._since = now
+
+    def offer_resume(self) -> bool:
+        """Lockstep: an effort for another step came in safe mode; whether to offer the
+        controller the current state (once: the plant stops stepping alone meanwhile)."""
+        if not self.safe or self.awaiting_resume:
+            return False
+        self.awaiting_resume = True
+        return True
+
+    def safe_steps_owed(self, now: float) -> int:
+        """Lockstep safe mode: steps to take now to keep ``time_scale`` x wall-clock pace.
+
+        After a stall at most 0.1 s of wall time is caught up at once.
+        """
+        if not self.safe or self.awaiting_resume:
+            return 0
+        owed = (now - self._since) * self.time_scale * self.rate
+        self._since = now
+        self._debt = min(self._debt + owed, 0.1 * self.time_scale * self.rate + 1.0)
+        steps = int(self._debt)
+        self._debt -= steps
+        return steps
+
+
+class Staleness:
+    """The controller's real-time check that its inputs are fresh (ROS-free).
+
+    Inputs older than ``limit_s`` stop the output; fresh ones resume it.
+    """
+
+    def __init__(self, limit_s: float) -> None:
+        self.limit_s = limit_s
+        self.stale = False
+
+    def update(self, now: float, state_time: float, reference_time: float | None) -> str:
+        """``"stale"`` or ``"fresh"`` when the inputs just became so, else ``""``.
+
+        ``reference_time`` is None when the reference is computed locally (always fresh).
+        """
+        stale = now - state_time > self.limit_s or (
+            reference_time is not None and now - reference_time > self.limit_s)
+        if stale == self.stale:
+            return ""
+        self.stale = stale
+        return "stale" if stale else "fresh"

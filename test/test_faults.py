@@ -16,9 +16,9 @@ from conftest import node_log_tails
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from pdsmc_ros.bagio import read_run
+from pdsmc_ros.bag.reader import read_run
 from pdsmc_ros.errors import InvalidInputError
-from pdsmc_ros.mcapscan import scan
+from pdsmc_ros.bag.mcapscan import scan
 from pdsmc_ros.presets import Gains
 from pdsmc_ros.safety import SafetyConfig, check_effort, limit_torque, safe_torque
 from pdsmc_ros.simulator import ControlLaw, PlantStepper, simulate

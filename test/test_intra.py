@@ -17,7 +17,7 @@ from rclpy.node import Node  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 from std_msgs.msg import String  # noqa: E402
 
-from pdsmc_ros import cdr  # noqa: E402
+from pdsmc_ros.bag import cdr  # noqa: E402
 from pdsmc_ros.nodes import intra  # noqa: E402
 from pdsmc_ros.nodes.common import (  # noqa: E402
     LATCHED_QOS,

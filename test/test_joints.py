@@ -10,8 +10,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from pdsmc_ros import cdr
-from pdsmc_ros.errors import BagError, ConfigError
+from pdsmc_ros.bag import cdr
+from pdsmc_ros.errors import CdrError, ConfigError
 from pdsmc_ros.joint_trajectory import JointTrajectoryReference
 from pdsmc_ros.joints import JointSelector, check_joint_names
 from pdsmc_ros.models import Parallel5R, Serial3R
@@ -84,9 +84,9 @@ def test_decode_names_of_the_loop_messages_and_malformed_bytes() -> None:
     sec, nanosec, got, points = cdr.decode_joint_trajectory_points(ref)
     assert (sec, nanosec, got) == (3, 4, ("b", "a", "c")) and points == [((1.0, 2.0, 3.0), (0.0,) * 3, (0.0,) * 3, 0, 0)]
     for cut in (5, 13, 20, len(data) - 3):
-        with pytest.raises(BagError):
+        with pytest.raises(CdrError):
             cdr.decode_joint_state_named(data[:cut])
-    with pytest.raises(BagError):
+    with pytest.raises(CdrError):
         cdr.decode_joint_trajectory_points(ref[:-6])
 
 

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from conftest import node_log_tails
 
-from pdsmc_ros.bagio import read_run, run_metrics
+from pdsmc_ros.bag.reader import read_run, run_metrics
 from pdsmc_ros.simulator import simulate
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -69,7 +69,7 @@ def test_lockstep_run_equals_in_process_simulation(ros_env: dict, tmp_path: Path
     # the plant's URDF (transient local) is in the bag: the arm of this run
     import xml.etree.ElementTree as ET
 
-    from pdsmc_ros.cdr import decode_string
+    from pdsmc_ros.bag.cdr import decode_string
 
     with (out / f"{out.name}.mcap").open("rb") as handle:
         urdfs = [decode_string(m.data) for _, _, m in make_reader(handle).iter_messages(topics=["/robot_description"])]

@@ -36,7 +36,6 @@ from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import serialize_message
 
-from ..bagio import stamp_step
 from ..errors import ConfigError, InvalidInputError, PdsmcError
 from ..safety import MAX_SAFE_DAMPING, MAX_SAFE_STIFFNESS, SafetyConfig
 from ..presets import (
@@ -432,16 +431,6 @@ def decimation(rate: float, target: float) -> int:
     return max(1, int(round(rate / target)))
 
 
-stamp_to_step = stamp_step
-"""Control step index of a header stamp (one implementation, shared with the bag reader)."""
-
-
-def step_stamp(step: int, rate: float) -> tuple[int, int]:
-    """Header stamp ``(sec, nanosec)`` of control step ``step`` (time ``step / rate``)."""
-    total_ns = int(round(step * 1e9 / rate))
-    return total_ns // 1_000_000_000, total_ns % 1_000_000_000
-
-
 # --------------------------------------------------------------------------- #
 # Process lifecycle
 # --------------------------------------------------------------------------- #
@@ -538,7 +527,7 @@ class Inputs:
     with a hand-driven wait set and calls the handlers directly, while the
     executor serves the node's timers, parameters and ``/clock`` in between.
     That path sets the lockstep rate (bench/lockstep.py) and the real-time
-    jitter. Handlers receive the serialized message (:mod:`pdsmc_ros.cdr`).
+    jitter. Handlers receive the serialized message (:mod:`pdsmc_ros.bag.cdr`).
     QoS: every sample in lockstep, the newest in real time, unless given.
 
     ``batch_s`` > 0 makes the inputs an observer's: once woken, the loop lets

@@ -39,17 +39,18 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension, String
 from trajectory_msgs.msg import JointTrajectory
 
-from ..cdr import (
+from ..bag.cdr import (
     decode_joint_state_named,
     decode_joint_trajectory_named,
     decode_joint_trajectory_points,
     encode_float64_multi_array,
 )
-from ..errors import BagError, ConfigError
+from ..bag.stamps import stamp_step
+from ..errors import CdrError, ConfigError
 from ..joint_trajectory import JointTrajectoryReference
 from ..joints import JointSelector, check_joint_names
 from ..presets import Gains, RunSpec
-from ..safety import limit_torque
+from ..safety import Staleness, limit_torque
 from ..simulator import ControlLaw, control_steps
 from ..stability import check_rate
 from .common import (
@@ -74,7 +75,6 @@ from .common import (
     end_when_plant_leaves,
     run_node,
     run_spec_from_parameters,
-    stamp_to_step,
     torque_limit_from_parameters,
 )
 
@@ -130,7 +130,6 @@ class ControllerNode(ManagedEntity):
         self.command_lock = threading.Lock()
         self.non_finite = 0
         self.clamped = 0
-        self.stale = False
         self.input_error: str | None = None  # the current problem with the inputs, if any
         self.states_received = 0
         # lockstep: the state of the step being computed; real time: the latest state
@@ -163,6 +162,7 @@ class ControllerNode(ManagedEntity):
         self.pub_desc.publish(String(data=description_json(self.spec, self.mode)))
         if self.mode == "realtime":
             self.period = 1.0 / self.spec.rate  # run_node paces tick() at this period
+            self.staleness = Staleness(self.stale_periods * self.period)
             self.missed = 0
             self.timing_rows: list[float] = []
             self.plant_watch = end_when_plant_leaves(self, lambda: self.states_received)
@@ -247,7 +247,7 @@ class ControllerNode(ManagedEntity):
     def on_state(self, data: bytes) -> None:
         try:
             names, sec, nanosec, position, velocity, _ = decode_joint_state_named(data)
-        except BagError as exc:
+        except CdrError as exc:
             self.report_input(f"malformed /joint_states message ({exc})")
             return
         arrays, problem = self.selector.state(names, position, velocity)
@@ -257,7 +257,7 @@ class ControllerNode(ManagedEntity):
                 self.state = None  # no torque from an older state meanwhile
             return
         if self.lockstep:
-            step = stamp_to_step(sec, nanosec, self.spec.rate)
+            step = stamp_step(sec, nanosec, self.spec.rate)
             if not 0 <= step <= MAX_STEP:
                 self.report_input(f"/joint_states stamp {sec}.{nanosec:09d} s is not a lockstep step "
                                   "(lockstep needs the plant's sim time; use mode:=realtime)")
@@ -277,7 +277,7 @@ class ControllerNode(ManagedEntity):
     def on_reference(self, data: bytes) -> None:
         try:
             decoded = decode_joint_trajectory_named(data)
-        except BagError as exc:
+        except CdrError as exc:
             self.report_input(f"malformed /reference message ({exc})")
             return
         if decoded is None:
@@ -289,7 +289,7 @@ class ControllerNode(ManagedEntity):
             return
         self.source = "reference"
         if self.lockstep:
-            step = stamp_to_step(sec, nanosec, self.spec.rate)
+            step = stamp_step(sec, nanosec, self.spec.rate)
             if 0 <= step <= MAX_STEP:
                 self.refs[step] = arrays
                 self.try_compute()
@@ -312,7 +312,7 @@ class ControllerNode(ManagedEntity):
         topic = self.node.resolve_topic_name(TOPIC_JOINT_TRAJECTORY)
         try:
             sec, nanosec, names, points = decode_joint_trajectory_points(data)
-        except BagError as exc:
+        except CdrError as exc:
             self.node.get_logger().error(f"malformed {topic} message refused ({exc})")
             return
         if self.last_state is None:
@@ -410,19 +410,15 @@ class ControllerNode(ManagedEntity):
         if not self.active or law is None or source is None or self.states_received == 0:
             self.last_tick = now
             return
-        limit = self.stale_periods * self.period
-        stale = now - self.state_time > limit or (source == "reference" and now - self.ref_time > limit)
-        if stale:
-            if not self.stale:
-                self.node.get_logger().error(
-                    f"state or reference older than {self.stale_periods} periods")
-                self.stop_commanding("inputs stale")
-            self.stale = True
+        change = self.staleness.update(now, self.state_time, self.ref_time if source == "reference" else None)
+        if change == "stale":
+            self.node.get_logger().error(f"state or reference older than {self.stale_periods} periods")
+            self.stop_commanding("inputs stale")
+        elif change == "fresh":
+            self.node.get_logger().info("fresh state and reference again: output resumed")
+        if self.staleness.stale:
             self.last_tick = now
             return
-        if self.stale:
-            self.node.get_logger().info("fresh state and reference again: output resumed")
-            self.stale = False
         if state is None:  # the latest state was incomplete: reported by on_state
             self.last_tick = now
             return

@@ -33,11 +33,12 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray, String
 
-from ..cdr import decode_float64_multi_array, encode_clock, encode_joint_state, encode_point_stamped
-from ..errors import BagError
+from ..bag.cdr import decode_float64_multi_array, encode_clock, encode_joint_state, encode_point_stamped
+from ..bag.stamps import step_stamp
+from ..errors import CdrError
 from ..presets import robot_params
 from ..urdf import robot_urdf
-from ..safety import check_effort, safe_torque
+from ..safety import Watchdog, check_effort, safe_torque
 from ..simulator import PlantStepper, control_steps
 from .common import (
     GuardedPublisher,
@@ -60,7 +61,6 @@ from .common import (
     refuse_run_changes,
     run_spec_from_parameters,
     safety_from_parameters,
-    step_stamp,
 )
 
 
@@ -84,11 +84,10 @@ class PlantNode:
         self.spec = run_spec_from_parameters(node)
         self.safety = safety_from_parameters(node)
         node.add_on_set_parameters_callback(refuse_run_changes)
-        self.watchdog_timeout = float(node.get_parameter("watchdog_timeout").value)
-        self.watchdog_periods = int(node.get_parameter("watchdog_periods").value)
-        self.safe_time_scale = float(node.get_parameter("safe_time_scale").value)
-        self.safe_debt = 0.0  # safe-mode steps owed to the wall clock (lockstep)
-        self.safe_since = 0.0
+        self.watch = Watchdog(rate=self.spec.rate,
+                              timeout_s=float(node.get_parameter("watchdog_timeout").value),
+                              periods=int(node.get_parameter("watchdog_periods").value),
+                              time_scale=float(node.get_parameter("safe_time_scale").value))
         self.mode = node.get_parameter("mode").value
         reference = self.spec.reference()
         self.robot = self.spec.robot_model()
@@ -104,12 +103,7 @@ class PlantNode:
         self.exit_code = EXIT_OK
         self.rejected = 0
         self.started = False
-        self.effort_received = False
-        self.safe = False
-        self.awaiting_resume = False
         self.q_hold = self.plant.q.copy()
-        self.last_progress = time.monotonic()
-        self.ticks_since_effort = 0
         self.rejected_reasons: dict[str, int] = {}
         self.clock_every = decimation(self.spec.rate, node.get_parameter("clock_rate").value)
         self.ee_every = self.spec.sample_every
@@ -189,7 +183,7 @@ class PlantNode:
         status = DiagnosticStatus(level=level, name="pdsmc_ros/plant", message=message, hardware_id=self.spec.robot)
         status.values = [
             KeyValue(key="step", value=str(self.plant.steps)),
-            KeyValue(key="safe_mode", value=self.safety.mode if self.safe else "off"),
+            KeyValue(key="safe_mode", value=self.safety.mode if self.watch.safe else "off"),
             KeyValue(key="rejected_commands", value=str(self.rejected)),
         ]
         msg = DiagnosticArray(status=[status])
@@ -200,7 +194,7 @@ class PlantNode:
     def on_effort(self, data: bytes) -> None:
         try:
             step, values = decode_float64_multi_array(data)
-        except BagError as exc:
+        except CdrError as exc:
             self.reject(str(exc))
             return
         lockstep = self.mode == "lockstep"
@@ -210,50 +204,39 @@ class PlantNode:
             return
         if not lockstep:
             self.latest_effort = tau
-            self.effort_received = True
-            self.ticks_since_effort = 0
-            if self.safe:
-                self.leave_safe_mode()
+            if self.watch.effort(time.monotonic()):
+                self.report_resumed()
             return
         if step != self.plant.steps:
-            if self.safe and not self.awaiting_resume:
+            if self.watch.offer_resume():
                 # a controller is back: stop stepping alone and offer it the current state
-                self.awaiting_resume = True
                 self.publish_state()
             self.reject(f"out of order (step {step}, expected {self.plant.steps})")
             return
-        if self.safe:
-            self.leave_safe_mode()
-        self.effort_received = True
+        if self.watch.effort(time.monotonic()):
+            self.report_resumed()
         if step >= self.last_step:
             self.done = True  # the controller's effort for t = T closes the run
             return
         self.plant.step(tau)
         self.applied = tau
-        self.last_progress = time.monotonic()
         self.publish_state()
 
     # -- watchdog and safe mode ---------------------------------------------- #
     def check_watchdog(self) -> None:
         """Lockstep: no effort within ``watchdog_timeout`` s of wall time -> safe mode."""
-        if not self.started or self.done or not self.effort_received:
-            return  # armed once a controller has answered (start-up may take seconds)
-        if not self.safe and time.monotonic() - self.last_progress > self.watchdog_timeout:
-            self.enter_safe_mode(f"no effort for step {self.plant.steps} within {self.watchdog_timeout:g} s")
-        elif self.safe and not self.awaiting_resume:
-            # advance with the safe torque at safe_time_scale x wall-clock pace, so the
-            # arm stays supervised while no controller answers
-            now = time.monotonic()
-            owed = (now - self.safe_since) * self.safe_time_scale * self.spec.rate
-            self.safe_since = now
-            # after a stall, catch up at most 0.1 s of wall time at once
-            self.safe_debt = min(self.safe_debt + owed, 0.1 * self.safe_time_scale * self.spec.rate + 1.0)
-            while self.safe_debt >= 1.0:
-                self.safe_debt -= 1.0
-                if self.plant.steps >= self.last_step:
-                    self.done = True
-                    return
-                self.safe_step()
+        if not self.started or self.done:
+            return
+        now = time.monotonic()
+        if self.watch.lost_in_lockstep(now):
+            self.enter_safe_mode(f"no effort for step {self.plant.steps} within {self.watch.timeout_s:g} s")
+            return
+        # safe mode: the arm advances with the safe torque, supervised, while no controller answers
+        for _ in range(self.watch.safe_steps_owed(now)):
+            if self.plant.steps >= self.last_step:
+                self.done = True
+                return
+            self.safe_step()
 
     def safe_step(self) -> None:
         tau = safe_torque(self.safety, self.plant.q, self.plant.qd, self.q_hold)
@@ -262,10 +245,7 @@ class PlantNode:
         self.publish_state()
 
     def enter_safe_mode(self, why: str) -> None:
-        self.safe = True
-        self.awaiting_resume = False
-        self.safe_debt = 0.0
-        self.safe_since = time.monotonic()
+        self.watch.enter(time.monotonic())
         self.q_hold = self.plant.q.copy()
         text = f"controller lost: {why}; safe mode '{self.safety.mode}'"
         self.node.get_logger().error(text)
@@ -274,9 +254,7 @@ class PlantNode:
             self.node.get_logger().error("ending the run (on_controller_loss:=end)")
             self.done = True
 
-    def leave_safe_mode(self) -> None:
-        self.safe = False
-        self.awaiting_resume = False
+    def report_resumed(self) -> None:
         text = f"controller back at step {self.plant.steps}: safe mode off"
         self.node.get_logger().info(text)
         self.diagnose(DiagnosticStatus.OK, text)
@@ -302,17 +280,16 @@ class PlantNode:
         self.publish_state()
         if not self.started:
             # start once everyone listens (the recorder too) and the controller answers
-            self.started = self.effort_received and self.listeners_ready()
+            self.started = self.watch.armed and self.listeners_ready()
             return
         if self.plant.steps >= self.last_step:
             self.done = True
             return
-        self.ticks_since_effort += 1
-        if not self.safe and self.ticks_since_effort > self.watchdog_periods:
-            self.enter_safe_mode(f"no effort for {self.watchdog_periods} periods")
+        if self.watch.lost_in_period():
+            self.enter_safe_mode(f"no effort for {self.watch.periods} periods")
             if self.done:
                 return
-        if self.safe:
+        if self.watch.safe:
             self.applied = safe_torque(self.safety, self.plant.q, self.plant.qd, self.q_hold)
         else:
             self.applied = self.latest_effort

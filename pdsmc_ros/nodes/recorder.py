@@ -1,7 +1,7 @@
 """Recorder node: writes every run topic into a rosbag2 MCAP bag.
 
 Serialized (raw) subscriptions are written as they arrive into rosbags'
-writer in MCAP mode (through :class:`~pdsmc_ros.bagwrite.MessageAppender`,
+writer in MCAP mode (through :class:`~pdsmc_ros.bag.writer.MessageAppender`,
 which writes rosbags' bytes without its per-message overhead), so the bag
 holds exactly the CDR bytes that crossed DDS (or, composed with
 ``--intra-process``, that the publisher handed over). The recorder is an
@@ -32,9 +32,10 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray, String
 from trajectory_msgs.msg import JointTrajectory
 
-from ..bagio import DESCRIPTION_KEY, effort_step, header_step
-from ..bagwrite import MessageAppender, close_chunk
-from ..errors import BagError, ConfigError
+from ..bag.reader import DESCRIPTION_KEY
+from ..bag.stamps import effort_step, header_step
+from ..bag.writer import MessageAppender, close_chunk
+from ..errors import BagError, CdrError, ConfigError
 from ..simulator import control_steps
 from .common import (
     EXIT_FAILURE,
@@ -119,7 +120,7 @@ class RecorderNode:
             self.inputs.subscribe(msg_type, topic, self._callback(topic), qos)
         self.flush()  # the MCAP header and channels on disk now: a bag from any moment on
         # rosbags closes an MCAP chunk only at 1 MiB (seconds of data); close and flush one
-        # every 0.5 s so a killed recorder loses at most that much (see mcapscan)
+        # every 0.5 s so a killed recorder loses at most that much (see bag/mcapscan.py)
         self.flush_timer = node.create_timer(FLUSH_PERIOD_S, self.flush, clock=STEADY_CLOCK)
         node.get_logger().info(f"recording {len(RECORDED)} topics into {self.path}")
 
@@ -162,7 +163,7 @@ class RecorderNode:
             publisher's."""
             try:
                 step = effort_step(data) if topic == TOPIC_EFFORT else header_step(data, self.spec.rate)
-            except BagError:
+            except CdrError:
                 return None
             return step if step <= self.last_step else None
 

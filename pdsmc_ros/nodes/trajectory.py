@@ -24,7 +24,6 @@ reference is held; the node ends when the plant leaves the graph.
 
 from __future__ import annotations
 
-import struct
 import sys
 import time
 from collections.abc import Sequence
@@ -35,8 +34,9 @@ from rclpy.node import Node
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory
 
-from ..cdr import decode_stamp, encode_joint_trajectories, encode_point_stamped
-from ..errors import BagError
+from ..bag.cdr import decode_stamp, encode_joint_trajectories, encode_point_stamped
+from ..bag.stamps import stamp_step, step_stamp
+from ..errors import CdrError
 from ..simulator import control_steps
 from .common import (
     GuardedPublisher,
@@ -55,8 +55,6 @@ from .common import (
     run_node,
     refuse_run_changes,
     run_spec_from_parameters,
-    stamp_to_step,
-    step_stamp,
 )
 
 
@@ -158,7 +156,7 @@ class TrajectoryNode:
     def on_state(self, data: bytes) -> None:
         try:
             stamp = decode_stamp(data)
-        except (BagError, struct.error):
+        except CdrError:
             self.node.get_logger().error("malformed /joint_states message ignored", throttle_duration_sec=1.0)
             return
         self.states_received += 1
@@ -170,7 +168,7 @@ class TrajectoryNode:
                 self.clock_start = time.perf_counter() - self.period
                 self.node.get_logger().info("the plant's time has started: contour clock running")
             return
-        step = stamp_to_step(*stamp, self.spec.rate)
+        step = stamp_step(*stamp, self.spec.rate)
         repeated = step == self.state_step
         self.state_step = max(self.state_step, step)
         if self.started:

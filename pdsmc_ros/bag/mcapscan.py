@@ -16,7 +16,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .errors import BagError
+from ..errors import BagError
 
 MAGIC = b"\x89MCAP0\r\n"
 OP_CHANNEL = 0x04

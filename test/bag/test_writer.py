@@ -8,8 +8,8 @@ import pytest
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 
-from pdsmc_ros import cdr
-from pdsmc_ros.bagwrite import MessageAppender, close_chunk
+from pdsmc_ros.bag import cdr
+from pdsmc_ros.bag.writer import MessageAppender, close_chunk
 
 TOPICS = (("/joint_states", "sensor_msgs/msg/JointState"),
           ("/effort_controller/commands", "std_msgs/msg/Float64MultiArray"))

@@ -3,9 +3,9 @@
 The recorder writes the CDR bytes it received; this module turns a bag into
 per-step arrays and a :class:`~pdsmc_ros.presets.RunSpec`, and computes the
 thesis statistics with the same code as the in-process simulator. Messages
-are read with :mod:`pdsmc_ros.mcapscan` (about 3x faster than a generic MCAP
+are read with :mod:`pdsmc_ros.bag.mcapscan` (about 3x faster than a generic MCAP
 reader, and it reads a bag whose recorder was killed up to its last complete
-chunk) and decoded in bulk with numpy at the byte spans :mod:`pdsmc_ros.cdr`
+chunk) and decoded in bulk with numpy at the byte spans :mod:`pdsmc_ros.bag.cdr`
 finds in the first message of each layout; the bags stay standard rosbag2/MCAP
 files that rosbags' ``AnyReader``, the ``mcap`` reader and Foxglove open.
 """
@@ -13,18 +13,18 @@ files that rosbags' ``AnyReader``, the ``mcap`` reader and Foxglove open.
 from __future__ import annotations
 
 import json
-import struct
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from ..errors import BagError, CdrError
+from ..metrics import Metrics, Samples, compute_metrics
+from ..models import FloatArray
+from ..presets import RunSpec, control_steps
 from . import cdr
-from .errors import BagError
-from .metrics import Metrics, Samples, compute_metrics
-from .models import FloatArray
-from .presets import RunSpec, control_steps
+from .stamps import effort_step
 
 DESCRIPTION_KEY = "pdsmc_ros.run_description"
 
@@ -42,27 +42,12 @@ def decode_topic(raws: list[bytes], layout_of) -> list[tuple[np.ndarray, dict[st
         members = [raws[i] for i in indices]
         try:
             layout = layout_of(members[0])
-        except (struct.error, BagError):
+        except CdrError:
             continue  # not a message of the expected kind: skip it
         if any(start + 8 * count > len(members[0]) for start, count in layout.values()):
             continue
         out.append((np.asarray(indices), decode_fixed(members, layout)))
     return out
-
-
-def stamp_step(sec: int, nanosec: int, rate: float) -> int:
-    """Control step of a header stamp (stamps are ``k / rate``)."""
-    return int(round((sec + nanosec * 1e-9) * rate))
-
-
-def header_step(data: bytes, rate: float) -> int:
-    """Control step of a CDR message that starts with ``std_msgs/Header``."""
-    return stamp_step(*cdr.decode_stamp(data), rate)
-
-
-def effort_step(data: bytes) -> int:
-    """``layout.data_offset`` of a CDR ``std_msgs/Float64MultiArray`` (no dimensions)."""
-    return cdr.float64_multi_array_offset(data)
 
 
 def decode_fixed(raws: list[bytes], layout: dict[str, tuple[int, int]]) -> dict[str, np.ndarray]:
@@ -196,7 +181,7 @@ def read_run(path: str | Path) -> RecordedRun:
 
 def run_samples(run: RecordedRun) -> Samples:
     """Signals of a recorded run at the thesis's analysis instants (complete steps only)."""
-    from .simulator import build_samples
+    from ..simulator import build_samples
 
     every = run.spec.sample_every
     robot = run.spec.robot_model()

@@ -7,8 +7,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from pdsmc_ros import cdr
-from pdsmc_ros.errors import BagError
+from pdsmc_ros.bag import cdr
+from pdsmc_ros.errors import CdrError
 
 NAMES = [["joint_1", "joint_2", "joint_3"], ["q1", "q2", "q3", "q4"], [], ["x"]]
 
@@ -58,13 +58,13 @@ def test_codecs_match_rclpy(names: list[str], m: int) -> None:
 
 
 def test_decoders_refuse_what_the_loop_does_not_produce() -> None:
-    with pytest.raises(BagError, match="little-endian CDR"):
+    with pytest.raises(CdrError, match="little-endian CDR"):
         cdr.decode_joint_state(b"\x00\x00\x00\x00")
     with_dims = bytearray(cdr.encode_float64_multi_array([1.0]))
     with_dims[4] = 1  # one layout dimension
-    with pytest.raises(BagError, match="layout dimensions"):
+    with pytest.raises(CdrError, match="layout dimensions"):
         cdr.decode_float64_multi_array(bytes(with_dims))
-    with pytest.raises(BagError, match="layout dimensions"):
+    with pytest.raises(CdrError, match="layout dimensions"):
         cdr.float64_multi_array_offset(bytes(with_dims))
     empty = cdr.encode_joint_trajectory(0, 0, ["a"], [], [], [])
     no_points = empty[: empty.index(b"a\x00") + 4] + b"\x00\x00\x00\x00"

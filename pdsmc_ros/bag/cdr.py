@@ -5,7 +5,7 @@ a ``JointState`` in Python and converting it to C costs more than the control
 law. These functions write what rclpy's ``serialize_message`` writes (rclpy reads
 it back unchanged; rosbags' serializer writes the very same bytes, tested), and read
 back the fields the nodes use; the bag reader
-(:mod:`pdsmc_ros.bagio`) locates the same fields with it. No ROS import: plain
+(:mod:`pdsmc_ros.bag.reader`) locates the same fields with it. No ROS import: plain
 ``struct``.
 
 Layout rules (OMG CDR, as ROS 2's Fast CDR uses them): a 4-byte encapsulation
@@ -25,7 +25,7 @@ from operator import itemgetter
 
 import numpy as np
 
-from .errors import BagError
+from ..errors import CdrError
 
 HEADER = b"\x00\x01\x00\x00"
 _U32 = struct.Struct("<I")
@@ -84,7 +84,7 @@ class _Reader:
 
     def __init__(self, data: bytes) -> None:
         if len(data) < 4 or data[1] != 1:
-            raise BagError("not a little-endian CDR message")
+            raise CdrError("not a little-endian CDR message")
         self.data = data
         self.pos = 4
 
@@ -93,13 +93,19 @@ class _Reader:
 
     def u32(self) -> int:
         self.align(4)
-        (value,) = _U32.unpack_from(self.data, self.pos)
+        try:
+            (value,) = _U32.unpack_from(self.data, self.pos)
+        except struct.error:
+            raise CdrError("truncated CDR message") from None
         self.pos += 4
         return value
 
     def stamp(self) -> tuple[int, int]:
         self.align(4)
-        sec, nanosec = _STAMP.unpack_from(self.data, self.pos)
+        try:
+            sec, nanosec = _STAMP.unpack_from(self.data, self.pos)
+        except struct.error:
+            raise CdrError("truncated CDR header") from None
         self.pos += 8
         return sec, nanosec
 
@@ -116,13 +122,13 @@ class _Reader:
         start = self.pos
         self.pos += length
         if self.pos > len(self.data):
-            raise BagError("truncated CDR string")
+            raise CdrError("truncated CDR string")
         return self.data[start:self.pos].rstrip(b"\x00").decode("utf-8", errors="replace")
 
     def strings(self) -> tuple[str, ...]:
         count = self.u32()
         if count > len(self.data):  # each string takes at least 4 bytes: a corrupt count
-            raise BagError("CDR string sequence longer than its message")
+            raise CdrError("CDR string sequence longer than its message")
         return tuple(self.string() for _ in range(count))
 
     def double_span(self) -> tuple[int, int]:
@@ -133,7 +139,7 @@ class _Reader:
         start = self.pos
         self.pos += 8 * count
         if self.pos > len(self.data):
-            raise BagError("truncated CDR double sequence")
+            raise CdrError("truncated CDR double sequence")
         return start, count
 
     def doubles(self) -> tuple[float, ...]:
@@ -150,7 +156,7 @@ class _Reader:
     def multi_array_offset(self) -> int:
         """``layout.data_offset`` of a ``Float64MultiArray``; layouts with dimensions are refused."""
         if self.u32():
-            raise BagError("effort messages with layout dimensions are not produced by pdsmc_ros")
+            raise CdrError("effort messages with layout dimensions are not produced by pdsmc_ros")
         return self.u32()
 
 
@@ -335,7 +341,7 @@ def decode_joint_state_named(
 
     Raises
     ------
-    BagError
+    CdrError
         If ``data`` is not a well-formed message (truncated, corrupt counts).
     """
     fast = _fast_decode_named("js", data)
@@ -349,7 +355,7 @@ def decode_joint_state_named(
         names = r.strings()
         decoded = names, sec, nanosec, r.doubles(), r.doubles(), r.doubles()
     except struct.error as exc:
-        raise BagError(f"truncated JointState ({exc})") from None
+        raise CdrError(f"truncated JointState ({exc})") from None
     _learn("js", data, _joint_state_fields, names)
     return decoded
 
@@ -427,7 +433,7 @@ def decode_joint_trajectory_named(
 
     Raises
     ------
-    BagError
+    CdrError
         If ``data`` is not a well-formed message.
     """
     fast = _fast_decode_named("jt", data)
@@ -443,7 +449,7 @@ def decode_joint_trajectory_named(
             return None
         decoded = names, sec, nanosec, r.doubles(), r.doubles(), r.doubles()
     except struct.error as exc:
-        raise BagError(f"truncated JointTrajectory ({exc})") from None
+        raise CdrError(f"truncated JointTrajectory ({exc})") from None
     if _joint_trajectory_is_one_point(data):
         _learn("jt", data, _joint_trajectory_fields, names)
     return decoded
@@ -465,7 +471,7 @@ def decode_joint_trajectory_points(
 
     Raises
     ------
-    BagError
+    CdrError
         If ``data`` is not a well-formed message.
     """
     r = _Reader(data)
@@ -475,7 +481,7 @@ def decode_joint_trajectory_points(
         names = r.strings()
         count = r.u32()
         if count > len(data):
-            raise BagError("JointTrajectory point count longer than its message")
+            raise CdrError("JointTrajectory point count longer than its message")
         points = []
         for _ in range(count):
             positions, velocities, accelerations = r.doubles(), r.doubles(), r.doubles()
@@ -483,7 +489,7 @@ def decode_joint_trajectory_points(
             tfs_sec, tfs_nanosec = r.stamp()
             points.append((positions, velocities, accelerations, tfs_sec, tfs_nanosec))
     except struct.error as exc:
-        raise BagError(f"truncated JointTrajectory ({exc})") from None
+        raise CdrError(f"truncated JointTrajectory ({exc})") from None
     return sec, nanosec, names, points
 
 
@@ -543,7 +549,7 @@ def encode_point_stamped(sec: int, nanosec: int, x: float, y: float, z: float = 
 
 
 # Byte spans (offset of the first double, count) for bulk decoding of many messages
-# that share one layout (pdsmc_ros.bagio decodes a whole bag with numpy).
+# that share one layout (pdsmc_ros.bag.reader decodes a whole bag with numpy).
 def joint_state_spans(data: bytes) -> dict[str, tuple[int, int]]:
     """Spans of ``position``, ``velocity`` and ``effort`` in a ``JointState``."""
     r = _Reader(data)

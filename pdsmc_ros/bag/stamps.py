@@ -1,0 +1,32 @@
+"""Control steps and header stamps: step ``k`` is sim time ``k / rate``, in one place.
+
+The plant stamps its states with the step's time, the trajectory its references,
+the controller reads the step back, and the bag reader does the same for whole
+topics; all of them call these functions.
+"""
+
+from __future__ import annotations
+
+from . import cdr
+
+
+def step_stamp(step: int, rate: float) -> tuple[int, int]:
+    """Header stamp ``(sec, nanosec)`` of control step ``step`` (time ``step / rate``)."""
+    total_ns = int(round(step * 1e9 / rate))
+    return total_ns // 1_000_000_000, total_ns % 1_000_000_000
+
+
+def stamp_step(sec: int, nanosec: int, rate: float) -> int:
+    """Control step of a header stamp (the inverse of :func:`step_stamp`)."""
+    return int(round((sec + nanosec * 1e-9) * rate))
+
+
+def header_step(data: bytes, rate: float) -> int:
+    """Control step of a CDR message that starts with ``std_msgs/Header``."""
+    return stamp_step(*cdr.decode_stamp(data), rate)
+
+
+def effort_step(data: bytes) -> int:
+    """Control step of an effort command: ``layout.data_offset`` of its CDR
+    ``std_msgs/Float64MultiArray`` (no dimensions)."""
+    return cdr.float64_multi_array_offset(data)

@@ -1,0 +1,80 @@
+"""The plant's watchdog and the controller's staleness check as core state machines (no processes)."""
+
+from __future__ import annotations
+
+import pytest
+
+from pdsmc_ros.safety import Staleness, Watchdog
+
+RATE = 1000.0
+
+
+def lockstep_watchdog(time_scale: float = 1.0) -> Watchdog:
+    return Watchdog(rate=RATE, timeout_s=0.5, periods=10, time_scale=time_scale)
+
+
+def test_not_armed_until_a_controller_answers() -> None:
+    watch = lockstep_watchdog()
+    assert not watch.lost_in_lockstep(100.0)  # start-up may take any time
+    assert watch.safe_steps_owed(100.0) == 0
+    watch.effort(100.0)
+    assert not watch.lost_in_lockstep(100.4)
+    assert watch.lost_in_lockstep(100.6)
+
+
+def test_lockstep_safe_mode_keeps_wall_clock_pace_and_caps_a_stall() -> None:
+    watch = lockstep_watchdog(time_scale=0.5)
+    watch.effort(0.0)
+    watch.enter(1.0)
+    assert not watch.lost_in_lockstep(2.0)  # already lost: entered once
+    assert watch.safe_steps_owed(1.01) == 5  # 10 ms x 0.5 x 1 kHz
+    assert watch.safe_steps_owed(1.0125) == 1  # 1.25 steps owed: one now, a quarter kept
+    assert watch.safe_steps_owed(1.014) == 1  # 0.25 + 0.75
+    # a 10 s stall catches up at most 0.1 s of wall time (plus the step in hand)
+    assert watch.safe_steps_owed(11.014) == int(0.1 * 0.5 * RATE + 1.0)
+
+
+def test_frozen_safe_mode_takes_no_step() -> None:
+    watch = lockstep_watchdog(time_scale=0.0)
+    watch.effort(0.0)
+    watch.enter(1.0)
+    assert watch.safe_steps_owed(5.0) == 0
+
+
+def test_a_controller_back_is_offered_the_state_once_and_resumes() -> None:
+    watch = lockstep_watchdog()
+    assert not watch.offer_resume()  # not in safe mode: an out-of-order effort is just rejected
+    watch.effort(0.0)
+    watch.enter(1.0)
+    assert watch.offer_resume() and not watch.offer_resume()
+    assert watch.safe_steps_owed(2.0) == 0  # waiting for it: no stepping alone
+    assert watch.effort(2.1)  # the in-order effort ends safe mode
+    assert not watch.safe and not watch.effort(2.2)
+    assert not watch.lost_in_lockstep(2.6) and watch.lost_in_lockstep(2.8)
+
+
+def test_real_time_loss_after_the_given_periods_and_recovery() -> None:
+    watch = Watchdog(rate=RATE, timeout_s=0.5, periods=3, time_scale=1.0)
+    watch.effort(0.0)
+    assert [watch.lost_in_period() for _ in range(4)] == [False, False, False, True]
+    watch.enter(0.004)
+    assert not watch.lost_in_period()  # lost once
+    assert watch.effort(0.005) and not watch.safe
+    assert not watch.lost_in_period()
+
+
+@pytest.mark.parametrize("computed_reference", [False, True])
+def test_staleness_reports_each_change_once(computed_reference: bool) -> None:
+    check = Staleness(0.02)
+    ref = None if computed_reference else 0.0
+    assert check.update(0.01, 0.0, ref) == "" and not check.stale
+    assert check.update(0.03, 0.0, ref) == "stale" and check.stale
+    assert check.update(0.04, 0.0, ref) == ""  # reported once
+    assert check.update(0.05, 0.045, None if computed_reference else 0.045) == "fresh"
+    assert not check.stale
+
+
+def test_an_old_reference_alone_is_stale() -> None:
+    check = Staleness(0.02)
+    assert check.update(1.0, 0.99, 0.5) == "stale"
+    assert check.update(1.0, 0.99, None) == "fresh"  # a locally computed reference is never old
