@@ -290,6 +290,10 @@ def cmd_analyze(args: argparse.Namespace) -> int:
             print(f"pdsmc analyze: {b.path}: {what}: statistics of the {b.metrics.samples} readable samples "
                   f"only; missing steps {b.run.missing}", file=sys.stderr)
     for b in bags:
+        if b.run.description_from_recorder:
+            print(f"pdsmc analyze: {b.path}: the controller's run description never reached the "
+                  "recorder; the run is named by the recorder's own parameters (gains may differ)",
+                  file=sys.stderr)
         if b.run.plant_torque_steps:
             print(f"pdsmc analyze: {b.path}: for {b.run.plant_torque_steps} steps the plant applied a "
                   "torque other than a recorded command (safe mode, see /diagnostics); the statistics "

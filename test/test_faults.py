@@ -16,9 +16,9 @@ from conftest import node_log_tails
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from pdsmc_ros.bag.mcapscan import scan
 from pdsmc_ros.bag.reader import read_run
 from pdsmc_ros.errors import InvalidInputError
-from pdsmc_ros.bag.mcapscan import scan
 from pdsmc_ros.presets import Gains
 from pdsmc_ros.safety import SafetyConfig, check_effort, limit_torque, safe_torque
 from pdsmc_ros.simulator import ControlLaw, PlantStepper, simulate
@@ -420,7 +420,7 @@ def test_nice_applies_to_the_critical_path_only(ros_env: dict, tmp_path: Path) -
 
 TEARDOWN_HANG = r"""
 import sys, time
-from pdsmc_ros.nodes.common import arm_teardown_watch
+from pdsmc_ros.nodes.lifecycle import arm_teardown_watch
 arm_teardown_watch(int(sys.argv[1]), seconds=0.3)
 time.sleep(30)  # a teardown that never ends
 """

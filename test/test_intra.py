@@ -11,6 +11,8 @@ import pytest
 
 rclpy = pytest.importorskip("rclpy")
 
+from pdsmc_ros.nodes.io import GuardedPublisher, Inputs, take_local  # noqa: E402
+from pdsmc_ros.nodes.topics import LATCHED_QOS, LATEST_QOS, LOCKSTEP_QOS, STREAM_QOS  # noqa: E402
 from rclpy.context import Context  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.node import Node  # noqa: E402
@@ -19,15 +21,6 @@ from std_msgs.msg import String  # noqa: E402
 
 from pdsmc_ros.bag import cdr  # noqa: E402
 from pdsmc_ros.nodes import intra  # noqa: E402
-from pdsmc_ros.nodes.common import (  # noqa: E402
-    LATCHED_QOS,
-    LATEST_QOS,
-    LOCKSTEP_QOS,
-    STREAM_QOS,
-    GuardedPublisher,
-    Inputs,
-    _take_local,
-)
 
 DOMAIN_ID = 150 + os.getpid() % 50  # apart from other runs on this machine
 
@@ -93,8 +86,8 @@ def test_local_subscribers_get_every_message_and_dds_only_peers_outside(contexts
 
     for step in range(5):
         pub.publish(_state(step))
-    assert not _take_local(not_local.local)
-    assert _take_local(keep_all.local) and _take_local(newest.local)
+    assert not take_local(not_local.local)
+    assert take_local(keep_all.local) and take_local(newest.local)
     assert got_all == [_state(k) for k in range(5)]  # keep-all: every message, in order
     assert got_latest == [_state(4)]  # keep-last 1: the newest, as its DDS reader would
 
@@ -109,7 +102,7 @@ def test_local_subscribers_get_every_message_and_dds_only_peers_outside(contexts
         pub.publish(_state(step))
     assert _until(lambda: (executor.spin_once(timeout_sec=0.05), len(received) == 3)[1])
     assert received == [_state(k) for k in range(5, 8)]
-    _take_local(keep_all.local)
+    take_local(keep_all.local)
     assert got_all == [_state(k) for k in range(8)]  # each message once, none twice
     executor.shutdown()
     for inputs in (keep_all, newest, not_local):

@@ -27,6 +27,9 @@ from . import cdr
 from .stamps import effort_step
 
 DESCRIPTION_KEY = "pdsmc_ros.run_description"
+# the recorder's own description of the run, from its parameters, on disk at open: it names a
+# run whose controller's description (with its gains) never reached the recorder
+RECORDER_DESCRIPTION_TOPIC = "/pdsmc/recorder_description"
 
 
 def decode_topic(raws: list[bytes], layout_of) -> list[tuple[np.ndarray, dict[str, np.ndarray]]]:  # noqa: ANN001
@@ -85,6 +88,8 @@ class RecordedRun:
     # steps whose torque is the plant's report, not a recorded command: safe mode, or a command
     # its dying sender got to the plant but not to the recorder
     plant_torque_steps: int = 0
+    # the description is the recorder's own (its parameters): the controller's never arrived
+    description_from_recorder: bool = False
 
     @property
     def steps(self) -> int:
@@ -107,7 +112,8 @@ def read_run(path: str | Path) -> RecordedRun:
     files = sorted(path.glob("*.mcap")) if path.is_dir() else [path]
     if not files:
         raise BagError(f"cannot read bag {str(path)!r}: no .mcap file in it")
-    topics = ("/pdsmc/run_description", "/joint_states", "/reference", "/effort_controller/commands")
+    topics = ("/pdsmc/run_description", "/joint_states", "/reference", "/effort_controller/commands",
+              RECORDER_DESCRIPTION_TOPIC)
     raw_by_topic: dict[str, list[bytes]] = {t: [] for t in topics}
     truncated = False
     for file in files:
@@ -115,9 +121,12 @@ def read_run(path: str | Path) -> RecordedRun:
         truncated |= not result.complete
         for topic in topics:
             raw_by_topic[topic] += result.messages[topic]
-    if not raw_by_topic["/pdsmc/run_description"]:
+    own = raw_by_topic.pop(RECORDER_DESCRIPTION_TOPIC)
+    from_recorder = not raw_by_topic["/pdsmc/run_description"]
+    if from_recorder and not own:
         raise BagError(f"bag {str(path)!r} holds no /pdsmc/run_description: not a pdsmc_ros run")
-    description: dict[str, Any] = json.loads(cdr.decode_string(raw_by_topic.pop("/pdsmc/run_description")[0]))
+    described = raw_by_topic.pop("/pdsmc/run_description") or own
+    description: dict[str, Any] = json.loads(cdr.decode_string(described[0]))
     spec = RunSpec.from_description(description)
     n = len(spec.gains.kp)
     rate = spec.rate
@@ -176,7 +185,7 @@ def read_run(path: str | Path) -> RecordedRun:
     }
     return RecordedRun(spec, description, q, qd, q_ref, tau, counts, missing,
                        complete=not any(missing.values()) and not truncated, truncated=truncated,
-                       plant_torque_steps=plant_torque)
+                       plant_torque_steps=plant_torque, description_from_recorder=from_recorder)
 
 
 def run_samples(run: RecordedRun) -> Samples:

@@ -17,8 +17,9 @@ from collections.abc import Sequence
 from rclpy.utilities import remove_ros_args
 
 from ..cli import OneLineParser
-from .common import EXIT_BAD_INPUT, run_nodes
 from .controller import ControllerNode
+from .executor import run_nodes
+from .lifecycle import EXIT_BAD_INPUT
 from .plant import PlantNode
 from .recorder import RecorderNode
 from .trajectory import TrajectoryNode

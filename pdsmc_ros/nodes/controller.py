@@ -34,7 +34,12 @@ import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.duration import Duration
-from rclpy.lifecycle import LifecycleNode, LifecycleState, ManagedEntity, TransitionCallbackReturn
+from rclpy.lifecycle import (
+    LifecycleNode,
+    LifecycleState,
+    ManagedEntity,
+    TransitionCallbackReturn,
+)
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension, String
 from trajectory_msgs.msg import JointTrajectory
@@ -53,8 +58,19 @@ from ..presets import Gains, RunSpec
 from ..safety import Staleness, limit_torque
 from ..simulator import ControlLaw, control_steps
 from ..stability import check_rate
-from .common import (
-    EXIT_OK,
+from .executor import run_node
+from .io import GuardedPublisher, Inputs
+from .lifecycle import EXIT_OK, end_when_plant_leaves
+from .params import (
+    GainUpdates,
+    declare_busy_wait,
+    declare_int_parameter,
+    declare_run_parameters,
+    description_json,
+    run_spec_from_parameters,
+    torque_limit_from_parameters,
+)
+from .topics import (
     LATCHED_QOS,
     STREAM_QOS,
     TOPIC_DESCRIPTION,
@@ -65,17 +81,6 @@ from .common import (
     TOPIC_REFERENCE,
     TOPIC_TIMING,
     TRAJECTORY_QOS,
-    GainUpdates,
-    GuardedPublisher,
-    Inputs,
-    declare_busy_wait,
-    declare_int_parameter,
-    declare_run_parameters,
-    description_json,
-    end_when_plant_leaves,
-    run_node,
-    run_spec_from_parameters,
-    torque_limit_from_parameters,
 )
 
 # Real time: achieved-period rows [wall time, period, compute time, lateness, missed so far]

@@ -33,36 +33,41 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray, String
 
-from ..bag.cdr import decode_float64_multi_array, encode_clock, encode_joint_state, encode_point_stamped
+from ..bag.cdr import (
+    decode_float64_multi_array,
+    encode_clock,
+    encode_joint_state,
+    encode_point_stamped,
+)
 from ..bag.stamps import step_stamp
 from ..errors import CdrError
 from ..presets import robot_params
-from ..urdf import robot_urdf
 from ..safety import Watchdog, check_effort, safe_torque
 from ..simulator import PlantStepper, control_steps
-from .common import (
-    GuardedPublisher,
-    Inputs,
-    LATCHED_QOS,
-    STEADY_CLOCK,
-    EXIT_OK,
-    STREAM_QOS,
-    TOPIC_ROBOT_DESCRIPTION,
-    TOPIC_EE_ACTUAL,
-    TOPIC_DIAGNOSTICS,
-    TOPIC_EFFORT,
-    TOPIC_JOINT_STATES,
+from ..urdf import robot_urdf
+from .executor import run_node
+from .io import GuardedPublisher, Inputs
+from .lifecycle import EXIT_OK
+from .params import (
     decimation,
     declare_busy_wait,
     declare_int_parameter,
     declare_run_parameters,
     declare_safety_parameters,
-    run_node,
     refuse_run_changes,
     run_spec_from_parameters,
     safety_from_parameters,
 )
-
+from .topics import (
+    LATCHED_QOS,
+    STEADY_CLOCK,
+    STREAM_QOS,
+    TOPIC_DIAGNOSTICS,
+    TOPIC_EE_ACTUAL,
+    TOPIC_EFFORT,
+    TOPIC_JOINT_STATES,
+    TOPIC_ROBOT_DESCRIPTION,
+)
 
 MAX_CATCH_UP = 100  # real time: periods a late tick integrates at most besides its own
 
@@ -265,7 +270,7 @@ class PlantNode:
         Until the first effort arrives the arm is held at its initial state (the
         controller may still be starting), so the run begins under control. When
         the loop was more than two periods late it skips the ticks it missed
-        (:func:`~pdsmc_ros.nodes.common._serve_loop` resynchronises); the arm's
+        (:func:`~pdsmc_ros.nodes.executor._serve_loop` resynchronises); the arm's
         time does not stop meanwhile, so the plant integrates those periods too
         (at most ``MAX_CATCH_UP``): its time stays the wall clock's, which the
         nodes downstream keep on their own clocks.

@@ -25,38 +25,35 @@ from pathlib import Path
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PointStamped
 from rclpy.node import Node
-from rclpy.serialization import deserialize_message
+from rclpy.serialization import deserialize_message, serialize_message
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray, String
 from trajectory_msgs.msg import JointTrajectory
 
-from ..bag.reader import DESCRIPTION_KEY
+from ..bag.reader import DESCRIPTION_KEY, RECORDER_DESCRIPTION_TOPIC
 from ..bag.stamps import effort_step, header_step
 from ..bag.writer import MessageAppender, close_chunk
 from ..errors import BagError, CdrError, ConfigError
 from ..simulator import control_steps
-from .common import (
-    EXIT_FAILURE,
-    EXIT_OK,
-    Inputs,
+from .executor import run_node
+from .io import Inputs
+from .lifecycle import EXIT_FAILURE, EXIT_OK
+from .params import declare_run_parameters, description_json, refuse_run_changes, run_spec_from_parameters
+from .topics import (
     LATCHED_QOS,
     LOCKSTEP_QOS,
     STEADY_CLOCK,
     TOPIC_DESCRIPTION,
-    TOPIC_ROBOT_DESCRIPTION,
     TOPIC_DIAGNOSTICS,
     TOPIC_EE_ACTUAL,
     TOPIC_EE_DESIRED,
     TOPIC_EFFORT,
     TOPIC_JOINT_STATES,
     TOPIC_REFERENCE,
+    TOPIC_ROBOT_DESCRIPTION,
     TOPIC_TIMING,
-    declare_run_parameters,
-    run_node,
-    refuse_run_changes,
-    run_spec_from_parameters,
 )
 
 # topic -> (rclpy type, ROS type name, QoS)
@@ -113,12 +110,19 @@ class RecorderNode:
         # the flush timer may run in the executor's thread (real-time composed mode)
         self.lock = threading.Lock()
         # off the loop's critical path: take messages in batches (keep-all subscriptions)
-        self.inputs = Inputs(node, str(node.get_parameter("mode").value), batch_s=RECORDER_BATCH_S)
+        mode = str(node.get_parameter("mode").value)
+        self.inputs = Inputs(node, mode, batch_s=RECORDER_BATCH_S)
         for topic, (msg_type, type_name, qos) in RECORDED.items():
             name = "/" + topic
             self.connections[topic] = self.writer.add_connection(name, type_name, typestore=typestore)
             self.inputs.subscribe(msg_type, topic, self._callback(topic), qos)
-        self.flush()  # the MCAP header and channels on disk now: a bag from any moment on
+        # the run as this recorder's parameters describe it, on disk now with the MCAP header:
+        # a bag from any moment on names its run, even before the controller's description
+        # (with its gains) has been discovered and received
+        own = self.writer.add_connection(RECORDER_DESCRIPTION_TOPIC, "std_msgs/msg/String", typestore=typestore)
+        MessageAppender(self.writer, own).append_many(
+            time.time_ns(), [serialize_message(String(data=description_json(self.spec, mode)))])
+        self.flush()
         # rosbags closes an MCAP chunk only at 1 MiB (seconds of data); close and flush one
         # every 0.5 s so a killed recorder loses at most that much (see bag/mcapscan.py)
         self.flush_timer = node.create_timer(FLUSH_PERIOD_S, self.flush, clock=STEADY_CLOCK)

@@ -38,25 +38,24 @@ from ..bag.cdr import decode_stamp, encode_joint_trajectories, encode_point_stam
 from ..bag.stamps import stamp_step, step_stamp
 from ..errors import CdrError
 from ..simulator import control_steps
-from .common import (
-    GuardedPublisher,
-    Inputs,
+from .executor import run_node
+from .io import GuardedPublisher, Inputs
+from .lifecycle import EXIT_OK, end_when_plant_leaves
+from .params import (
+    declare_busy_wait,
+    declare_int_parameter,
+    declare_run_parameters,
+    refuse_run_changes,
+    run_spec_from_parameters,
+)
+from .topics import (
     STEADY_CLOCK,
-    EXIT_OK,
     STREAM_DEPTH,
     STREAM_QOS,
     TOPIC_EE_DESIRED,
     TOPIC_JOINT_STATES,
     TOPIC_REFERENCE,
-    declare_busy_wait,
-    declare_int_parameter,
-    declare_run_parameters,
-    end_when_plant_leaves,
-    run_node,
-    refuse_run_changes,
-    run_spec_from_parameters,
 )
-
 
 LOOKAHEAD_STEPS = 500  # lockstep: 50 ms at 10 kHz; far below STREAM_DEPTH
 ENCODE_WINDOW = 1024  # references serialized at a time (numpy, about 1 us each instead of 6)

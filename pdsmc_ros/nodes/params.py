@@ -1,0 +1,310 @@
+"""Run parameters of the nodes: one schema, validated on set, applied post-set.
+
+Turns ROS parameters into a :class:`~pdsmc_ros.presets.RunSpec`; nothing here computes
+physics, control or metrics.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+from rcl_interfaces.msg import (
+    FloatingPointRange,
+    ParameterDescriptor,
+    SetParametersResult,
+)
+from rclpy.exceptions import (
+    ParameterUninitializedException,
+)
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+
+from ..errors import ConfigError, InvalidInputError
+from ..presets import (
+    CONTROLLER_NAMES,
+    GAIN_NAMES,
+    ROBOT_NAMES,
+    Gains,
+    RunSpec,
+    make_run,
+)
+from ..safety import MAX_SAFE_DAMPING, MAX_SAFE_STIFFNESS, SafetyConfig
+from .topics import MODES
+
+BUSY_WAIT_S = 0.0002  # real time: default busy-wait before a tick (parameter busy_wait)
+
+
+def _descriptor(
+    description: str, *, lo: float | None = None, hi: float | None = None, constraints: str = ""
+) -> ParameterDescriptor:
+    # dynamic typing: `-p rate:=1000` (an integer) is accepted and checked by us,
+    # so a wrong type is one clear line instead of an rclpy traceback
+    desc = ParameterDescriptor(
+        description=description, additional_constraints=constraints, dynamic_typing=True
+    )
+    if lo is not None and hi is not None:
+        desc.floating_point_range = [FloatingPointRange(from_value=lo, to_value=hi, step=0.0)]
+    return desc
+
+
+RUN_PARAMETERS: dict[str, tuple[Any, ParameterDescriptor]] = {
+    "robot": ("serial_3r", _descriptor("manipulator", constraints="one of: " + ", ".join(ROBOT_NAMES))),
+    "contour": ("circle", _descriptor("contour preset (config/contours.yaml) or csv")),
+    "type": ("pdsmc", _descriptor("controller type", constraints="one of: " + ", ".join(CONTROLLER_NAMES))),
+    "scenario": ("nominal", _descriptor("robustness scenario (config/scenarios.yaml)")),
+    "mode": ("lockstep", _descriptor("timing mode", constraints="one of: lockstep, realtime")),
+    "rate": (0.0, _descriptor("control rate in Hz (0: preset, 10 kHz serial / 5 kHz parallel)", lo=0.0, hi=1.0e6)),
+    "sample_rate": (0.0, _descriptor("statistics rate in Hz (0: thesis value)", lo=0.0, hi=1.0e6)),
+    "duration_factor": (1.0, _descriptor("multiplies the contour duration", lo=0.001, hi=1000.0)),
+    "smc_reading": ("literal", _descriptor("SMC model estimate (config/smc_readings.yaml)")),
+    "ellipse_error": ("nearest", _descriptor("ellipse contour error", constraints="nearest or osculating")),
+    "waypoints_file": ("", _descriptor("CSV of task-space waypoints for contour csv")),
+    "segment_duration": (2.0, _descriptor("seconds per CSV segment", lo=0.001, hi=1000.0)),
+    "clock_rate": (100.0, _descriptor("lockstep: /clock publication rate in sim-time Hz", lo=1.0, hi=1.0e6)),
+}
+GAIN_DESCRIPTIONS = {
+    "kp": "proportional gains Kp, one per joint (empty: preset of Table 4.16 / 4.33)",
+    "kd": "derivative gains Kd, one per joint (empty: preset)",
+    "ks": "switching gains Ks, one per joint (empty: preset)",
+    "lam": "sliding-surface slopes lambda, one per joint (empty: preset)",
+    "phi": "boundary layers phi > 0, one per joint (empty: preset)",
+}
+
+
+SAFETY_PARAMETERS: dict[str, tuple[Any, ParameterDescriptor]] = {
+    "watchdog_timeout": (2.0, _descriptor(
+        "lockstep: wall-clock seconds without effort before safe mode (checked every 20 ms)", lo=0.05, hi=3600.0)),
+    "watchdog_periods": (20, _descriptor("real time: control periods without effort before safe mode")),
+    "safe_mode": ("damp", _descriptor("safe mode", constraints="damp (braking only) or hold (hold position)")),
+    "safe_damping": (5.0, _descriptor("safe-mode braking gain in N m s/rad", lo=0.0, hi=MAX_SAFE_DAMPING)),
+    "safe_stiffness": (200.0, _descriptor("hold-mode stiffness in N m/rad", lo=0.0, hi=MAX_SAFE_STIFFNESS)),
+    "on_controller_loss": ("resume", _descriptor("after safe mode", constraints="resume or end")),
+    "safe_time_scale": (1.0, _descriptor(
+        "lockstep: sim seconds the plant advances per wall second in safe mode (1: real time, 0: frozen)",
+        lo=0.0, hi=1000.0)),
+}
+
+
+def refuse_run_changes(params: list[Parameter]) -> SetParametersResult:
+    """Set-parameters callback of the plant, trajectory and recorder: a run's definition
+    is fixed while it runs."""
+    for param in params:
+        if param.name in RUN_PARAMETERS or param.name in SAFETY_PARAMETERS or param.name == "output":
+            return SetParametersResult(
+                successful=False, reason=f"{param.name} defines the run and cannot change while it runs"
+            )
+    return SetParametersResult(successful=True)
+
+
+def declare_safety_parameters(node: Node) -> None:
+    for name, (default, desc) in SAFETY_PARAMETERS.items():
+        node.declare_parameter(name, default, desc)
+
+
+def safety_from_parameters(node: Node) -> SafetyConfig:
+    """The plant's SafetyConfig, validated (ConfigError naming the parameter)."""
+    values = {name: node.get_parameter(name).value for name in SAFETY_PARAMETERS}
+    for name in ("watchdog_timeout", "safe_damping", "safe_stiffness", "safe_time_scale"):
+        if isinstance(values[name], bool) or not isinstance(values[name], (int, float)):
+            raise ConfigError(f"parameter {name} must be a number, got {values[name]!r}")
+    if not 0.0 <= values["safe_time_scale"] <= 1000.0:
+        raise ConfigError(f"parameter safe_time_scale must be in [0, 1000], got {values['safe_time_scale']!r}")
+    if isinstance(values["watchdog_periods"], bool) or not isinstance(values["watchdog_periods"], int) \
+            or values["watchdog_periods"] < 1:
+        raise ConfigError(f"parameter watchdog_periods must be a whole number >= 1, got {values['watchdog_periods']!r}")
+    try:
+        return SafetyConfig(mode=values["safe_mode"], damping=float(values["safe_damping"]),
+                            stiffness=float(values["safe_stiffness"]), on_loss=values["on_controller_loss"])
+    except InvalidInputError as exc:
+        raise ConfigError(f"parameter {exc}") from None
+
+
+def declare_int_parameter(node: Node, name: str, default: int, description: str, *,
+                          lo: int, hi: int) -> int:
+    """Declare a whole-number parameter and return its value, checked against [lo, hi].
+
+    A wrong type or range is a ConfigError naming the parameter and what is allowed.
+    """
+    node.declare_parameter(name, default, ParameterDescriptor(
+        description=description, additional_constraints=f"a whole number in [{lo}, {hi}]",
+        dynamic_typing=True))
+    value = node.get_parameter(name).value
+    if isinstance(value, bool) or not isinstance(value, int) or not lo <= value <= hi:
+        raise ConfigError(f"parameter {name} must be a whole number in [{lo}, {hi}], got {value!r}")
+    return value
+
+
+def declare_busy_wait(node: Node) -> float:
+    """Declare ``busy_wait`` and return it: real time, seconds before each tick spent
+    busy-waiting instead of sleeping (see :func:`_serve_loop`); a ConfigError if bad."""
+    node.declare_parameter("busy_wait", BUSY_WAIT_S, _descriptor(
+        "real time: seconds before each tick spent busy-waiting instead of sleeping (absorbs late "
+        "wake-ups, costs that share of a core; a process running every ticking node: up to the whole period)",
+        lo=0.0, hi=1.0))
+    value = node.get_parameter("busy_wait").value
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0.0 <= value <= 1.0:
+        raise ConfigError(f"parameter busy_wait must be a number of seconds in [0, 1], got {value!r}")
+    return float(value)
+
+
+def torque_limit_from_parameters(node: Node, n: int) -> np.ndarray | None:
+    """``torque_limit`` (one positive number per joint, or unset), validated."""
+    value = node.get_parameter("torque_limit").value
+    if value is None or (not isinstance(value, str) and len(value) == 0):
+        return None
+    if isinstance(value, str) or not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value):
+        raise ConfigError(f"parameter torque_limit must be a list of {n} numbers, got {value!r}")
+    limit = np.asarray(value, dtype=float)
+    if limit.shape != (n,) or not np.all(np.isfinite(limit)) or np.any(limit <= 0):
+        raise ConfigError(f"parameter torque_limit needs {n} finite values > 0 (N m), got {list(value)}")
+    return limit
+
+
+def _range_of(name: str) -> tuple[float, float]:
+    ranges = RUN_PARAMETERS[name][1].floating_point_range
+    if ranges:
+        return ranges[0].from_value, ranges[0].to_value
+    return float("-inf"), float("inf")
+
+
+def declare_run_parameters(node: Node, *, gains: bool = False) -> None:
+    """Declare the parameters that define a run (and the gains, for the controller)."""
+    for name, (default, desc) in RUN_PARAMETERS.items():
+        node.declare_parameter(name, default, desc)
+    if gains:
+        for name in GAIN_NAMES:
+            node.declare_parameter(name, None, _descriptor(GAIN_DESCRIPTIONS[name]))
+
+
+def run_spec_from_parameters(node: Node) -> RunSpec:
+    """Build and validate the RunSpec named by the node's parameters.
+
+    Raises
+    ------
+    InvalidInputError
+        With a message naming the parameter and what is allowed.
+    """
+    p = {}
+    for name, (default, _desc) in RUN_PARAMETERS.items():
+        value = node.get_parameter(name).value
+        if isinstance(default, str):
+            if not isinstance(value, str):
+                raise ConfigError(f"parameter {name} must be a string, got {value!r}")
+        else:
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise ConfigError(f"parameter {name} must be a number, got {value!r}")
+            value = float(value)
+            lo, hi = _range_of(name)
+            if not lo <= value <= hi:
+                raise ConfigError(f"parameter {name} must be in [{lo:g}, {hi:g}], got {value:g}")
+        p[name] = value
+    if p["mode"] not in MODES:
+        raise ConfigError(f"parameter mode: unknown value {p['mode']!r}; choose one of: lockstep, realtime")
+    from ..reproduce import smc_reading
+
+    try:
+        spec = make_run(
+            p["robot"],
+            p["contour"],
+            p["type"],
+            scenario=p["scenario"],
+            rate=p["rate"] or None,
+            sample_rate=p["sample_rate"] or None,
+            smc_model=smc_reading(p["smc_reading"]) if p["type"] == "smc" else None,
+            ellipse_error=p["ellipse_error"],
+            waypoints_file=p["waypoints_file"] or None,
+            segment_duration=p["segment_duration"],
+        )
+    except ConfigError as exc:
+        raise ConfigError(f"parameters: {exc}") from None
+    if p["duration_factor"] != 1.0:
+        spec = dataclasses.replace(spec, duration_factor=spec.duration_factor * p["duration_factor"])
+    overrides = {}
+    for name in GAIN_NAMES:
+        if not node.has_parameter(name):
+            continue
+        try:
+            value = node.get_parameter(name).value
+        except ParameterUninitializedException:
+            continue  # not given: the preset applies
+        if value is not None and len(value) > 0:
+            if isinstance(value, str) or not all(
+                isinstance(v, (int, float)) and not isinstance(v, bool) for v in value
+            ):
+                raise ConfigError(f"parameter {name} must be a list of numbers, got {value!r}")
+            overrides[name] = [float(v) for v in value]
+    if overrides:
+        merged = {**spec.gains.as_dict(), **overrides}
+        n = len(spec.gains.kp)
+        gains = Gains.from_mapping(merged, n, spec.controller)
+        spec = dataclasses.replace(spec, gains=gains)
+    return spec
+
+
+class GainUpdates:
+    """Run-time gain changes, ros2/demos style: the on-set callback validates, the
+    post-set callback applies.
+
+    A change passes exactly the checks of start-up (:meth:`Gains.from_mapping`
+    and the zero-order-hold stability check at the running rate,
+    :func:`~pdsmc_ros.stability.check_rate`) or is refused with the reason
+    (``ros2 param set`` shows it: for an unstable gain, the lowest stable
+    rate). ``apply`` receives the accepted gains only after the parameters are
+    set, from the post-set callback.
+    """
+
+    def __init__(self, node: Node, spec: RunSpec, check: Callable[[RunSpec], object],
+                 apply: Callable[[Gains], None]) -> None:
+        self.spec = spec
+        self.check = check
+        self.apply = apply
+        self.pending: Gains | None = None
+        node.add_on_set_parameters_callback(self.validate)
+        node.add_post_set_parameters_callback(self.applied)
+
+    def validate(self, params: list[Parameter]) -> SetParametersResult:
+        merged = self.spec.gains.as_dict()
+        changed = False
+        for param in params:
+            if param.name in GAIN_NAMES:
+                merged[param.name] = list(param.value or [])
+                changed = True
+            elif param.name in RUN_PARAMETERS or param.name in ("joints", "autostart"):
+                return SetParametersResult(
+                    successful=False,
+                    reason=f"{param.name} defines the run and cannot change while it runs",
+                )
+        self.pending = None
+        if not changed:
+            return SetParametersResult(successful=True)
+        try:
+            gains = Gains.from_mapping(
+                {k: v for k, v in merged.items() if v}, len(self.spec.gains.kp), self.spec.controller
+            )
+            self.check(dataclasses.replace(self.spec, gains=gains))
+        except (InvalidInputError, TypeError) as exc:
+            return SetParametersResult(successful=False, reason=str(exc))
+        self.pending = gains
+        return SetParametersResult(successful=True)
+
+    def applied(self, params: list[Parameter]) -> None:
+        if self.pending is None or not any(p.name in GAIN_NAMES for p in params):
+            return
+        gains, self.pending = self.pending, None
+        self.spec = dataclasses.replace(self.spec, gains=gains)
+        self.apply(gains)
+
+
+def description_json(spec: RunSpec, mode: str) -> str:
+    data = spec.describe()
+    data["mode"] = mode
+    return json.dumps(data, sort_keys=True)
+
+
+def decimation(rate: float, target: float) -> int:
+    """Publish every ``decimation`` steps so a ``rate`` Hz loop emits at most ``target`` Hz."""
+    return max(1, int(round(rate / target)))

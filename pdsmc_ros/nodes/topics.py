@@ -1,0 +1,69 @@
+"""Topic names and QoS of the pdsmc_ros nodes (ros2_control conventions where they exist)."""
+
+from __future__ import annotations
+
+from rclpy.clock import Clock, ClockType
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+# --------------------------------------------------------------------------- #
+# Topics (ros2_control conventions where they exist)
+# --------------------------------------------------------------------------- #
+TOPIC_JOINT_STATES = "joint_states"
+TOPIC_EFFORT = "effort_controller/commands"
+TOPIC_REFERENCE = "reference"
+TOPIC_EE_DESIRED = "end_effector/desired"
+TOPIC_EE_ACTUAL = "end_effector/actual"
+TOPIC_DESCRIPTION = "pdsmc/run_description"
+TOPIC_TIMING = "pdsmc/controller_timing"
+TOPIC_DIAGNOSTICS = "diagnostics"
+TOPIC_JOINT_TRAJECTORY = "~/joint_trajectory"  # joint_trajectory_controller's topic interface
+TOPIC_ROBOT_DESCRIPTION = "robot_description"
+
+MODES = ("lockstep", "realtime")
+
+# Subscriptions of the lockstep loop and the recorder: every sample, in order (reliable,
+# keep-all; a shallow keep-last queue lost data).
+LOCKSTEP_QOS = QoSProfile(
+    reliability=ReliabilityPolicy.RELIABLE,
+    history=HistoryPolicy.KEEP_ALL,
+    durability=DurabilityPolicy.VOLATILE,
+)
+# Publishers of the loop: reliable with a deep but bounded history. A keep-all writer
+# blocks in publish() once a subscriber stops acknowledging (a killed node, until DDS
+# drops it, or a new node still starting): that froze the plant in safe mode. A live
+# subscriber acknowledges each sample long before 10,000 newer ones are written.
+STREAM_DEPTH = 10_000
+STREAM_QOS = QoSProfile(
+    reliability=ReliabilityPolicy.RELIABLE,
+    history=HistoryPolicy.KEEP_LAST,
+    depth=STREAM_DEPTH,
+    durability=DurabilityPolicy.VOLATILE,
+)
+# Real time: a controller acts on the newest sample; a queue of old ones is only delay.
+LATEST_QOS = QoSProfile(
+    reliability=ReliabilityPolicy.RELIABLE,
+    history=HistoryPolicy.KEEP_LAST,
+    depth=1,
+    durability=DurabilityPolicy.VOLATILE,
+)
+
+
+# The run description is published once and must reach late joiners.
+LATCHED_QOS = QoSProfile(
+    reliability=ReliabilityPolicy.RELIABLE,
+    history=HistoryPolicy.KEEP_LAST,
+    depth=1,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
+
+# Standard trajectories (joint_trajectory_controller subscribes with the system default QoS:
+# reliable, volatile, keep last 10)
+TRAJECTORY_QOS = QoSProfile(
+    reliability=ReliabilityPolicy.RELIABLE,
+    history=HistoryPolicy.KEEP_LAST,
+    depth=10,
+    durability=DurabilityPolicy.VOLATILE,
+)
+
+# Start-up polling must not wait for /clock, which starts only once everyone is there.
+STEADY_CLOCK = Clock(clock_type=ClockType.STEADY_TIME)

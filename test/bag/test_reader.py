@@ -1,0 +1,48 @@
+"""The run reader names a run by the controller's description, or by the recorder's own."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+from rosbags.rosbag2 import StoragePlugin, Writer
+from rosbags.typesys import Stores, get_typestore
+
+from pdsmc_ros.bag.reader import RECORDER_DESCRIPTION_TOPIC, read_run
+from pdsmc_ros.errors import BagError
+from pdsmc_ros.presets import make_run
+
+TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
+String = TYPESTORE.types["std_msgs/msg/String"]
+
+
+def description(controller: str) -> str:
+    data = make_run("serial_3r", "circle", controller).describe()
+    data["mode"] = "lockstep"
+    return json.dumps(data, sort_keys=True)
+
+
+def write_bag(path: Path, topics: dict[str, str]) -> Path:
+    with Writer(path, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        for i, (topic, text) in enumerate(topics.items()):
+            conn = writer.add_connection(topic, "std_msgs/msg/String", typestore=TYPESTORE)
+            writer.write(conn, i, TYPESTORE.serialize_cdr(String(data=text), "std_msgs/msg/String"))
+    return path
+
+
+def test_the_controllers_description_names_the_run(tmp_path: Path) -> None:
+    bag = write_bag(tmp_path / "both", {RECORDER_DESCRIPTION_TOPIC: description("pd"),
+                                        "/pdsmc/run_description": description("pdsmc")})
+    run = read_run(bag)
+    assert run.description["controller"] == "pdsmc" and not run.description_from_recorder
+
+
+def test_without_it_the_recorders_own_description_names_the_run(tmp_path: Path) -> None:
+    run = read_run(write_bag(tmp_path / "own", {RECORDER_DESCRIPTION_TOPIC: description("smc")}))
+    assert run.description["controller"] == "smc" and run.description_from_recorder
+
+
+def test_a_bag_with_neither_is_not_a_run(tmp_path: Path) -> None:
+    with pytest.raises(BagError, match="not a pdsmc_ros run"):
+        read_run(write_bag(tmp_path / "none", {"/chatter": "hello"}))
