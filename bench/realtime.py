@@ -28,9 +28,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from pdsmc_ros.analysis import controller_timing  # noqa: E402
 from pdsmc_ros.bag.reader import read_run  # noqa: E402
-
+from pdsmc_ros.thesis.analysis import controller_timing  # noqa: E402
 
 REALTIME_LABEL = "plant, controller and trajectory composed intra-process, busy-waiting the whole period"
 

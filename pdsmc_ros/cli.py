@@ -151,8 +151,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _spec_from_args(args: argparse.Namespace):  # noqa: ANN202
-    from .presets import make_run
-    from .reproduce import smc_reading
+    from .presets import make_run, smc_reading
 
     return make_run(
         args.robot,
@@ -203,7 +202,9 @@ def cmd_simulate(args: argparse.Namespace) -> int:
 
 
 def cmd_reproduce(args: argparse.Namespace) -> int:
-    from .reproduce import run_reproduction, summarize, write_report
+    from .thesis.cells import summarize
+    from .thesis.report import write_report
+    from .thesis.reproduce import run_reproduction
 
     def progress(line: str) -> None:
         print(line, file=sys.stderr, flush=True)
@@ -256,7 +257,7 @@ def cmd_check_gains(args: argparse.Namespace) -> int:
 
 
 def cmd_analyze(args: argparse.Namespace) -> int:
-    from .analysis import analyze_bag, comparison_table, find_bags, write_outputs
+    from .thesis.analysis import analyze_bag, comparison_table, find_bags, write_outputs
 
     paths, skipped = find_bags(args.bags)
     for line in skipped:
@@ -267,7 +268,7 @@ def cmd_analyze(args: argparse.Namespace) -> int:
     bags = [analyze_bag(path) for path in paths]
     if args.plots:
         from .bag.reader import run_samples
-        from .plots import plot_comparison, plot_run
+        from .thesis.plots import plot_comparison, plot_run
 
         out = Path(args.out or "analysis")
         written = []
@@ -304,7 +305,7 @@ def cmd_analyze(args: argparse.Namespace) -> int:
 
 
 def cmd_sweep(args: argparse.Namespace) -> int:
-    from .sweep import run_sweep
+    from .thesis.sweep import run_sweep
 
     def progress(done: int, total: int, _res: object) -> None:
         print(f"[{done}/{total}]", end="\r", file=sys.stderr, flush=True)
@@ -322,7 +323,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     if args.out:
         import csv
 
-        from .plots import plot_sweep
+        from .thesis.plots import plot_sweep
 
         out = Path(args.out)
         out.mkdir(parents=True, exist_ok=True)

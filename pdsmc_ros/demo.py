@@ -16,9 +16,9 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 
-from .analysis import analyze_bag, comparison_table
 from .cli import EXIT_USAGE, OneLineParser, positive_float
 from .resources import ros_environment, script_path, scripts_dir
+from .thesis.analysis import analyze_bag, comparison_table
 
 
 def command_hint(argv: list[str]) -> str:

@@ -19,8 +19,8 @@ import yaml
 
 from . import __version__
 from .errors import ConfigError
-from .resources import config_dir
 from .models import Manipulator, RobotParams, make_robot
+from .resources import config_dir
 from .trajectories import Contour, EllipseContour, JointReference, SegmentContour
 
 ROBOT_NAMES = ("serial_3r", "parallel_5r")
@@ -447,3 +447,9 @@ def make_run(
         segment_duration=segment_duration,
         bound=CONTOUR_BOUND[robot],
     )
+
+
+def smc_reading(name: str) -> dict[str, float]:
+    """Model-estimate scales of a named SMC reading (``config/smc_readings.yaml``)."""
+    readings = load_config("smc_readings")
+    return dict(readings[choice(name, list(readings), "SMC reading")]["model"])

@@ -23,8 +23,8 @@ from .errors import InvalidInputError
 from .metrics import Metrics, Samples, compute_metrics
 from .models import FloatArray, Manipulator, as_vector
 from .presets import RunSpec, control_steps
-from .trajectories import JointReference
 from .stability import check_rate
+from .trajectories import JointReference
 
 CONTROLLER_CODES = {"pd": kernels.CTRL_PD, "smc": kernels.CTRL_SMC, "pdsmc": kernels.CTRL_PDSMC}
 

@@ -110,8 +110,8 @@ def robot_urdf(robot: str, params: RobotParams, payload: float = 0.0) -> str:
             raise ValueError(f"parallel_5r needs 4 links, got {len(links)}")
         l1, l2, l3, l4 = links
         body = (
-            f"  <!-- closed chain: the tips of link3 and link4 (the end effector) coincide; URDF holds\n"
-            f"       the open tree, joint3 and joint4 are passive (angles relative to their crank) -->\n"
+            "  <!-- closed chain: the tips of link3 and link4 (the end effector) coincide; URDF holds\n"
+            "       the open tree, joint3 and joint4 are passive (angles relative to their crank) -->\n"
             + _joint("joint1", "base_link", "link1", 0.0, damping=params.motor_damping) + _link("link1", l1)
             + _joint("joint2", "base_link", "link2", params.base_length, damping=params.motor_damping)
             + _link("link2", l2)

@@ -11,8 +11,6 @@ import pytest
 
 rclpy = pytest.importorskip("rclpy")
 
-from pdsmc_ros.nodes.io import GuardedPublisher, Inputs, take_local  # noqa: E402
-from pdsmc_ros.nodes.topics import LATCHED_QOS, LATEST_QOS, LOCKSTEP_QOS, STREAM_QOS  # noqa: E402
 from rclpy.context import Context  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.node import Node  # noqa: E402
@@ -21,6 +19,8 @@ from std_msgs.msg import String  # noqa: E402
 
 from pdsmc_ros.bag import cdr  # noqa: E402
 from pdsmc_ros.nodes import intra  # noqa: E402
+from pdsmc_ros.nodes.io import GuardedPublisher, Inputs, take_local  # noqa: E402
+from pdsmc_ros.nodes.topics import LATCHED_QOS, LATEST_QOS, LOCKSTEP_QOS, STREAM_QOS  # noqa: E402
 
 DOMAIN_ID = 150 + os.getpid() % 50  # apart from other runs on this machine
 

@@ -7,9 +7,12 @@ import dataclasses
 import numpy as np
 import pytest
 
-from pdsmc_ros.errors import InvalidInputError, SingularConfigurationError, UnreachableError
+from pdsmc_ros.errors import (
+    InvalidInputError,
+    SingularConfigurationError,
+    UnreachableError,
+)
 from pdsmc_ros.integrators import rk4_step
-from pdsmc_ros.simulator import PlantStepper
 from pdsmc_ros.models import (
     PARALLEL_5R_PARAMS,
     SERIAL_3R_PARAMS,
@@ -17,6 +20,7 @@ from pdsmc_ros.models import (
     Serial3R,
     make_robot,
 )
+from pdsmc_ros.simulator import PlantStepper
 
 RNG_SEED = 20151
 

@@ -15,9 +15,9 @@ from __future__ import annotations
 
 import struct
 from collections import defaultdict
+from collections.abc import Sequence
 from io import BytesIO
 from itertools import chain
-from collections.abc import Sequence
 from typing import Any
 
 from rosbags.rosbag2 import Writer

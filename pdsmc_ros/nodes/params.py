@@ -204,7 +204,7 @@ def run_spec_from_parameters(node: Node) -> RunSpec:
         p[name] = value
     if p["mode"] not in MODES:
         raise ConfigError(f"parameter mode: unknown value {p['mode']!r}; choose one of: lockstep, realtime")
-    from ..reproduce import smc_reading
+    from ..presets import smc_reading
 
     try:
         spec = make_run(

@@ -40,7 +40,12 @@ from ..simulator import control_steps
 from .executor import run_node
 from .io import Inputs
 from .lifecycle import EXIT_FAILURE, EXIT_OK
-from .params import declare_run_parameters, description_json, refuse_run_changes, run_spec_from_parameters
+from .params import (
+    declare_run_parameters,
+    description_json,
+    refuse_run_changes,
+    run_spec_from_parameters,
+)
 from .topics import (
     LATCHED_QOS,
     LOCKSTEP_QOS,

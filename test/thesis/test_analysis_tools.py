@@ -6,11 +6,10 @@ import subprocess
 import sys
 
 import numpy as np
-import pytest
 
 from pdsmc_ros.lyapunov import theorem_conditions
 from pdsmc_ros.presets import Gains, make_run
-from pdsmc_ros.sweep import sweep_specs, thesis_values
+from pdsmc_ros.thesis.sweep import sweep_specs, thesis_values
 
 
 def test_thesis_increments_of_table_4_15() -> None:

@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from .metrics import Samples
+from ..metrics import Samples
 
 MAGNIFY = {"serial_3r": 100.0, "parallel_5r": 20.0}
 """Error magnification of the thesis's contour plots (footnotes of Figs. 4.40 ff.)."""

@@ -15,10 +15,10 @@ from typing import Any
 
 import numpy as np
 
-from .bag.reader import RecordedRun, read_run, run_metrics
-from .errors import BagError, InvalidInputError
-from .metrics import Metrics
-from .presets import CONTROLLER_LABELS as LABEL
+from ..bag.reader import RecordedRun, read_run, run_metrics
+from ..errors import BagError, InvalidInputError
+from ..metrics import Metrics
+from ..presets import CONTROLLER_LABELS as LABEL
 
 
 def is_bag(path: Path) -> bool:

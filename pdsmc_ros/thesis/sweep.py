@@ -15,10 +15,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import InvalidInputError
-from .presets import Gains, RunSpec, make_run
-from .simulator import simulate_many
-from .stability import rate_margin
+from ..errors import InvalidInputError
+from ..presets import Gains, RunSpec, make_run
+from ..simulator import simulate_many
+from ..stability import rate_margin
 
 BASELINE = {"kp": 5000.0, "kd": 1000.0, "ks": 5.0, "lam": 10.0, "phi": 0.5}
 RANGES = {"kp": (10.0, 10000.0), "kd": (0.0, 10000.0), "ks": (1.0, 200.0), "lam": (0.0, 200.0)}

@@ -16,18 +16,19 @@ import numpy as np
 import pytest
 
 from pdsmc_ros.models import Parallel5R, Serial3R
-from pdsmc_ros.presets import PAYLOAD_READINGS, RunSpec, load_config, loaded_params, make_run, robot_params
-from pdsmc_ros.reproduce import (
-    VERDICTS,
-    Cell,
-    Reproduction,
-    classify,
-    count_verdicts,
-    needed_torque,
-    run_reproduction,
-    write_report,
+from pdsmc_ros.presets import (
+    PAYLOAD_READINGS,
+    RunSpec,
+    load_config,
+    loaded_params,
+    make_run,
+    robot_params,
 )
 from pdsmc_ros.simulator import simulate
+from pdsmc_ros.thesis.cells import VERDICTS, Cell, Reproduction, needed_torque
+from pdsmc_ros.thesis.report import write_report
+from pdsmc_ros.thesis.reproduce import run_reproduction
+from pdsmc_ros.thesis.verdicts import classify, count_verdicts
 
 TABLES = load_config("thesis_tables")
 
