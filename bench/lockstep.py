@@ -68,7 +68,9 @@ def roundtrips_per_s(seconds: float = 4.0) -> float:
         got = {"n": 0}
         node.create_subscription(Float64MultiArray, "bench/pong", lambda _m: got.__setitem__("n", got["n"] + 1), 10)
         deadline = time.monotonic() + 20
-        while (pub.get_subscription_count() < 1 or node.count_publishers("bench/pong") < 1) and time.monotonic() < deadline:
+        while (
+            pub.get_subscription_count() < 1 or node.count_publishers("bench/pong") < 1
+        ) and time.monotonic() < deadline:
             rclpy.spin_once(node, timeout_sec=0.05)
         time.sleep(0.5)
         msg = Float64MultiArray(data=[0.0, 0.0, 0.0])

@@ -175,8 +175,8 @@ def format_metrics(metrics: dict, robot_n: int) -> str:
         "axial error SD   (rad): " + "  ".join(f"{metrics['axial_sd'][i]:.4e}" for i in axes),
         "task error mean    (m): x {x:.4e}  y {y:.4e}  total {total:.4e}".format(**metrics["task_mean"]),
         "task error SD      (m): x {x:.4e}  y {y:.4e}  total {total:.4e}".format(**metrics["task_sd"]),
-        f"contour error      (m): mean {metrics['contour_mean']:.4e}  SD {metrics['contour_sd']:.4e}"
-        f"  within {metrics['contour_bound']:g} m: {metrics['contour_within_pct']:.2f} %",
+        (f"contour error      (m): mean {metrics['contour_mean']:.4e}  SD {metrics['contour_sd']:.4e}"
+        f"  within {metrics['contour_bound']:g} m: {metrics['contour_within_pct']:.2f} %"),
         "max |torque|     (N m): " + "  ".join(f"{metrics['max_torque'][i]:.4g}" for i in axes),
     ]
     return "\n".join(lines)
@@ -331,7 +331,9 @@ def cmd_sweep(args: argparse.Namespace) -> int:
             writer = csv.writer(handle)
             writer.writerow([label, "rate_hz", "contour_mean", "contour_sd", "contour_max", "within_pct", "diverged"])
             for p in points:
-                writer.writerow([p.value, p.rate, p.contour_mean, p.contour_sd, p.contour_max, p.within_pct, p.diverged])
+                writer.writerow(
+                    [p.value, p.rate, p.contour_mean, p.contour_sd, p.contour_max, p.within_pct, p.diverged]
+                )
         ok = [p for p in points if not p.diverged]
         plot_sweep(label, np.array([p.value for p in ok]), np.array([p.contour_mean for p in ok]),
                    np.array([p.contour_sd for p in ok]), np.array([p.contour_max for p in ok]),

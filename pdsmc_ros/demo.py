@@ -8,6 +8,7 @@ then analysed offline with ``pdsmc analyze`` (Tables 4.25-4.28 of the thesis).
 from __future__ import annotations
 
 import argparse
+import contextlib
 import shlex
 import shutil
 import subprocess
@@ -26,10 +27,8 @@ def command_hint(argv: list[str]) -> str:
     exe = scripts_dir() / argv[0]
     found = shutil.which(argv[0])
     if found is None or Path(found).resolve() != exe.resolve():
-        try:
+        with contextlib.suppress(ValueError):
             exe = exe.relative_to(Path.cwd())
-        except ValueError:
-            pass
         argv = [str(exe), *argv[1:]]
     return " ".join(shlex.quote(a) for a in argv)
 

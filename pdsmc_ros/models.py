@@ -791,13 +791,12 @@ class Parallel5R(Manipulator):
         out = out + np.einsum(
             "...ji,...jk,...kl->...il", st.rho_left, self.left.mass_matrix(st.q_left), rho_dot_left
         )
-        out = out + np.einsum(
+        return out + np.einsum(
             "...ji,...jk,...kl->...il",
             st.rho_right,
             self.right.mass_matrix(st.q_right),
             rho_dot_right,
         )
-        return out
 
     def _rho_dot_matrices(self, st: FiveBarState, qd: FloatArray) -> tuple[FloatArray, FloatArray]:
         """Full ``rhodot`` (Eq. 57), columns from unit actuated rates (linear in qd)."""

@@ -66,7 +66,9 @@ def safe_torque(config: SafetyConfig, q: FloatArray, qd: FloatArray, q_hold: Flo
     return tau
 
 
-def check_effort(data: object, n: int, step: int | None = None, expected: int | None = None) -> tuple[FloatArray | None, str]:
+def check_effort(
+    data: object, n: int, step: int | None = None, expected: int | None = None
+) -> tuple[FloatArray | None, str]:
     """``(torque, "")`` if the command may be applied, else ``(None, reason)``."""
     if type(data) is tuple and len(data) == n and (expected is None or step == expected):
         try:  # the loop's path: the decoder's tuple of floats

@@ -26,7 +26,7 @@ from pdsmc_ros.presets import Gains, make_run
 from pdsmc_ros.simulator import ControlLaw
 from pdsmc_ros.stability import check_rate
 
-rclpy = pytest.importorskip("rclpy")
+pytest.importorskip("rclpy")
 import rclpy.clock  # noqa: E402
 import rclpy.duration  # noqa: E402
 import rclpy.executors  # noqa: E402
@@ -139,8 +139,24 @@ def domain(monkeypatch: pytest.MonkeyPatch, ros_env: dict) -> int:
 
 
 def start_controller(ros_env: dict, domain: int, log: Path, *params: str) -> subprocess.Popen:
-    args = ["ros2", "run", "pdsmc_ros", "controller", "--ros-args", "-p", "robot:=parallel_5r",
-            "-p", "mode:=realtime", "-p", f"rate:={RATE}", "-p", f"sample_rate:={RATE}", "-p", "stale_periods:=200", *params]
+    args = [
+        "ros2",
+        "run",
+        "pdsmc_ros",
+        "controller",
+        "--ros-args",
+        "-p",
+        "robot:=parallel_5r",
+        "-p",
+        "mode:=realtime",
+        "-p",
+        f"rate:={RATE}",
+        "-p",
+        f"sample_rate:={RATE}",
+        "-p",
+        "stale_periods:=200",
+        *params,
+    ]
     return subprocess.Popen(args, env=dict(ros_env, ROS_DOMAIN_ID=str(domain)), stdout=log.open("w"),
                             stderr=subprocess.STDOUT, start_new_session=True)
 
@@ -408,7 +424,6 @@ def test_lockstep_controller_follows_a_standard_trajectory_in_sim_time(
     from sensor_msgs.msg import JointState
     from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
-    rate = 5000.0  # the five-bar's preset rate
     log = tmp_path / "controller.log"
     args = ["ros2", "run", "pdsmc_ros", "controller", "--ros-args", "-p", "robot:=parallel_5r", "-p", "type:=pd"]
     proc = subprocess.Popen(args, env=dict(ros_env, ROS_DOMAIN_ID=str(domain)), stdout=log.open("w"),

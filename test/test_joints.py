@@ -37,7 +37,7 @@ def test_selector_caches_the_permutation_per_name_list() -> None:
     sel = JointSelector(JOINTS)
     names = ("joint2", "joint1", "joint3")
     first = sel.index(names)[0]
-    assert sel.index(tuple(list(names)))[0] is first  # equal list, other object: from the cache
+    assert sel.index(tuple(list(names)))[0] is first  # noqa: C414 (equal names, another tuple object: from the cache)
     assert sel.index(names)[0] is first
 
 
@@ -82,7 +82,9 @@ def test_decode_names_of_the_loop_messages_and_malformed_bytes() -> None:
     ref = cdr.encode_joint_trajectory(3, 4, names, [1.0, 2.0, 3.0], [0.0] * 3, [0.0] * 3)
     assert cdr.decode_joint_trajectory_named(ref)[0] == ("b", "a", "c")
     sec, nanosec, got, points = cdr.decode_joint_trajectory_points(ref)
-    assert (sec, nanosec, got) == (3, 4, ("b", "a", "c")) and points == [((1.0, 2.0, 3.0), (0.0,) * 3, (0.0,) * 3, 0, 0)]
+    assert (sec, nanosec, got) == (3, 4, ("b", "a", "c")) and points == [
+        ((1.0, 2.0, 3.0), (0.0,) * 3, (0.0,) * 3, 0, 0)
+    ]
     for cut in (5, 13, 20, len(data) - 3):
         with pytest.raises(CdrError):
             cdr.decode_joint_state_named(data[:cut])

@@ -135,7 +135,9 @@ def test_ros2_run_shim(ros_env: dict) -> None:
     assert proc.returncode == 2 and "implements only `run`" in proc.stderr
     proc = subprocess.run(["ros2", "run", "pdsmc_ros", "nope"], env=ros_env, capture_output=True,
                           text=True, timeout=30)
-    assert proc.returncode == 2 and "available: analyze, composed, controller, plant, recorder, trajectory" in proc.stderr
+    assert (
+        proc.returncode == 2 and "available: analyze, composed, controller, plant, recorder, trajectory" in proc.stderr
+    )
     proc = subprocess.run(["ros2", "run", "pdsmc_ros", "controller", "--ros-args", "-p", "type:=lqr"],
                           env=ros_env, capture_output=True, text=True, timeout=60)
     assert proc.returncode == 2

@@ -237,7 +237,9 @@ def test_statistics_sampling_matches_thesis_rates() -> None:
 
 
 def test_discrete_stability_check_names_joint_and_rate() -> None:
-    with pytest.raises(UnstableRateError, match=r"at 5000 Hz: joint \d diverges.*lowest stable rate is about [0-9,]+ Hz"):
+    with pytest.raises(
+        UnstableRateError, match=r"at 5000 Hz: joint \d diverges.*lowest stable rate is about [0-9,]+ Hz"
+    ):
         simulate(make_run("serial_3r", "circle", "pd", rate=5000.0))
 
 
@@ -327,8 +329,14 @@ def test_cli_simulate_json_has_documented_keys() -> None:
         (["--robot", "scara", "--contour", "circle", "--controller", "pd"], "invalid choice: 'scara'"),
         (["--robot", "serial_3r", "--contour", "circle", "--controller", "lqr"], "invalid choice: 'lqr'"),
         (["--robot", "serial_3r", "--contour", "star", "--controller", "pd"], "unknown contour for serial_3r 'star'"),
-        (["--robot", "serial_3r", "--contour", "circle", "--controller", "pd", "--scenario", "x"], "unknown scenario 'x'"),
-        (["--robot", "serial_3r", "--contour", "circle", "--controller", "pd", "--rate", "abc"], "expected a positive number"),
+        (
+            ["--robot", "serial_3r", "--contour", "circle", "--controller", "pd", "--scenario", "x"],
+            "unknown scenario 'x'",
+        ),
+        (
+            ["--robot", "serial_3r", "--contour", "circle", "--controller", "pd", "--rate", "abc"],
+            "expected a positive number",
+        ),
         (["--robot", "serial_3r", "--contour", "circle", "--controller", "pd", "--rate", "9999"], "whole multiple"),
     ],
 )
@@ -354,7 +362,10 @@ def test_gain_reading_changes_only_its_runs_and_keeps_the_printed_result() -> No
     gains = GAIN_READINGS[("parallel_5r", "ellipse_vertical", "pd")][0]
     assert list(read["parallel_5r/ellipse_vertical/nominal/pd"].gains.kp) == gains["kp"]
     assert list(read["parallel_5r/ellipse_vertical/high_pd/pd"].gains.kd) == [1.5 * v for v in gains["kd"]]
-    assert make_run("parallel_5r", "ellipse_vertical", "pd").gains == printed["parallel_5r/ellipse_vertical/nominal/pd"].gains
+    assert (
+        make_run("parallel_5r", "ellipse_vertical", "pd").gains
+        == printed["parallel_5r/ellipse_vertical/nominal/pd"].gains
+    )
 
     rep = run_reproduction(only="parallel_5r/ellipse_vertical/nominal/pd", readings=False, workers=1)
     as_printed = simulate(printed["parallel_5r/ellipse_vertical/nominal/pd"])

@@ -41,9 +41,12 @@ def main(args: Sequence[str] | None = None) -> int:
     argv = list(sys.argv if args is None else args)
     parser = OneLineParser(prog="composed", description=__doc__.splitlines()[0])
     parser.add_argument("--nodes", default=",".join(NODES), help="nodes to run in this process")
-    parser.add_argument("--intra-process", action="store_true",
-                        help="hand the loop's messages between these nodes without DDS "
-                             "(like rclcpp's use_intra_process_comms; peers in other processes still get them over DDS)")
+    parser.add_argument(
+        "--intra-process",
+        action="store_true",
+        help="hand the loop's messages between these nodes without DDS "
+        "(like rclcpp's use_intra_process_comms; peers in other processes still get them over DDS)",
+    )
     options = parser.parse_args(remove_ros_args(argv)[1:])
     try:
         names = parse_nodes(options.nodes)

@@ -177,7 +177,7 @@ class _Group:
 
     @property
     def done(self) -> bool:
-        for w in self.wrappers:  # checked at every pass of the loop: no generator
+        for w in self.wrappers:  # noqa: SIM110 (checked at every pass of the loop: no generator)
             if not w.done:
                 return False
         return True

@@ -83,8 +83,13 @@ class PlantNode:
         declare_run_parameters(node)
         self.busy_wait = declare_busy_wait(node)  # used in real time
         self.expected = declare_int_parameter(
-            node, "expected_subscribers", 3, "subscribers of /joint_states to wait for (trajectory, controller, recorder)",
-            lo=0, hi=100)
+            node,
+            "expected_subscribers",
+            3,
+            "subscribers of /joint_states to wait for (trajectory, controller, recorder)",
+            lo=0,
+            hi=100,
+        )
         declare_safety_parameters(node)
         self.spec = run_spec_from_parameters(node)
         self.safety = safety_from_parameters(node)

@@ -103,7 +103,7 @@ class RecorderNode:
         self.done = False
         self.exit_code = EXIT_OK
         self.description: str | None = None
-        self.seen = {topic: -1 for topic in STEPPED}
+        self.seen = dict.fromkeys(STEPPED, -1)
         self.counts = dict.fromkeys(RECORDED, 0)
         typestore = get_typestore(Stores.ROS2_JAZZY)
         self.writer = Writer(self.path, version=9, storage_plugin=StoragePlugin.MCAP)

@@ -143,8 +143,14 @@ def comparison_table(bags: Sequence[AnalyzedBag]) -> str:
         lines.append(f"{name:26s}" + "".join(f"{fmt.format(v):>24s}" for v in values))
 
     for i in range(n):
-        row(f"axis {i + 1} mean (rad)", [b.metrics.axial_mean[i] if i < len(b.metrics.axial_mean) else float('nan') for b in bags])
-        row(f"axis {i + 1} S.D. (rad)", [b.metrics.axial_sd[i] if i < len(b.metrics.axial_sd) else float('nan') for b in bags])
+        row(
+            f"axis {i + 1} mean (rad)",
+            [b.metrics.axial_mean[i] if i < len(b.metrics.axial_mean) else float("nan") for b in bags],
+        )
+        row(
+            f"axis {i + 1} S.D. (rad)",
+            [b.metrics.axial_sd[i] if i < len(b.metrics.axial_sd) else float("nan") for b in bags],
+        )
     for key in ("x", "y", "total"):
         row(f"task {key} mean (m)", [b.metrics.task_mean[key] for b in bags])
         row(f"task {key} S.D. (m)", [b.metrics.task_sd[key] for b in bags])
@@ -152,7 +158,11 @@ def comparison_table(bags: Sequence[AnalyzedBag]) -> str:
     row("contour S.D. (m)", [b.metrics.contour_sd for b in bags])
     row("% within bound", [b.metrics.contour_within_pct for b in bags], "{:.2f} %")
     for i in range(n):
-        row(f"max |tau_{i + 1}| (N m)", [b.metrics.max_torque[i] if i < len(b.metrics.max_torque) else float('nan') for b in bags], "{:.4g}")
+        row(
+            f"max |tau_{i + 1}| (N m)",
+            [b.metrics.max_torque[i] if i < len(b.metrics.max_torque) else float("nan") for b in bags],
+            "{:.4g}",
+        )
     for b in bags:
         if b.timing:
             t = b.timing
@@ -194,5 +204,7 @@ def write_outputs(bags: Sequence[AnalyzedBag], out: Path) -> list[Path]:
                 )
                 for sub, v in values:
                     name = f"{key}.{sub}" if sub else key
-                    writer.writerow([str(b.path), d["robot"], d["contour"], d["controller"], d["scenario"], name, repr(v)])
+                    writer.writerow(
+                        [str(b.path), d["robot"], d["contour"], d["controller"], d["scenario"], name, repr(v)]
+                    )
     return [json_path, csv_path]

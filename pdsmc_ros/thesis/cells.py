@@ -59,12 +59,12 @@ CONTINUOUS_CASE = ("serial_3r", "circle", "pdsmc")
 STATISTIC_READINGS: dict[tuple[str, str], tuple[str, str]] = {
     ("pdsmc", "task_sd.x"): (
         "task_sd_signed.x",
-        "The thesis's PD-SMC task-space x S.D. (the task-space tables of both arms) is the S.D. "
+        ("The thesis's PD-SMC task-space x S.D. (the task-space tables of both arms) is the S.D. "
         "of the signed x error, not of its absolute value as in every other column: on all nine "
         "PD-SMC rows it lands within 0.1-3 % of the signed S.D., while the absolute S.D. is "
         "21-47 % below it wherever the x error changes sign (the serial ellipse's does not, and "
         "both agree there). The PD and SMC rows match the absolute S.D., and the PD-SMC x means "
-        "match the absolute error, so only that S.D. was computed without abs().",
+        "match the absolute error, so only that S.D. was computed without abs()."),
     ),
 }
 
@@ -75,7 +75,7 @@ STATISTIC_READINGS: dict[tuple[str, str], tuple[str, str]] = {
 GAIN_READINGS: dict[tuple[str, str, str], tuple[dict[str, list[float]], str]] = {
     ("parallel_5r", "ellipse_vertical", "pd"): (
         {"kp": [250.0, 280.0], "kd": [32.0, 36.0]},
-        "Table 4.33 prints the five-bar PD gains for the vertical ellipse as Kp = diag{240, 280}, "
+        ("Table 4.33 prints the five-bar PD gains for the vertical ellipse as Kp = diag{240, 280}, "
         "Kd = diag{28, 36}, and the PD-SMC's as Kp = diag{250, 280}, Kd = diag{32, 36}; in every "
         "other contour group of both arms PD and PD-SMC share Kp and Kd. With the PD-SMC's Kp and "
         "Kd the PD row of Tables 4.50-4.53 is reproduced (median deviation 0.7 %, all 15 cells "
@@ -83,7 +83,7 @@ GAIN_READINGS: dict[tuple[str, str, str], tuple[dict[str, list[float]], str]] = 
         "not (median 2.4 %, axis-1 mean +5.3 %, contour S.D. +5.7 %). The high-PD and high-SMC "
         "rows agree (contour S.D. +0.8 % / +0.6 % against +5.9 % / +5.7 %); the high-speed row "
         "does not: its contour mean fits the printed gains (-0.3 %) better than these (-8.7 %), so "
-        "the reading is likely but not certain, and the score without it is given too.",
+        "the reading is likely but not certain, and the score without it is given too."),
     ),
 }
 

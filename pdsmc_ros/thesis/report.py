@@ -127,7 +127,8 @@ def write_report(rep: Reproduction, out: Path) -> dict[str, Path]:
         for name, s in rep.readings.items():
             model = readings_cfg[name]["model"]
             desc = ", ".join(f"{k}={v:g}" for k, v in model.items())
-            add(f"| {name} | {desc} | {s['cells']} | {format_pct(s['median_abs_dev'])} | {format_pct(s['within_5pct'])} |")
+            add(f"| {name} | {desc} | {s['cells']} | {format_pct(s['median_abs_dev'])} | "
+                f"{format_pct(s['within_5pct'])} |")
         add("")
         for name in rep.readings:
             add(f"- **{name}**: {readings_cfg[name]['description'].strip()}")
@@ -141,8 +142,9 @@ def write_report(rep: Reproduction, out: Path) -> dict[str, Path]:
         add("| robot | contour | controller | statistic | thesis | ours as read | dev | ours as defined | dev |")
         add("| --- | --- | --- | --- | ---: | ---: | ---: | ---: | ---: |")
         for c, plain in zip(read, as_defined(read)):
-            add(f"| {c.robot} | {c.contour} | {LABEL[c.controller]} | {c.metric} | {format_value(c.thesis, c.metric)} | "
-                f"{format_value(c.ours, c.metric)} | {100 * c.deviation:+.1f} % | {format_value(c.as_defined, c.metric)} | "
+            add(f"| {c.robot} | {c.contour} | {LABEL[c.controller]} | {c.metric} | "
+                f"{format_value(c.thesis, c.metric)} | {format_value(c.ours, c.metric)} | "
+                f"{100 * c.deviation:+.1f} % | {format_value(c.as_defined, c.metric)} | "
                 f"{100 * plain.deviation:+.1f} % |")
         add("")
     if regained:
@@ -197,15 +199,17 @@ def write_report(rep: Reproduction, out: Path) -> dict[str, Path]:
             add("")
             add(f"Note: {entry['notes']}")
         add("")
-        add("| statistic | " + " | ".join(f"{LABEL[k]} thesis | {LABEL[k]} ours | dev" for k in CONTROLLER_NAMES) + " |")
+        add(
+            "| statistic | " + " | ".join(f"{LABEL[k]} thesis | {LABEL[k]} ours | dev" for k in CONTROLLER_NAMES) + " |"
+        )
         add("| --- |" + " ---: | ---: | ---: |" * len(CONTROLLER_NAMES))
         metrics = list(dict.fromkeys(c.metric for c in group))
         for metric in metrics:
             row = [metric]
             readers = [c for c in group if c.metric == metric and c.ours_metric != metric]
             if readers:
-                row = [f"{metric} ({LABEL[readers[0].controller]}: vs `{readers[0].ours_metric}`, "
-                       "see Statistic readings)"]
+                row = [(f"{metric} ({LABEL[readers[0].controller]}: vs `{readers[0].ours_metric}`, "
+                       "see Statistic readings)")]
             for ctrl in CONTROLLER_NAMES:
                 match = [c for c in group if c.controller == ctrl and c.metric == metric]
                 if match:
@@ -265,8 +269,8 @@ def _payload_section(rep: Reproduction) -> list[str]:
     runs = {(rep.payload_reading, run_key(r.spec)): r for r in rep.results}
     runs.update({(name, run_key(r.spec)): r for name, group in rep.payload_results.items() for r in group})
     lines = ["## Payload readings (Section 4.5.2)", "",
-             "The thesis says only that \"a simulated load of 1.5 kg was added at the end-effector\". "
-             f"The cells above use the **{rep.payload_reading}** reading (`--payload-reading`); the readings:", ""]
+             ("The thesis says only that \"a simulated load of 1.5 kg was added at the end-effector\". "
+             f"The cells above use the **{rep.payload_reading}** reading (`--payload-reading`); the readings:"), ""]
     lines += [f"- **{name}**: {PAYLOAD_READINGS[name]}." for name in names]
     lines += ["", "| robot | contour | controller | statistic | thesis | "
               + " | ".join(f"ours, {n} | dev" for n in names) + " |",
@@ -277,10 +281,10 @@ def _payload_section(rep: Reproduction) -> list[str]:
             o = by_name[n][i]
             row += [format_value(o.ours, o.metric), f"{100 * o.deviation:+.1f} %"]
         lines.append("| " + " | ".join(row) + " |")
-    lines += ["", "Shape of the contour-error distribution: S.D./mean (the thesis's from its printed cells) and, "
+    lines += ["", ("Shape of the contour-error distribution: S.D./mean (the thesis's from its printed cells) and, "
               "for ours, median/mean (below 1: right-skewed). Where the thesis prints a mean below the bound "
               "with fewer than half of the samples within it, its median lies above the bound and so above "
-              "its mean: a left-skewed distribution.", "",
+              "its mean: a left-skewed distribution."), "",
               "| robot | controller | thesis S.D./mean | thesis median vs mean | "
               + " | ".join(f"{n} S.D./mean | {n} median/mean" for n in names) + " |",
               "| --- | --- | ---: | --- |" + " ---: | ---: |" * len(names)]
@@ -313,7 +317,7 @@ def _torque_section(rep: Reproduction, verdicts: list[Verdict]) -> list[str]:
                       f"against {_needed(rep, c):.4g} N m (printed {c.thesis:.4g})"
                       for c, _ in torque if c not in close)
     lines = ["## Max torques against the torque needed to follow the trajectory", "",
-             "Needed torque: Eq. (4.1) solved for the torque along the desired motion, "
+             ("Needed torque: Eq. (4.1) solved for the torque along the desired motion, "
              "tau = Mbar(q_d) qdd_d + C(q_d, qd_d) qd_d + G(q_d) + B qd_d, its max |tau| per joint over "
              "every control instant. A run that tracks the trajectory to the printed errors needs about "
              f"that torque: on {len(close)} of the {len(torque)} max-torque cells our run's max lies within "
@@ -323,7 +327,7 @@ def _torque_section(rep: Reproduction, verdicts: list[Verdict]) -> list[str]:
              "cannot come from a run that tracks the trajectory: **infeasible**. Where the printed max lies "
              "above, a peak the runs do not show would be needed; those cells stay open. The same rows' "
              "tracking errors are reproduced, so the max-torque column does not come from the runs that "
-             "give the error columns.", "",
+             "give the error columns."), "",
              "| robot | contour | controller | joint | printed | needed | ours | printed / needed | verdict |",
              "| --- | --- | --- | ---: | ---: | ---: | ---: | ---: | --- |"]
     for c, v in torque:
@@ -361,10 +365,10 @@ def _continuous_section(rep: Reproduction) -> list[str]:
     names = list(rep.continuous)
     limit = rep.continuous[names[-1]]
     lines = ["## Discrete loop against the continuous-time limit", "",
-             f"{'/'.join(CONTINUOUS_CASE)} (nominal): the same plant and control law with the law evaluated "
+             (f"{'/'.join(CONTINUOUS_CASE)} (nominal): the same plant and control law with the law evaluated "
              f"continuously inside scipy's Radau solver (rtol 1e-10, atol 1e-12), against the discrete loop "
              "(zero-order hold, RK4) at its control rate and at 40 kHz. Relative deviation from the "
-             "continuous-time limit:", "",
+             "continuous-time limit:"), "",
              "| solution | axial means | contour mean | contour S.D. | wall time |",
              "| --- | --- | ---: | ---: | ---: |"]
     for name in names:

@@ -148,9 +148,14 @@ def classify(rep: Reproduction) -> list[Verdict]:
                 if _reproduced(o) and summarize(alt)["median_abs_dev"] <= primary]
         if fits:
             name, o, alt = fits[0]
-            verdicts.append(Verdict("reading", f"with {name}: {format_value(o.ours, c.metric)} "
-                                               f"({100 * o.deviation:+.1f} %; its row's median abs. deviation "
-                                               f"{format_pct(summarize(alt)['median_abs_dev'])} against {format_pct(primary)})"))
+            verdicts.append(
+                Verdict(
+                    "reading",
+                    f"with {name}: {format_value(o.ours, c.metric)} "
+                    f"({100 * o.deviation:+.1f} %; its row's median abs. deviation "
+                    f"{format_pct(summarize(alt)['median_abs_dev'])} against {format_pct(primary)})",
+                )
+            )
             continue
         notes = [f"with {name}: {format_value(o.ours, c.metric)} ({100 * o.deviation:+.1f} %; its row's median "
                  f"abs. deviation {format_pct(summarize(alt)['median_abs_dev'])} against {format_pct(primary)})"

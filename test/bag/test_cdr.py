@@ -18,8 +18,20 @@ NAMES = [["joint_1", "joint_2", "joint_3"], ["q1", "q2", "q3", "q4"], [], ["x"]]
 def test_codecs_round_trip(names: list[str], m: int) -> None:
     rng = np.random.default_rng(m + len(names))
     p, v, e = (rng.normal(size=m).tolist() for _ in range(3))
-    assert cdr.decode_joint_state(cdr.encode_joint_state(7, 123, names, p, v, e)) == (7, 123, tuple(p), tuple(v), tuple(e))
-    assert cdr.decode_joint_trajectory(cdr.encode_joint_trajectory(1, 2, names, p, v, e)) == (1, 2, tuple(p), tuple(v), tuple(e))
+    assert cdr.decode_joint_state(cdr.encode_joint_state(7, 123, names, p, v, e)) == (
+        7,
+        123,
+        tuple(p),
+        tuple(v),
+        tuple(e),
+    )
+    assert cdr.decode_joint_trajectory(cdr.encode_joint_trajectory(1, 2, names, p, v, e)) == (
+        1,
+        2,
+        tuple(p),
+        tuple(v),
+        tuple(e),
+    )
     assert cdr.decode_float64_multi_array(cdr.encode_float64_multi_array(p, 99)) == (99, tuple(p))
     assert cdr.decode_stamp(cdr.encode_joint_state(-3, 5, names, p, v, e)) == (-3, 5)
 
@@ -46,8 +58,18 @@ def test_codecs_match_rclpy(names: list[str], m: int) -> None:
     fa = Float64MultiArray(data=p)
     fa.layout.data_offset = 41
     cases = [
-        (js, cdr.encode_joint_state(12, 345, names, p, v, e), cdr.decode_joint_state, (12, 345, tuple(p), tuple(v), tuple(e))),
-        (jt, cdr.encode_joint_trajectory(1, 2, names, p, v, e), cdr.decode_joint_trajectory, (1, 2, tuple(p), tuple(v), tuple(e))),
+        (
+            js,
+            cdr.encode_joint_state(12, 345, names, p, v, e),
+            cdr.decode_joint_state,
+            (12, 345, tuple(p), tuple(v), tuple(e)),
+        ),
+        (
+            jt,
+            cdr.encode_joint_trajectory(1, 2, names, p, v, e),
+            cdr.decode_joint_trajectory,
+            (1, 2, tuple(p), tuple(v), tuple(e)),
+        ),
         (fa, cdr.encode_float64_multi_array(p, 41), cdr.decode_float64_multi_array, (41, tuple(p))),
     ]
     for msg, ours, decode, fields in cases:

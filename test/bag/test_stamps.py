@@ -25,7 +25,9 @@ def test_steps_of_encoded_messages() -> None:
     assert effort_step(cdr.encode_float64_multi_array([1.0, 2.0], 77)) == 77
 
 
-@pytest.mark.parametrize("data", [b"", b"\x00\x01\x00\x00", b"\x00\x01\x00\x00\x01\x00", b"\x01\x00\x00\x00" + bytes(12)])
+@pytest.mark.parametrize(
+    "data", [b"", b"\x00\x01\x00\x00", b"\x00\x01\x00\x00\x01\x00", b"\x01\x00\x00\x00" + bytes(12)]
+)
 def test_a_malformed_live_message_is_a_cdr_error_not_an_io_error(data: bytes) -> None:
     """A node catches CdrError (a ValueError): malformed content is not an I/O failure (BagError)."""
     assert issubclass(CdrError, ValueError) and not issubclass(CdrError, OSError)

@@ -22,7 +22,9 @@ def _messages(count: int) -> list[tuple[int, int, bytes]]:
     for k in range(count):
         js = cdr.encode_joint_state(k // 10, k, ["a", "b"], [0.1 * k, 2.0], [3.0, k], [])
         out.append((0, 1_000_000 + 37 * k, js))
-        out.append((1, 1_000_000 + 37 * k + (-500 if k == 7 else 5), cdr.encode_float64_multi_array([1.0] * (k % 40), k)))
+        out.append(
+            (1, 1_000_000 + 37 * k + (-500 if k == 7 else 5), cdr.encode_float64_multi_array([1.0] * (k % 40), k))
+        )
     return out
 
 
