@@ -109,7 +109,7 @@ class JointSelector:
     def _match(self, names: tuple[str, ...]) -> tuple[np.ndarray | None, str]:
         if names[: self.n] == self.joints:
             return None, ""
-        position = {}
+        position: dict[str, int] = {}
         for i, joint in enumerate(names):
             position.setdefault(joint, i)  # a repeated name: the first one counts
         missing = [j for j in self.joints if j not in position]

@@ -50,7 +50,7 @@ class Condition:
 
 
 def _sym(a: np.ndarray) -> np.ndarray:
-    return 0.5 * (a + np.swapaxes(a, -1, -2))
+    return np.asarray(0.5 * (a + np.swapaxes(a, -1, -2)))
 
 
 def theorem_conditions(spec: RunSpec, *, points: int = 401) -> list[Condition]:

@@ -98,7 +98,7 @@ class _Reader:
         except struct.error:
             raise CdrError("truncated CDR message") from None
         self.pos += 4
-        return value
+        return int(value)
 
     def stamp(self) -> tuple[int, int]:
         self.align(4)
@@ -298,7 +298,7 @@ def float64_multi_array_offset(data: bytes) -> int:
     if len(data) >= 12 and data[1] == 1:
         dims, offset = _TWO_U32.unpack_from(data, 4)
         if dims == 0:
-            return offset
+            return int(offset)
     return _Reader(data).multi_array_offset()
 
 
@@ -396,7 +396,8 @@ def encode_joint_trajectories(
     if count == 0:
         return []
     columns = [np.ascontiguousarray(a, dtype="<f8").reshape(count, -1) for a in (positions, velocities, accelerations)]
-    first = encode_joint_trajectory(stamps[0][0], stamps[0][1], names, *(c[0].tolist() for c in columns),
+    position, velocity, acceleration = (c[0].tolist() for c in columns)
+    first = encode_joint_trajectory(stamps[0][0], stamps[0][1], names, position, velocity, acceleration,
                                     frame_id=frame_id)
     size = len(first)
     block = np.tile(np.frombuffer(first, dtype=np.uint8), (count, 1))

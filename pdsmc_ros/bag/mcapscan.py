@@ -52,7 +52,7 @@ def _decompress(kind: str, data: bytes, size: int) -> bytes:
     if kind == "lz4":
         import lz4.frame
 
-        return lz4.frame.decompress(data)
+        return bytes(lz4.frame.decompress(data))
     raise BagError(f"unsupported MCAP chunk compression {kind!r}")
 
 

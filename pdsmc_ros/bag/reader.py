@@ -13,6 +13,7 @@ files that rosbags' ``AnyReader``, the ``mcap`` reader and Foxglove open.
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -32,7 +33,8 @@ DESCRIPTION_KEY = "pdsmc_ros.run_description"
 RECORDER_DESCRIPTION_TOPIC = "/pdsmc/recorder_description"
 
 
-def decode_topic(raws: list[bytes], layout_of) -> list[tuple[np.ndarray, dict[str, np.ndarray]]]:  # noqa: ANN001
+def decode_topic(raws: list[bytes], layout_of: Callable[[bytes], dict[str, tuple[int, int]]],
+                 ) -> list[tuple[np.ndarray, dict[str, np.ndarray]]]:
     """Decode messages grouped by byte length (a foreign publisher may send other shapes).
 
     Returns ``(indices into raws, decoded fields)`` per group.

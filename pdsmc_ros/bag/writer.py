@@ -18,11 +18,10 @@ from collections import defaultdict
 from collections.abc import Sequence
 from io import BytesIO
 from itertools import chain
-from typing import Any
+from typing import Any, cast
 
-from rosbags.rosbag2 import Writer
+from rosbags.rosbag2 import CompressionMode, Writer
 from rosbags.rosbag2.storage_mcap import McapWriter, PendingChunk
-from rosbags.rosbag2.writer import CompressionMode
 
 # MCAP Message record: opcode, record length, channel id, sequence, log time, publish time
 _MESSAGE = struct.Struct("<BQHIQQ")
@@ -73,7 +72,7 @@ class MessageAppender:
             for data in messages:
                 writer.write(self.connection, timestamp, data)
             return
-        storage = writer.storage
+        storage = cast(McapWriter, writer.storage)
         cid = self.connection.id
         if timestamp < storage.message_start_time:
             storage.message_start_time = timestamp

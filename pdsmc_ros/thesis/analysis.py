@@ -93,7 +93,8 @@ def controller_timing(path: Path, period: float) -> dict[str, float] | None:
     with AnyReader([path], default_typestore=get_typestore(Stores.ROS2_JAZZY)) as reader:
         conns = [c for c in reader.connections if c.topic == "/pdsmc/controller_timing"]
         for conn, _, raw in reader.messages(connections=conns):
-            rows.append(reader.deserialize(raw, conn.msgtype).data)  # one or more 5-value rows
+            msg: Any = reader.deserialize(raw, conn.msgtype)
+            rows.append(msg.data)  # one or more 5-value rows
     data = np.concatenate(rows).reshape(-1, 5) if rows else np.empty((0, 5))
     if len(data) < 3:
         return None

@@ -281,7 +281,7 @@ def needed_torque(spec: RunSpec) -> np.ndarray:
     """
     reference = spec.reference()
     ref = reference.sample(np.arange(control_steps(reference.duration, spec.rate) + 1) / spec.rate)
-    return np.max(np.abs(spec.robot_model().inverse_dynamics(ref.q, ref.qd, ref.qdd)), axis=0)
+    return np.asarray(np.max(np.abs(spec.robot_model().inverse_dynamics(ref.q, ref.qd, ref.qdd)), axis=0))
 
 
 def run_key(spec: RunSpec) -> str:

@@ -93,10 +93,10 @@ def write_report(rep: Reproduction, out: Path) -> dict[str, Path]:
     read = [c for c in cells if c.ours_metric != c.metric]
     regained = [c for c in cells if (c.robot, c.contour, c.controller) in GAIN_READINGS]
     if read or regained:
-        plain = summarize(c for c in as_defined(cells) if c.controller != "smc")
+        defined = summarize(c for c in as_defined(cells) if c.controller != "smc")
         add(f"With every statistic as defined in NOTES.md section 4 and every gain as printed "
             f"(no statistic or gain reading, below), the PD and PD-SMC rows give a median deviation "
-            f"of {format_pct(plain['median_abs_dev'])} and {format_pct(plain['within_5pct'])} of cells within 5 %.")
+            f"of {format_pct(defined['median_abs_dev'])} and {format_pct(defined['within_5pct'])} of cells within 5 %.")
         add("")
     add("By kind of statistic (all controllers):")
     add("")
@@ -115,9 +115,9 @@ def write_report(rep: Reproduction, out: Path) -> dict[str, Path]:
     add("")
     add("| cells | count | " + " | ".join(VERDICTS) + " |")
     add("| --- | ---: |" + " ---: |" * len(VERDICTS))
-    for name, group in verdict_groups(cells, verdicts).items():
-        counts = count_verdicts(group)
-        add(f"| {name} | {len(group)} | " + " | ".join(str(counts[k]) for k in VERDICTS) + " |")
+    for name, judged in verdict_groups(cells, verdicts).items():
+        counts = count_verdicts(judged)
+        add(f"| {name} | {len(judged)} | " + " | ".join(str(counts[k]) for k in VERDICTS) + " |")
     add("")
     if rep.readings:
         add("## SMC readings tried (nominal SMC rows, Tables 4.17-4.53)")
