@@ -76,6 +76,6 @@ def simulate_continuous(spec: RunSpec, *, rtol: float = 1e-10, atol: float = 1e-
     qd = np.ascontiguousarray(sol.y[n:].T)
     refs = reference.sample(t)
     tau = np.array([law.torque(q[i], qd[i], refs.q[i], refs.qd[i], refs.qdd[i]) for i in range(len(t))])
-    samples = build_samples(spec, robot, reference.contour, t, q, refs.q, tau)
+    samples = build_samples(robot, reference.contour, t, q, refs.q, tau)
     return RunResult(spec, samples, compute_metrics(samples, spec.bound), evaluations,
                      time.perf_counter() - start)

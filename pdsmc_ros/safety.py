@@ -1,7 +1,7 @@
 """What the stack does when something goes wrong (ROS-free).
 
 * :func:`check_effort` -- an effort command is applied only if it has one
-  finite value per actuated joint and (in lockstep) belongs to the current step.
+  finite value per actuated joint (the plant checks in lockstep that it is for the current step).
 * :func:`safe_torque` -- the plant's safe mode when no effort arrives in time:
   ``damp`` (no drive torque, only braking ``-D qd``) or ``hold`` (stiff hold of
   the configuration where the controller was lost, ``Kp (q_hold - q) - Kd qd``).
@@ -66,11 +66,13 @@ def safe_torque(config: SafetyConfig, q: FloatArray, qd: FloatArray, q_hold: Flo
     return tau
 
 
-def check_effort(
-    data: object, n: int, step: int | None = None, expected: int | None = None
-) -> tuple[FloatArray | None, str]:
-    """``(torque, "")`` if the command may be applied, else ``(None, reason)``."""
-    if type(data) is tuple and len(data) == n and (expected is None or step == expected):
+def check_effort(data: object, n: int) -> tuple[FloatArray | None, str]:
+    """``(torque, "")`` if the command may be applied, else ``(None, reason)``.
+
+    One finite value per actuated joint; whether it is for the current step is the
+    plant's own check (lockstep only).
+    """
+    if type(data) is tuple and len(data) == n:
         try:  # the loop's path: the decoder's tuple of floats
             if all(map(math.isfinite, data)):
                 return np.array(data, dtype=float), ""
@@ -84,8 +86,6 @@ def check_effort(
         return None, f"wrong length {tau.size} (needs {n})"
     if not np.all(np.isfinite(tau)):
         return None, "non-finite value"
-    if expected is not None and step != expected:
-        return None, f"out of order (step {step}, expected {expected})"
     return tau, ""
 
 

@@ -169,7 +169,7 @@ def simulate(spec: RunSpec, *, check_stability: bool = True) -> RunResult:
         out_q, out_qd, out_tau,
     )
     t = t_ctrl[::every]
-    samples = build_samples(spec, robot, contour, t, out_q, refs[::every, 0], out_tau)
+    samples = build_samples(robot, contour, t, out_q, refs[::every, 0], out_tau)
     metrics = compute_metrics(samples, spec.bound)
     return RunResult(spec, samples, metrics, steps, time.perf_counter() - start)
 
@@ -202,7 +202,6 @@ def _reference_samples(spec: RunSpec) -> tuple[JointReference, FloatArray]:
 
 
 def build_samples(
-    spec: RunSpec,
     robot: Manipulator,
     contour: object,
     t: FloatArray,
@@ -211,7 +210,6 @@ def build_samples(
     tau: FloatArray,
 ) -> Samples:
     """Samples (actual and desired task points, contour error) from joint signals."""
-    del spec
     xy = robot.position(q)
     xy_ref = contour.task(t).p[:, :2]  # type: ignore[attr-defined]
     return Samples(

@@ -34,12 +34,11 @@ floats = st.floats(allow_nan=True, allow_infinity=True, width=64)
 
 
 @settings(max_examples=300, deadline=None)
-@given(st.lists(floats, min_size=0, max_size=6), st.integers(0, 5), st.integers(0, 5),
-       st.sampled_from([list, tuple]))
-def test_effort_validation_accepts_only_finite_right_length_in_order(data, step, expected, container) -> None:  # noqa: ANN001
+@given(st.lists(floats, min_size=0, max_size=6), st.sampled_from([list, tuple]))
+def test_effort_validation_accepts_only_finite_right_length(data, container) -> None:  # noqa: ANN001
     # a tuple of floats is what the decoder gives the plant (its fast path)
-    tau, reason = check_effort(container(data), 3, step, expected)
-    ok = len(data) == 3 and all(np.isfinite(data)) and step == expected
+    tau, reason = check_effort(container(data), 3)
+    ok = len(data) == 3 and all(np.isfinite(data))
     assert (tau is not None) == ok
     if ok:
         assert reason == "" and np.array_equal(tau, np.asarray(data))

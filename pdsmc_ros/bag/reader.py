@@ -201,7 +201,7 @@ def run_samples(run: RecordedRun) -> Samples:
     ok = ~(np.isnan(run.q[idx, 0]) | np.isnan(run.q_ref[idx, 0]) | np.isnan(run.tau[idx, 0]))
     idx = idx[ok]
     t = idx / run.spec.rate
-    return build_samples(run.spec, robot, contour, t, run.q[idx], run.q_ref[idx], run.tau[idx])
+    return build_samples(robot, contour, t, run.q[idx], run.q_ref[idx], run.tau[idx])
 
 
 def run_metrics(run: RecordedRun) -> Metrics:
