@@ -82,14 +82,16 @@ def _add_payload_reading(p: argparse.ArgumentParser) -> None:
 
 
 def _add_run_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--robot", required=True, choices=("serial_3r", "parallel_5r"))
+    # robots and laws are checked against their registries when the run is built (importing them here
+    # would load numba for every command, --help included)
+    p.add_argument("--robot", required=True, help="a registered robot: serial_3r, parallel_5r, ...")
     p.add_argument(
         "--contour",
         required=True,
         help="zigzag, diamond, circle, ellipse (serial); circle, ellipse_horizontal, "
         "ellipse_vertical (parallel); or csv with --waypoints",
     )
-    p.add_argument("--controller", required=True, choices=("pd", "smc", "pdsmc"))
+    p.add_argument("--controller", required=True, help="a registered control law: pd, smc, pdsmc, ...")
     p.add_argument("--scenario", default="nominal",
                    help="nominal, high_speed, payload, high_pd, high_smc (config/scenarios.yaml)")
     p.add_argument("--rate", type=positive_float, default=None,
@@ -137,8 +139,9 @@ def build_parser() -> argparse.ArgumentParser:
     ana.add_argument("--plots", action="store_true", help="write PNG figures into --out (default: analysis/)")
 
     swp = sub.add_parser("sweep", help="vary one PD-SMC parameter (Section 4.2.3, Table 4.15)")
-    swp.add_argument("--param", required=True, choices=("kp", "kd", "ks", "lambda"))
-    swp.add_argument("--robot", required=True, choices=("serial_3r", "parallel_5r"))
+    swp.add_argument("--param", required=True, choices=("kp", "kd", "ks", "lam"),
+                     help="the gain varied (lam: the thesis's lambda)")
+    swp.add_argument("--robot", required=True, help="a registered robot: serial_3r, parallel_5r, ...")
     swp.add_argument("--contour", required=True)
     swp.add_argument("--out", default=None, help="write sweep_<param>.csv and .png here")
     swp.add_argument("--workers", type=worker_count, default=None)
@@ -183,7 +186,7 @@ def format_metrics(metrics: dict, robot_n: int) -> str:
 
 
 def cmd_simulate(args: argparse.Namespace) -> int:
-    from .simulator import simulate
+    from .sim import simulate
 
     spec = _spec_from_args(args)
     result = simulate(spec)
@@ -232,8 +235,8 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
 
 
 def cmd_check_gains(args: argparse.Namespace) -> int:
-    from .lyapunov import theorem_conditions
-    from .stability import rate_margin
+    from .control.lyapunov import theorem_conditions
+    from .control.stability import rate_margin
 
     spec = _spec_from_args(args)
     print(f"{spec.robot} / {spec.contour} / {spec.controller} / {spec.scenario}: gains "
@@ -312,7 +315,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
 
     param, points = run_sweep(args.param, args.robot, args.contour, values=args.values,
                               workers=args.workers, progress=progress)
-    label = "lambda" if param == "lam" else param
+    label = param
     print(f"PD-SMC, {args.robot} / {args.contour}: {label} varied, others at Kp=5000, Kd=1000, Ks=5, "
           "lambda=10, phi=0.5 (Section 4.2.3)")
     print(f"{label:>8s} {'rate (Hz)':>10s} {'mean (m)':>11s} {'S.D. (m)':>11s} {'max (m)':>11s} {'within':>8s}")

@@ -30,6 +30,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from .bag.cdr import decode_joint_trajectory_points
+from .errors import CdrError
 from .joints import JointSelector
 
 FloatArray = np.ndarray
@@ -80,6 +82,19 @@ class JointTrajectoryReference:
         self.start_q = start_q
         self.start_qd = start_qd
         self.end_time = start_time + float(times[-1])
+
+    @classmethod
+    def from_serialized(cls, selector: JointSelector, data: bytes, now: float,
+                        state: tuple[FloatArray, FloatArray] | None) -> tuple[JointTrajectoryReference | None, str]:
+        """A serialized ``JointTrajectory`` goal received at ``now`` from the measured ``state``:
+        ``(reference, "")`` or ``(None, reason)`` (see :meth:`from_message`)."""
+        try:
+            sec, nanosec, names, points = decode_joint_trajectory_points(data)
+        except CdrError as exc:
+            return None, f"malformed message ({exc})"
+        if state is None:
+            return None, "no complete joint state yet (the motion starts from it)"
+        return cls.from_message(selector, sec + nanosec * 1e-9, names, points, now, *state)
 
     @classmethod
     def from_message(cls, selector: JointSelector, stamp: float, names: tuple[str, ...],

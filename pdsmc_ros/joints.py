@@ -19,7 +19,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from .errors import ConfigError
+from .bag.cdr import decode_joint_state_named, decode_joint_trajectory_named
+from .errors import CdrError, ConfigError
 
 FloatArray = np.ndarray
 
@@ -63,6 +64,35 @@ class JointSelector:
         self._last_names: tuple[str, ...] | None = None
         self._last: tuple[np.ndarray | None, str] = (None, "")
         self._last_need = 0  # values a column needs for the last index
+
+    def state_message(self, data: bytes, topic: str) -> tuple[int, int, tuple[np.ndarray, ...] | None, str]:
+        """A serialized ``JointState``: ``(sec, nanosec, (q, qd), "")``, or ``(.., None, problem)``
+        with a one-line problem naming ``topic``."""
+        try:
+            names, sec, nanosec, position, velocity, _ = decode_joint_state_named(data)
+        except CdrError as exc:
+            return 0, 0, None, f"malformed {topic} message ({exc})"
+        arrays, problem = self.state(names, position, velocity)
+        if problem:
+            return sec, nanosec, None, f"{topic}: {problem}"
+        return sec, nanosec, arrays, ""
+
+    def reference_message(
+        self, data: bytes, topic: str
+    ) -> tuple[int, int, tuple[np.ndarray, ...] | None, str]:
+        """A serialized one-point ``JointTrajectory`` (the reference stream), as :meth:`state_message`;
+        ``(.., None, "")`` for a message without points."""
+        try:
+            decoded = decode_joint_trajectory_named(data)
+        except CdrError as exc:
+            return 0, 0, None, f"malformed {topic} message ({exc})"
+        if decoded is None:
+            return 0, 0, None, ""
+        names, sec, nanosec, positions, velocities, accelerations = decoded
+        arrays, problem = self.reference(names, positions, velocities, accelerations)
+        if problem:
+            return sec, nanosec, None, f"{topic}: {problem}"
+        return sec, nanosec, arrays, ""
 
     def index(self, names: tuple[str, ...]) -> tuple[np.ndarray | None, str]:
         """``(index, "")`` with ``names[index[i]] == joints[i]``, or ``(None, reason)``.

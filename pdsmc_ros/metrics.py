@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from .errors import InvalidInputError
-from .models import FloatArray
+from .robots.base import FloatArray
 
 
 @dataclass(frozen=True)

@@ -8,57 +8,23 @@ in-process simulator, the ROS nodes (as parameters) and the bag metadata.
 from __future__ import annotations
 
 import dataclasses
-import functools
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
 from . import __version__
+from .config import choice, load_config
+from .control.gains import Gains
+from .control.registry import GAIN_NAMES, SMC_MODEL_KEYS, law
 from .errors import ConfigError
-from .models import Manipulator, RobotParams, make_robot
-from .resources import config_dir
+from .robots import ROBOTS, Manipulator, RobotParams, make_robot, robot_names, robot_params, robot_settings
 from .trajectories import Contour, EllipseContour, JointReference, SegmentContour
-
-ROBOT_NAMES = ("serial_3r", "parallel_5r")
-CONTROLLER_NAMES = ("pd", "smc", "pdsmc")
-CONTROLLER_LABELS = {"pd": "PD", "smc": "SMC", "pdsmc": "PD-SMC"}
-GAIN_NAMES = ("kp", "kd", "ks", "lam", "phi")
-REQUIRED_GAINS = {"pd": ("kp", "kd"), "smc": ("ks", "lam", "phi"), "pdsmc": GAIN_NAMES}
-
-DEFAULT_CONTROL_RATE = {"serial_3r": 10000.0, "parallel_5r": 5000.0}
-"""Control rates (Hz) that reproduce the continuous-time thesis (NOTES.md section 1).
-
-Measured on the nominal thesis runs, relative change of the mean errors from these rates
-to 40 kHz: serial PD and PD-SMC, contour mean 1.2e-5 to 7.2e-5 (circle PD-SMC 1.24e-5,
-1.32e-5 on joint 3's mean error); five-bar PD and PD-SMC, contour mean 2e-6 to 1.7e-5,
-axial means up to 2.3e-5; the SMC runs, whose switching term reacts to the hold, up to
-2.9e-4 (serial) and 5.6e-4 (five-bar). Against the continuous-time limit (Radau, rtol
-1e-10) the serial circle PD-SMC run at 10 kHz deviates by about 1e-5 on the axial means
-and 1.6e-5 on the contour mean (docs/REPRODUCTION.md, "Discrete loop against the
-continuous-time limit"): all far below the deviations from the thesis's tables."""
 
 MAX_CONTROL_STEPS = 10_000_000
 """Control steps one run may hold: the sampled reference and its temporaries take about
 400 bytes a step (4 GB here), 200 times the thesis's 50,001-step serial runs."""
-
-SAMPLE_RATE = {"serial_3r": 500.0, "parallel_5r": 5000.0}
-"""Rates (Hz) at which the thesis sampled errors for its statistics (Section 4.2)."""
-
-SMC_MODEL_KEYS = ("mass", "coriolis", "gravity", "damping", "motor_inertia", "at_desired")
-SMC_MODEL_DEFAULT = {
-    "mass": 0.9,
-    "coriolis": 0.9,
-    "gravity": 1.1,
-    "damping": 0.0,
-    "motor_inertia": 1.0,
-    "at_desired": 0.0,
-}
-"""The SMC's model estimate of Sections 4.3/4.4: 0.9 Mbar (motor inertia included),
-0.9 C, 1.1 G of the nominal robot at the measured state, no damping term."""
 
 PAYLOAD_READINGS = {
     "tip": "a point mass at the end-effector; the SMC's model estimate stays the nominal robot's",
@@ -69,94 +35,10 @@ PAYLOAD_READINGS = {
 """Readings of Section 4.5.2's "a simulated load of 1.5 kg was added at the end-effector"
 (``--payload-reading``); ``tip`` is the physical one and the default."""
 
-PAYLOAD_LINK = {"serial_3r": 2, "parallel_5r": 2}
-"""Index (from 0) of the link carrying the end-effector: the serial arm's last link, the
-five-bar's left distal link, which carries the tip point mass in :class:`models.Parallel5R`."""
 
-CONTOUR_BOUND = {"serial_3r": 2.0e-4, "parallel_5r": 1.5e-4}
-"""Contour error bounds (m) of the "% within bound" statistic."""
-
-
-@functools.lru_cache(maxsize=16)
-def _load_yaml(path: str) -> Any:
-    try:
-        with open(path, encoding="utf-8") as handle:
-            return yaml.safe_load(handle)
-    except OSError as exc:
-        raise ConfigError(f"cannot read {path}: {exc.strerror}") from exc
-    except yaml.YAMLError as exc:
-        raise ConfigError(f"{path} is not valid YAML: {exc}") from exc
-
-
-def load_config(name: str, directory: Path | None = None) -> Any:
-    """Parsed ``config/<name>.yaml``."""
-    return _load_yaml(str((directory or config_dir()) / f"{name}.yaml"))
-
-
-def choice(value: str, allowed: tuple[str, ...] | list[str], what: str) -> str:
-    """``value`` if it is one of ``allowed``; a ConfigError listing them otherwise."""
-    if value not in allowed:
-        raise ConfigError(f"unknown {what} {value!r}; choose one of: {', '.join(allowed)}")
-    return value
-
-
-# --------------------------------------------------------------------------- #
-# Gains
-# --------------------------------------------------------------------------- #
-@dataclass(frozen=True)
-class Gains:
-    """Diagonal control parameters per actuated joint (unused ones zero, phi one)."""
-
-    kp: tuple[float, ...]
-    kd: tuple[float, ...]
-    ks: tuple[float, ...]
-    lam: tuple[float, ...]
-    phi: tuple[float, ...]
-
-    @classmethod
-    def from_mapping(cls, data: Mapping[str, Any], n: int, controller: str) -> Gains:
-        """Build from a ``{kp: [...], ...}`` mapping, validating names, lengths and signs."""
-        unknown = set(data) - set(GAIN_NAMES)
-        if unknown:
-            raise ConfigError(
-                f"unknown gain(s) {sorted(unknown)} for {controller}; allowed: {', '.join(GAIN_NAMES)}"
-            )
-        missing = [g for g in REQUIRED_GAINS[controller] if g not in data]
-        if missing:
-            raise ConfigError(f"{controller} needs gains {', '.join(missing)}")
-        values: dict[str, tuple[float, ...]] = {}
-        for name in GAIN_NAMES:
-            default = 1.0 if name == "phi" else 0.0
-            raw = data.get(name, [default] * n)
-            try:
-                arr = np.asarray(raw, dtype=float).reshape(-1)
-            except (TypeError, ValueError):
-                raise ConfigError(f"gain {name} must be a list of {n} numbers, got {raw!r}") from None
-            if arr.size == 1:
-                arr = np.full(n, arr[0])
-            if arr.size != n:
-                raise ConfigError(f"gain {name} needs {n} values (one per joint), got {arr.size}")
-            if not np.all(np.isfinite(arr)) or np.any(arr < 0.0):
-                raise ConfigError(f"gain {name} must be finite and >= 0, got {arr.tolist()}")
-            if name == "phi" and np.any(arr <= 0.0):
-                raise ConfigError(f"boundary layer phi must be > 0, got {arr.tolist()}")
-            values[name] = tuple(float(v) for v in arr)
-        return cls(**values)
-
-    def scaled(self, factors: Mapping[str, float]) -> Gains:
-        """Gains with some parameters multiplied (Section 4.5.3)."""
-        changes = {
-            name: tuple(v * float(factor) for v in getattr(self, name))
-            for name, factor in factors.items()
-        }
-        return dataclasses.replace(self, **changes)
-
-    def matrix(self) -> np.ndarray:
-        """``(5, n)`` array with rows kp, kd, ks, lam, phi (kernel layout)."""
-        return np.array([self.kp, self.kd, self.ks, self.lam, self.phi], dtype=float)
-
-    def as_dict(self) -> dict[str, list[float]]:
-        return {name: list(getattr(self, name)) for name in GAIN_NAMES}
+def smc_model_default() -> dict[str, float]:
+    """The SMC's model estimate of Sections 4.3/4.4 (``config/gains.yaml``, ``smc_model``)."""
+    return {k: float(v) for k, v in load_config("gains")["smc_model"].items()}
 
 
 # --------------------------------------------------------------------------- #
@@ -202,15 +84,15 @@ class RunSpec:
     payload: float = 0.0
     payload_reading: str = "tip"
     duration_factor: float = 1.0
-    smc_model: Mapping[str, float] = field(default_factory=lambda: dict(SMC_MODEL_DEFAULT))
+    smc_model: Mapping[str, float] = field(default_factory=smc_model_default)
     ellipse_error: str = "nearest"
     waypoints_file: str | None = None
     segment_duration: float = 2.0
     bound: float = 0.0
 
     def __post_init__(self) -> None:
-        choice(self.robot, ROBOT_NAMES, "robot")
-        choice(self.controller, CONTROLLER_NAMES, "controller")
+        choice(self.robot, robot_names(), "robot")
+        law(self.controller)
         for label, value in (("rate", self.rate), ("sample_rate", self.sample_rate)):
             if not np.isfinite(value) or value <= 0.0:
                 raise ConfigError(f"{label} must be a positive number of Hz, got {value!r}")
@@ -264,8 +146,8 @@ class RunSpec:
         return JointReference(self.robot_model(), self.contour_model())
 
     def smc_model_vector(self) -> np.ndarray:
-        """Kernel layout of :attr:`smc_model` (see :func:`kernels.control_torque`)."""
-        m = {**SMC_MODEL_DEFAULT, **self.smc_model}
+        """:attr:`smc_model` as :attr:`pdsmc_ros.control.LawSetup.smc_model`."""
+        m = {**smc_model_default(), **self.smc_model}
         return np.array([float(m[key]) for key in SMC_MODEL_KEYS], dtype=float)
 
     def describe(self) -> dict[str, Any]:
@@ -311,7 +193,7 @@ class RunSpec:
             ellipse_error=data.get("ellipse_error", "nearest"),
             waypoints_file=data.get("waypoints_file"),
             segment_duration=float(data.get("segment_duration", 2.0)),
-            bound=float(data.get("contour_bound_m", CONTOUR_BOUND[robot])),
+            bound=float(data.get("contour_bound_m", robot_settings(robot).contour_bound)),
         )
 
 
@@ -333,24 +215,19 @@ def control_steps(duration: float, rate: float) -> int:
     return int(round(steps))
 
 
-def robot_params(robot: str) -> RobotParams:
-    data = load_config("robots")
-    choice(robot, list(data), "robot")
-    return RobotParams.from_mapping(data[robot], name=f"robots.yaml:{robot}")
-
-
 def loaded_params(robot: str, payload: float) -> RobotParams:
     """Parameters of ``robot`` with ``payload`` kg added to the mass of the link that carries
-    the end-effector (:data:`PAYLOAD_LINK`), at its centre of mass; its inertia unchanged."""
+    the end-effector (the robot's ``payload_link``), at its centre of mass; its inertia unchanged."""
     params = robot_params(robot)
     links = list(params.links)
-    k = PAYLOAD_LINK[robot]
+    k = ROBOTS[robot].payload_link
     links[k] = dataclasses.replace(links[k], mass=links[k].mass + payload)
     return dataclasses.replace(params, links=tuple(links))
 
 
 def contour_names(robot: str) -> tuple[str, ...]:
-    return tuple(load_config("contours")[choice(robot, ROBOT_NAMES, "robot")]) + ("csv",)
+    """The robot's contour presets (``config/contours.yaml``) and ``csv``."""
+    return tuple(load_config("contours").get(choice(robot, robot_names(), "robot")) or ()) + ("csv",)
 
 
 def scenario_names() -> tuple[str, ...]:
@@ -366,7 +243,7 @@ def build_contour(
     segment_duration: float = 2.0,
 ) -> Contour:
     """The named contour preset (or a CSV contour) for ``robot``."""
-    dim = 3 if robot == "serial_3r" else 2
+    dim = ROBOTS[choice(robot, robot_names(), "robot")].task_dim
     if name == "csv":
         if not waypoints_file:
             raise ConfigError("contour 'csv' needs a waypoints file (--waypoints FILE)")
@@ -374,7 +251,7 @@ def build_contour(
 
         pts = load_waypoints_csv(waypoints_file, dim=dim)
         return SegmentContour("csv", pts, segment_duration, metric="nearest")
-    presets = load_config("contours")[choice(robot, ROBOT_NAMES, "robot")]
+    presets = load_config("contours")[robot]
     spec = presets[choice(name, contour_names(robot), f"contour for {robot}")]
     if spec["type"] == "segments":
         pts = np.asarray(spec["waypoints"], dtype=float)
@@ -397,10 +274,13 @@ def build_contour(
 
 def preset_gains(robot: str, contour: str, controller: str) -> Gains:
     """Gains of Table 4.16 / 4.33 for this robot, contour and controller."""
-    choice(controller, CONTROLLER_NAMES, "controller")
+    law(controller)
     group = "linear" if contour == "csv" else load_config("contours")[robot][contour]["gain_group"]
-    table = load_config("gains")[robot][group][controller]
-    return Gains.from_mapping(table, 3 if robot == "serial_3r" else 2, controller)
+    table = load_config("gains").get(robot, {}).get(group, {}).get(controller)
+    if table is None:
+        raise ConfigError(f"config/gains.yaml has no {controller} gains for {robot} ({group} contours); "
+                          "give the gains")
+    return Gains.from_mapping(table, ROBOTS[robot].n, controller)
 
 
 def make_run(
@@ -419,16 +299,16 @@ def make_run(
     payload_reading: str = "tip",
 ) -> RunSpec:
     """A run from preset names, with the scenario of Section 4.5 applied."""
-    choice(robot, ROBOT_NAMES, "robot")
     choice(contour, contour_names(robot), f"contour for {robot}")
-    choice(controller, CONTROLLER_NAMES, "controller")
+    needs = law(controller).gains
+    settings = robot_settings(robot)
     scenarios = load_config("scenarios")
     sc = scenarios[choice(scenario, list(scenarios), "scenario")] or {}
     base = gains or preset_gains(robot, contour, controller)
     factors = {
-        k: v for k, v in (sc.get("gain_factors") or {}).items() if k in REQUIRED_GAINS[controller]
+        k: v for k, v in (sc.get("gain_factors") or {}).items() if k in needs
     }
-    model = dict(load_config("gains").get("smc_model", {}))
+    model = smc_model_default()
     model.update(smc_model or {})
     return RunSpec(
         robot=robot,
@@ -436,8 +316,8 @@ def make_run(
         controller=controller,
         scenario=scenario,
         gains=base.scaled(factors),
-        rate=float(rate or DEFAULT_CONTROL_RATE[robot]),
-        sample_rate=float(sample_rate or SAMPLE_RATE[robot]),
+        rate=float(rate or settings.control_rate),
+        sample_rate=float(sample_rate or settings.sample_rate),
         payload=float(sc.get("payload", 0.0)),
         payload_reading=payload_reading,
         duration_factor=float(sc.get("duration_factor", 1.0)),
@@ -445,7 +325,7 @@ def make_run(
         ellipse_error=ellipse_error,
         waypoints_file=waypoints_file,
         segment_duration=segment_duration,
-        bound=CONTOUR_BOUND[robot],
+        bound=settings.contour_bound,
     )
 
 

@@ -18,7 +18,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from .errors import ConfigError, InvalidInputError, UnreachableError
-from .models import FloatArray, Manipulator, as_vector
+from .robots.base import FloatArray, Manipulator, as_vector
 
 
 def quintic(t: ArrayLike, duration: float) -> tuple[FloatArray, FloatArray, FloatArray]:
@@ -32,6 +32,17 @@ def quintic(t: ArrayLike, duration: float) -> tuple[FloatArray, FloatArray, Floa
     sd = (30.0 * tau**2 - 60.0 * tau**3 + 30.0 * tau**4) / duration
     sdd = (60.0 * tau - 180.0 * tau**2 + 120.0 * tau**3) / duration**2
     return s, sd, sdd
+
+
+def _require_positive(label: str, value: float | FloatArray) -> None:
+    """A contour's durations and radii: finite and > 0 (InvalidInputError naming them)."""
+    if not np.all(np.isfinite(value)) or np.any(np.asarray(value) <= 0.0):
+        raise InvalidInputError(f"{label} must be finite and > 0, got {value!r}")
+
+
+def _require_choice(label: str, value: str, allowed: tuple[str, ...]) -> None:
+    if value not in allowed:
+        raise InvalidInputError(f"{label} must be one of {', '.join(map(repr, allowed))}, got {value!r}")
 
 
 @dataclass(frozen=True)
@@ -94,12 +105,8 @@ class SegmentContour(Contour):
         durations = np.broadcast_to(
             np.asarray(segment_durations, dtype=float), (pts.shape[0] - 1,)
         ).copy()
-        if np.any(~np.isfinite(durations)) or np.any(durations <= 0.0):
-            raise InvalidInputError(f"segment durations must be > 0, got {durations}")
-        if metric not in ("active_segment", "nearest"):
-            raise InvalidInputError(
-                f"metric must be 'active_segment' or 'nearest', got {metric!r}"
-            )
+        _require_positive("segment durations", durations)
+        _require_choice("metric", metric, ("active_segment", "nearest"))
         self.name = name
         self.waypoints = pts
         self.dim = pts.shape[1]
@@ -174,12 +181,8 @@ class EllipseContour(Contour):
     ) -> None:
         c = as_vector(center, 2, "center")
         for label, value in (("rx", rx), ("ry", ry), ("duration", duration)):
-            if not np.isfinite(value) or value <= 0.0:
-                raise InvalidInputError(f"{label} must be > 0, got {value!r}")
-        if ellipse_error not in ("nearest", "osculating"):
-            raise InvalidInputError(
-                f"ellipse_error must be 'nearest' or 'osculating', got {ellipse_error!r}"
-            )
+            _require_positive(label, value)
+        _require_choice("ellipse_error", ellipse_error, ("nearest", "osculating"))
         self.name = name
         self.center = c
         self.rx = float(rx)

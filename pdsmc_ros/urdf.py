@@ -21,7 +21,7 @@ from __future__ import annotations
 
 from xml.sax.saxutils import escape
 
-from .models import LinkParams, RobotParams
+from .robots.base import LinkParams, RobotParams
 
 AXIS = "0 -1 0"  # thesis angles are counter-clockwise in the x-z plane seen from -y
 THIN = 1e-6  # inertia about the axes out of the plane (planar model: irrelevant, must be > 0)

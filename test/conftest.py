@@ -11,6 +11,16 @@ import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
 
+# ROS domains (Fast DDS allows 0-232): each test that starts participants takes the next one, so
+# no two tests of a session share a domain; a session starts at an offset of its own (another
+# session on this machine, e.g. a fresh-clone check, most likely uses other domains)
+_DOMAIN_COUNTER = iter(range(os.getpid() % 116 * 2, 10**9))
+
+
+def next_domain() -> int:
+    """A ROS domain id no other test of this session has used (until 232 have been used)."""
+    return next(_DOMAIN_COUNTER) % 232 + 1
+
 
 @pytest.fixture(scope="session")
 def ros_env() -> dict[str, str]:

@@ -17,6 +17,7 @@ import time
 from pathlib import Path
 
 import pytest
+from conftest import next_domain
 
 from pdsmc_ros.errors import ConfigError, InvalidInputError
 from pdsmc_ros.presets import MAX_CONTROL_STEPS, control_steps
@@ -121,7 +122,7 @@ def test_pdsmc_commands_in_a_clean_environment(tmp_path: Path) -> None:
 @pytest.mark.timeout(120)
 def test_ros2_run_node_in_a_clean_environment(tmp_path: Path) -> None:
     installed()
-    domain = str(120 + os.getpid() % 40)
+    domain = str(next_domain())
     proc = subprocess.Popen([str(BIN / "ros2"), "run", "pdsmc_ros", "controller", "--ros-args",
                              "-p", "type:=pdsmc", "-p", "robot:=parallel_5r", "-p", "contour:=circle"],
                             cwd=tmp_path, env=clean_env(ROS_DOMAIN_ID=domain), stdout=subprocess.PIPE,
@@ -156,7 +157,7 @@ def test_ros2_run_node_in_a_clean_environment(tmp_path: Path) -> None:
 def test_demo_hint_pasted_verbatim(tmp_path: Path) -> None:
     """A short demo from an empty directory, clean environment; its printed analyze command works."""
     installed()
-    env = {"ROS_DOMAIN_ID": str(80 + os.getpid() % 40)}
+    env = {"ROS_DOMAIN_ID": str(next_domain())}
     demo = run([str(BIN / "python"), "-m", "pdsmc_ros.demo", "--duration-factor", "0.02",
                 "--out", "demo"], tmp_path, timeout=540, **env)
     assert demo.returncode == 0, demo.stdout + demo.stderr

@@ -12,16 +12,16 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import node_log_tails
+from conftest import next_domain, node_log_tails
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from pdsmc_ros.bag.mcapscan import scan
 from pdsmc_ros.bag.reader import read_run
+from pdsmc_ros.control import ControlLaw, Gains
+from pdsmc_ros.control.safety import SafetyConfig, check_effort, limit_torque, safe_torque
 from pdsmc_ros.errors import InvalidInputError
-from pdsmc_ros.presets import Gains
-from pdsmc_ros.safety import SafetyConfig, check_effort, limit_torque, safe_torque
-from pdsmc_ros.simulator import ControlLaw, PlantStepper, simulate
+from pdsmc_ros.sim import PlantStepper, simulate
 
 ROOT = Path(__file__).resolve().parent.parent
 SCRIPT = ROOT / "scripts" / "run_experiment.sh"
@@ -84,12 +84,11 @@ def test_torque_limit() -> None:
 # --------------------------------------------------------------------------- #
 # Faults through the orchestration
 # --------------------------------------------------------------------------- #
-_DOMAINS = iter(range(160 + os.getpid() % 40 * 2, 10**6))
 
 
 def run_env(ros_env: dict, out: Path) -> dict:
     """An environment of its own DDS domain (shared by every process of this test run)."""
-    return dict(ros_env, PDSMC_TEST_RUN=str(out), ROS_DOMAIN_ID=str(next(_DOMAINS) % 230),
+    return dict(ros_env, PDSMC_TEST_RUN=str(out), ROS_DOMAIN_ID=str(next_domain()),
                 FASTRTPS_DEFAULT_PROFILES_FILE=str(ROOT / "config" / "fastdds_profile.xml"))
 
 
@@ -188,7 +187,7 @@ def test_respawned_controller_resumes_the_run(ros_env: dict, tmp_path: Path) -> 
     # before the kill: exactly the in-process run
     sim = simulate(run.spec)
     every = run.spec.sample_every
-    law = ControlLaw(run.spec)
+    law = ControlLaw.from_spec(run.spec)
     ref = run.spec.reference().sample(np.arange(run.steps + 1) / run.spec.rate)
     commanded = np.array([np.array_equal(run.tau[k], law.torque(run.q[k], run.qd[k], ref.q[k], ref.qd[k], ref.qdd[k]))
                           for k in range(run.steps)])
@@ -317,7 +316,7 @@ print(i)
 def test_rogue_efforts_are_rejected_and_the_run_is_unchanged(ros_env: dict, tmp_path: Path) -> None:
     out = tmp_path / "rogue"
     env = run_env(ros_env, out)
-    env["ROS_DOMAIN_ID"] = str(150 + os.getpid() % 50)  # the rogue joins the run's DDS domain
+    # the rogue joins the run's DDS domain (run_env's)
     rogue = subprocess.Popen([sys.executable, "-c", ROGUE, "25"], env=env, stdout=subprocess.PIPE,
                              stderr=subprocess.PIPE, text=True, start_new_session=True)
     proc = start_experiment(env, out, "--duration-factor", "0.1")

@@ -20,11 +20,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import next_domain
 
+from pdsmc_ros.control import ControlLaw, Gains
+from pdsmc_ros.control.stability import check_rate
 from pdsmc_ros.errors import UnstableRateError
-from pdsmc_ros.presets import Gains, make_run
-from pdsmc_ros.simulator import ControlLaw
-from pdsmc_ros.stability import check_rate
+from pdsmc_ros.presets import make_run
 
 pytest.importorskip("rclpy")
 import rclpy.clock  # noqa: E402
@@ -32,7 +33,6 @@ import rclpy.duration  # noqa: E402
 import rclpy.executors  # noqa: E402
 
 RATE = 1000.0
-_DOMAINS = iter(range(100 + os.getpid() % 25 * 2, 10**6))
 Q = {"joint1": 0.3, "joint2": 1.2}  # the driver's state, by name
 QD = {"joint1": 0.1, "joint2": -0.2}
 REF = ((0.35, 1.1), (0.05, 0.02), (0.5, -0.4))  # joint1, joint2: q, qd, qdd
@@ -135,7 +135,7 @@ def reference_message(names: list[str]):  # noqa: ANN201
 @pytest.fixture
 def domain(monkeypatch: pytest.MonkeyPatch, ros_env: dict) -> int:
     monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-    return next(_DOMAINS) % 230
+    return next_domain()
 
 
 def start_controller(ros_env: dict, domain: int, log: Path, *params: str) -> subprocess.Popen:
@@ -178,7 +178,7 @@ def test_driver_with_wall_stamps_shuffled_names_missing_joint_gains_and_sigint(
     proc = start_controller(ros_env, domain, log, "-p", "type:=pd")
     driver = Driver(domain)
     try:
-        law = ControlLaw(spec())
+        law = ControlLaw.from_spec(spec())
         q, qd = np.array([Q["joint1"], Q["joint2"]]), np.array([QD["joint1"], QD["joint2"]])
         expected = tuple(law.torque(q, qd, *map(np.array, REF)).tolist())
         # a driver's order (not the URDF's) with an extra joint; references in yet another order
@@ -228,7 +228,7 @@ def test_driver_with_wall_stamps_shuffled_names_missing_joint_gains_and_sigint(
         kp = [2.0 * k for k in spec().gains.kp]
         ok, reason = driver.set_parameter("kp", kp)
         assert ok, reason
-        new_law = ControlLaw(dataclasses.replace(spec(), gains=Gains.from_mapping(
+        new_law = ControlLaw.from_spec(dataclasses.replace(spec(), gains=Gains.from_mapping(
             {**spec().gains.as_dict(), "kp": kp}, 2, "pd")))
         new_expected = tuple(new_law.torque(q, qd, *map(np.array, REF)).tolist())
         count = len(driver.efforts)
@@ -286,7 +286,7 @@ def test_standard_trajectory_lifecycle_and_deactivate(ros_env: dict, domain: int
     proc = start_controller(ros_env, domain, log, "-p", "type:=pd", "-p", "autostart:=false")
     driver = Driver(domain)
     try:
-        law = ControlLaw(spec())
+        law = ControlLaw.from_spec(spec())
         q, qd = np.array([Q["joint1"], Q["joint2"]]), np.array([QD["joint1"], QD["joint2"]])
         names = ["joint2", "gripper", "joint1"]
         driver.state = lambda: joint_state(driver, names, Q, QD)
@@ -450,7 +450,7 @@ def test_lockstep_controller_follows_a_standard_trajectory_in_sim_time(
         # offsets are the states' steps: consecutive, in order
         offsets = [e[2] for e in driver.efforts]
         assert offsets == list(range(offsets[0], offsets[0] + len(offsets)))
-        law = ControlLaw(make_run("parallel_5r", "circle", "pd"))
+        law = ControlLaw.from_spec(make_run("parallel_5r", "circle", "pd"))
         q, qd = np.array([Q["joint1"], Q["joint2"]]), np.array([QD["joint1"], QD["joint2"]])
         hold = law.torque(q, qd, np.array([0.4, 1.0]), np.zeros(2), np.zeros(2))
         np.testing.assert_allclose(driver.efforts[-1][1], hold, rtol=0, atol=1e-9)

@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-import os
 import time
 from collections.abc import Iterator
 from typing import Any
 
 import pytest
+from conftest import next_domain
 
 rclpy = pytest.importorskip("rclpy")
 
@@ -22,7 +22,7 @@ from pdsmc_ros.nodes import intra  # noqa: E402
 from pdsmc_ros.nodes.io import GuardedPublisher, Inputs, take_local  # noqa: E402
 from pdsmc_ros.nodes.topics import LATCHED_QOS, LATEST_QOS, LOCKSTEP_QOS, STREAM_QOS  # noqa: E402
 
-DOMAIN_ID = 150 + os.getpid() % 50  # apart from other runs on this machine
+DOMAIN_ID = next_domain()  # apart from the other tests
 
 
 @pytest.fixture

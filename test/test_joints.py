@@ -14,8 +14,7 @@ from pdsmc_ros.bag import cdr
 from pdsmc_ros.errors import CdrError, ConfigError
 from pdsmc_ros.joint_trajectory import JointTrajectoryReference
 from pdsmc_ros.joints import JointSelector, check_joint_names
-from pdsmc_ros.models import Parallel5R, Serial3R
-from pdsmc_ros.presets import robot_params
+from pdsmc_ros.robots import Parallel5R, Serial3R, robot_params
 from pdsmc_ros.urdf import robot_urdf
 
 JOINTS = ("joint1", "joint2", "joint3")
@@ -189,7 +188,7 @@ def test_urdf_tips_match_the_models_kinematics() -> None:
         np.testing.assert_allclose(got, serial.forward_kinematics(q)[:2], atol=1e-12)
     five = Parallel5R()
     urdf = robot_urdf("parallel_5r", robot_params("parallel_5r"))
-    from pdsmc_ros.simulator import PlantStepper
+    from pdsmc_ros.sim import PlantStepper
 
     q0 = five.inverse_kinematics(np.array([0.10, 0.18]))
     plant = PlantStepper(five, 1e-3, q0, np.zeros(2))

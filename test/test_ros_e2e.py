@@ -13,7 +13,7 @@ import pytest
 from conftest import node_log_tails
 
 from pdsmc_ros.bag.reader import read_run, run_metrics
-from pdsmc_ros.simulator import simulate
+from pdsmc_ros.sim import simulate
 
 ROOT = Path(__file__).resolve().parent.parent
 SCRIPT = ROOT / "scripts" / "run_experiment.sh"

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from pdsmc_ros.safety import Staleness, Watchdog
+from pdsmc_ros.control.safety import Staleness, Watchdog
 
 RATE = 1000.0
 

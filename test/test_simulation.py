@@ -9,12 +9,12 @@ import sys
 import numpy as np
 import pytest
 
-from pdsmc_ros import kernels
+from pdsmc_ros.control import ControlLaw
 from pdsmc_ros.errors import ConfigError, UnreachableError, UnstableRateError
 from pdsmc_ros.metrics import Samples, compute_metrics, sample_times
-from pdsmc_ros.models import Parallel5R, Serial3R
 from pdsmc_ros.presets import build_contour, make_run
-from pdsmc_ros.simulator import ControlLaw, PlantStepper, simulate
+from pdsmc_ros.robots import Parallel5R, Serial3R, compiled
+from pdsmc_ros.sim import PlantStepper, simulate
 from pdsmc_ros.trajectories import (
     EllipseContour,
     SegmentContour,
@@ -141,7 +141,7 @@ def test_contour_error_formulas() -> None:
 @pytest.mark.parametrize("robot", [Serial3R(), Serial3R(1.5), Parallel5R(), Parallel5R(1.5)])
 def test_kernels_match_reference_model(robot) -> None:  # noqa: ANN001
     rng = np.random.default_rng(7)
-    kind, p = kernels.pack_robot(robot)
+    kind, p = compiled.pack(robot)
     for _ in range(50):
         if robot.n == 3:
             q = rng.uniform(-3, 3, 3)
@@ -149,12 +149,12 @@ def test_kernels_match_reference_model(robot) -> None:  # noqa: ANN001
             q = robot.inverse_kinematics([0.16 + rng.uniform(-0.05, 0.05), 0.2 + rng.uniform(-0.05, 0.05)])
         qd, tau, v = rng.uniform(-2, 2, (3, robot.n))
         out = np.empty(robot.n)
-        work = kernels.workspace()
-        kernels.forward_dynamics(kind, p, q, qd, tau, out, work)
+        work = compiled.workspace(robot.n)
+        compiled.forward_dynamics(kind, p, q, qd, tau, out, work)
         assert np.allclose(out, robot.forward_dynamics(q, qd, tau), rtol=0, atol=1e-11)
-        kernels.robot_coriolis_times(kind, p, q, qd, v, out, work)
+        compiled.coriolis_times(kind, p, q, qd, v, out, work)
         assert np.allclose(out, robot.coriolis_matrix(q, qd) @ v, rtol=0, atol=1e-12)
-        kernels.robot_gravity(kind, p, q, out, work)
+        compiled.gravity(kind, p, q, out, work)
         assert np.allclose(out, robot.gravity(q), rtol=0, atol=1e-12)
 
 
@@ -162,7 +162,7 @@ def test_kernels_match_reference_model(robot) -> None:  # noqa: ANN001
 @pytest.mark.parametrize("robot", ["serial_3r", "parallel_5r"])
 def test_control_laws_follow_the_thesis_equations(controller: str, robot: str) -> None:
     spec = make_run(robot, "circle", controller, smc_model={"damping": 1.0})
-    law = ControlLaw(spec)
+    law = ControlLaw.from_spec(spec)
     model = spec.nominal_model()
     g = spec.gains
     kp, kd, ks, lam, phi = (np.array(x) for x in (g.kp, g.kd, g.ks, g.lam, g.phi))
@@ -197,7 +197,7 @@ def test_plant_stepper_matches_in_process_loop() -> None:
     spec = make_run("serial_3r", "circle", "pdsmc")
     result = simulate(spec)
     ref = spec.reference()
-    law = ControlLaw(spec)
+    law = ControlLaw.from_spec(spec)
     plant = PlantStepper(spec.robot_model(), 1.0 / spec.rate, ref.sample([0.0]).q[0], np.zeros(3))
     steps = 200 * spec.sample_every
     t = np.arange(steps + 1) / spec.rate
@@ -263,7 +263,7 @@ def test_warm_up_changes_no_state_and_no_result() -> None:
     cold, warm = PlantStepper(spec.robot_model(), 1e-3, q0, qd0), PlantStepper(spec.robot_model(), 1e-3, q0, qd0)
     warm.warm_up()
     assert warm.steps == 0 and np.array_equal(warm.q, q0) and np.array_equal(warm.qd, qd0)
-    law_cold, law_warm = ControlLaw(spec), ControlLaw(spec)
+    law_cold, law_warm = ControlLaw.from_spec(spec), ControlLaw.from_spec(spec)
     law_warm.warm_up(q0, qd0)
     for _ in range(3):
         tau = law_cold.torque(cold.q, cold.qd, q0, qd0, np.zeros(2))
@@ -326,8 +326,10 @@ def test_cli_simulate_json_has_documented_keys() -> None:
 @pytest.mark.parametrize(
     ("args", "message"),
     [
-        (["--robot", "scara", "--contour", "circle", "--controller", "pd"], "invalid choice: 'scara'"),
-        (["--robot", "serial_3r", "--contour", "circle", "--controller", "lqr"], "invalid choice: 'lqr'"),
+        (["--robot", "scara", "--contour", "circle", "--controller", "pd"],
+         "unknown robot 'scara'; choose one of: serial_3r, parallel_5r"),
+        (["--robot", "serial_3r", "--contour", "circle", "--controller", "lqr"],
+         "unknown controller 'lqr'; choose one of: pd, smc, pdsmc"),
         (["--robot", "serial_3r", "--contour", "star", "--controller", "pd"], "unknown contour for serial_3r 'star'"),
         (
             ["--robot", "serial_3r", "--contour", "circle", "--controller", "pd", "--scenario", "x"],

@@ -11,10 +11,9 @@ import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
 # the core: everything but the rclpy nodes and the command-line front ends
-CORE = ["pdsmc_ros/bag", "pdsmc_ros/thesis", "pdsmc_ros/errors.py", "pdsmc_ros/metrics.py", "pdsmc_ros/joints.py",
-        "pdsmc_ros/joint_trajectory.py", "pdsmc_ros/safety.py", "pdsmc_ros/presets.py", "pdsmc_ros/models.py",
-        "pdsmc_ros/kernels.py", "pdsmc_ros/simulator.py", "pdsmc_ros/trajectories.py", "pdsmc_ros/stability.py",
-        "pdsmc_ros/lyapunov.py", "pdsmc_ros/integrators.py", "pdsmc_ros/continuous.py", "pdsmc_ros/urdf.py",
+CORE = ["pdsmc_ros/bag", "pdsmc_ros/thesis", "pdsmc_ros/robots", "pdsmc_ros/control", "pdsmc_ros/sim",
+        "pdsmc_ros/config.py", "pdsmc_ros/errors.py", "pdsmc_ros/metrics.py", "pdsmc_ros/joints.py",
+        "pdsmc_ros/joint_trajectory.py", "pdsmc_ros/presets.py", "pdsmc_ros/trajectories.py", "pdsmc_ros/urdf.py",
         "pdsmc_ros/resources.py"]
 
 

@@ -22,8 +22,8 @@ import numpy as np
 
 from ..errors import BagError, CdrError
 from ..metrics import Metrics, Samples, compute_metrics
-from ..models import FloatArray
 from ..presets import RunSpec, control_steps
+from ..robots.base import FloatArray
 from . import cdr
 from .stamps import effort_step
 
@@ -192,7 +192,7 @@ def read_run(path: str | Path) -> RecordedRun:
 
 def run_samples(run: RecordedRun) -> Samples:
     """Signals of a recorded run at the thesis's analysis instants (complete steps only)."""
-    from ..simulator import build_samples
+    from ..sim import build_samples
 
     every = run.spec.sample_every
     robot = run.spec.robot_model()

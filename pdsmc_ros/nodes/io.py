@@ -4,6 +4,7 @@ serialized CDR, and their hand-over to handlers."""
 from __future__ import annotations
 
 import math
+import threading
 import time
 from collections import deque
 from collections.abc import Callable, Sequence
@@ -13,9 +14,13 @@ from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy_i
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
 from rclpy.serialization import serialize_message
+from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 
+from ..bag.cdr import encode_float64_multi_array
+from ..control.commanding import TorqueGuard
+from ..robots.base import FloatArray
 from . import intra
-from .topics import LATEST_QOS, LOCKSTEP_QOS
+from .topics import LATEST_QOS, LOCKSTEP_QOS, STREAM_QOS
 
 MAX_BATCH_S = 0.05  # an observer lets its messages gather at most this long
 
@@ -200,3 +205,68 @@ def take_local_batches(inputs: Sequence[tuple[deque, Callable[[list[bytes]], Non
 
 def pending(inputs: Sequence[tuple[deque, Callable[[bytes], None]]]) -> bool:
     return any(queue for queue, _ in inputs)
+
+
+class RowBatches:
+    """Rows of floats published in batches as one ``rows x width`` Float64MultiArray (one
+    publish costs about as much as a control law's whole tick)."""
+
+    def __init__(self, node: Node, topic: str, labels: tuple[str, str], width: int, *, batch: int) -> None:
+        self.pub = GuardedPublisher(node.create_publisher(Float64MultiArray, topic, STREAM_QOS), node)
+        self.labels = labels
+        self.width = width
+        self.batch = batch
+        self.rows: list[float] = []
+
+    def add(self, row: Sequence[float]) -> None:
+        self.rows += row
+        if len(self.rows) >= self.width * self.batch:
+            self.flush()
+
+    def flush(self) -> None:
+        """Publish the pending rows."""
+        if not self.rows:
+            return
+        count = len(self.rows) // self.width
+        msg = Float64MultiArray()
+        msg.layout.dim = [MultiArrayDimension(label=self.labels[0], size=count, stride=count * self.width),
+                          MultiArrayDimension(label=self.labels[1], size=self.width, stride=self.width)]
+        msg.data = self.rows
+        self.pub.publish(msg)
+        self.rows = []
+
+
+class EffortOutput:
+    """The effort commands of a controller (``Float64MultiArray``, ``data[i]`` for joint ``i``,
+    ``layout.data_offset`` the control step): never a non-finite torque, clamped to the limits,
+    and one zero command when it stops commanding (a forward command controller holds the last
+    command forever)."""
+
+    def __init__(self, node: Node, topic: str, n: int, guard: TorqueGuard) -> None:
+        self.node = node
+        self.pub = GuardedPublisher(node.create_publisher(Float64MultiArray, topic, STREAM_QOS), node)
+        self.n = n
+        self.guard = guard
+        self.commanding = False  # a torque may be the last command on the wire
+        # real time: lifecycle transitions run in the executor's thread; no torque may follow the zero command
+        self.lock = threading.Lock()
+
+    def publish(self, tau: FloatArray, step: int) -> None:
+        values, note = self.guard.check(tau)
+        if note and values is None:
+            self.node.get_logger().error(note)
+        elif note:
+            self.node.get_logger().warn(note)
+        if values is not None:
+            self.pub.publish(encode_float64_multi_array(values, step))
+            self.commanding = True
+
+    def stop(self, why: str, step: int) -> bool:
+        """Publish one zero command for ``step`` if a torque may be the last on the wire (whether it did)."""
+        with self.lock:
+            if not self.commanding:
+                return False
+            self.pub.publish(encode_float64_multi_array([0.0] * self.n, step))
+            self.commanding = False
+        self.node.get_logger().warn(f"{why}: zero effort published, output stopped")
+        return True

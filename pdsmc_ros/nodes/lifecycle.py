@@ -9,6 +9,7 @@ import time
 from collections.abc import Callable
 from typing import Any
 
+from rclpy.lifecycle import LifecycleNode, LifecycleState, ManagedEntity, TransitionCallbackReturn
 from rclpy.node import Node
 
 from .topics import TOPIC_JOINT_STATES
@@ -104,3 +105,53 @@ def end_when_plant_leaves(wrapper: Any, received: Callable[[], int]) -> Upstream
             wrapper.done = True
 
     return UpstreamWatch(wrapper.node, TOPIC_JOINT_STATES, on_gone)
+
+
+class CommandingEntity(ManagedEntity):
+    """The managed-node transitions of a node that commands a robot (ros2_control's controller
+    lifecycle): it commands only while active, and leaving the active state (deactivate,
+    shutdown, error) publishes one zero command. Subclasses set ``node``, ``active``, ``done``
+    and implement :meth:`stop_commanding`, :meth:`configure` and :meth:`cleanup`."""
+
+    node: LifecycleNode
+    active: bool
+    done: bool
+
+    def stop_commanding(self, why: str) -> bool:
+        raise NotImplementedError
+
+    def configure(self) -> None:
+        raise NotImplementedError
+
+    def cleanup(self) -> None:
+        raise NotImplementedError
+
+    def on_configure(self, state: LifecycleState) -> TransitionCallbackReturn:  # noqa: ARG002
+        self.configure()
+        return TransitionCallbackReturn.SUCCESS
+
+    def on_activate(self, state: LifecycleState) -> TransitionCallbackReturn:  # noqa: ARG002
+        self.active = True
+        self.node.get_logger().info("active: commanding")
+        return TransitionCallbackReturn.SUCCESS
+
+    def on_deactivate(self, state: LifecycleState) -> TransitionCallbackReturn:  # noqa: ARG002
+        self._leave("deactivated")
+        return TransitionCallbackReturn.SUCCESS
+
+    def on_cleanup(self, state: LifecycleState) -> TransitionCallbackReturn:  # noqa: ARG002
+        self.cleanup()
+        return TransitionCallbackReturn.SUCCESS
+
+    def on_shutdown(self, state: LifecycleState) -> TransitionCallbackReturn:  # noqa: ARG002
+        self._leave("shut down")
+        self.done = True
+        return TransitionCallbackReturn.SUCCESS
+
+    def on_error(self, state: LifecycleState) -> TransitionCallbackReturn:  # noqa: ARG002
+        self._leave("lifecycle error")
+        return TransitionCallbackReturn.SUCCESS
+
+    def _leave(self, why: str) -> None:
+        self.active = False
+        self.stop_commanding(why)

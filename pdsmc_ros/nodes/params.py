@@ -9,6 +9,7 @@ from __future__ import annotations
 import dataclasses
 import json
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -23,16 +24,12 @@ from rclpy.exceptions import (
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
+from ..control import GAIN_NAMES, Gains, law_names
+from ..control.safety import MAX_SAFE_DAMPING, MAX_SAFE_STIFFNESS, SafetyConfig
 from ..errors import ConfigError, InvalidInputError
-from ..presets import (
-    CONTROLLER_NAMES,
-    GAIN_NAMES,
-    ROBOT_NAMES,
-    Gains,
-    RunSpec,
-    make_run,
-)
-from ..safety import MAX_SAFE_DAMPING, MAX_SAFE_STIFFNESS, SafetyConfig
+from ..joints import check_joint_names
+from ..presets import RunSpec, make_run
+from ..robots import Manipulator, robot_names
 from .topics import MODES
 
 BUSY_WAIT_S = 0.0002  # real time: default busy-wait before a tick (parameter busy_wait)
@@ -52,9 +49,9 @@ def _descriptor(
 
 
 RUN_PARAMETERS: dict[str, tuple[Any, ParameterDescriptor]] = {
-    "robot": ("serial_3r", _descriptor("manipulator", constraints="one of: " + ", ".join(ROBOT_NAMES))),
+    "robot": ("serial_3r", _descriptor("manipulator", constraints="one of: " + ", ".join(robot_names()))),
     "contour": ("circle", _descriptor("contour preset (config/contours.yaml) or csv")),
-    "type": ("pdsmc", _descriptor("controller type", constraints="one of: " + ", ".join(CONTROLLER_NAMES))),
+    "type": ("pdsmc", _descriptor("controller type", constraints="one of: " + ", ".join(law_names()))),
     "scenario": ("nominal", _descriptor("robustness scenario (config/scenarios.yaml)")),
     "mode": ("lockstep", _descriptor("timing mode", constraints="one of: lockstep, realtime")),
     "rate": (0.0, _descriptor("control rate in Hz (0: preset, 10 kHz serial / 5 kHz parallel)", lo=0.0, hi=1.0e6)),
@@ -164,6 +161,53 @@ def torque_limit_from_parameters(node: Node, n: int) -> np.ndarray | None:
     return limit
 
 
+@dataclass(frozen=True)
+class ControllerParameters:
+    """The controller's own parameters (besides the run's and the gains), validated."""
+
+    joints: tuple[str, ...]
+    autostart: bool
+    torque_limit: np.ndarray | None
+    stale_periods: int
+
+
+def declare_controller_parameters(node: Node, robot: Manipulator) -> ControllerParameters:
+    """Declare ``joints``, ``autostart``, ``torque_limit`` and ``stale_periods``; a ConfigError if bad."""
+    node.declare_parameter("joints", list(robot.joint_names), ParameterDescriptor(
+        description="controlled joints, in the order of the commands' data (default: the robot's actuated "
+                    "joints); states and trajectories are matched by these names", dynamic_typing=True))
+    node.declare_parameter("autostart", True, ParameterDescriptor(
+        description="configure and activate at start (false: wait for the lifecycle transitions)"))
+    node.declare_parameter("torque_limit", None, ParameterDescriptor(
+        description="optional per-joint torque limits in N m (empty: none)", dynamic_typing=True))
+    stale_periods = declare_int_parameter(
+        node, "stale_periods", 20, "real time: periods after which a state or reference is stale", lo=1, hi=10**6)
+    autostart = node.get_parameter("autostart").value
+    if not isinstance(autostart, bool):
+        raise ConfigError(f"parameter autostart must be true or false, got {autostart!r}")
+    return ControllerParameters(check_joint_names(node.get_parameter("joints").value, robot.n), autostart,
+                                torque_limit_from_parameters(node, robot.n), stale_periods)
+
+
+@dataclass(frozen=True)
+class NodeRun:
+    """What every node starts from: the run its parameters name, the mode and the busy-wait."""
+
+    spec: RunSpec
+    mode: str
+    busy_wait: float
+
+
+def declare_node_run(node: Node, *, gains: bool = False) -> NodeRun:
+    """The start-up lines of every node: declare the run's parameters (and the gains) and
+    ``busy_wait``, and build the RunSpec they name (a ConfigError if bad). A node whose run
+    cannot change adds :func:`refuse_run_changes` once all its parameters are declared."""
+    declare_run_parameters(node, gains=gains)
+    busy_wait = declare_busy_wait(node)  # used in real time
+    spec = run_spec_from_parameters(node)
+    return NodeRun(spec, str(node.get_parameter("mode").value), busy_wait)
+
+
 def _range_of(name: str) -> tuple[float, float]:
     ranges = RUN_PARAMETERS[name][1].floating_point_range
     if ranges:
@@ -251,7 +295,7 @@ class GainUpdates:
 
     A change passes exactly the checks of start-up (:meth:`Gains.from_mapping`
     and the zero-order-hold stability check at the running rate,
-    :func:`~pdsmc_ros.stability.check_rate`) or is refused with the reason
+    :func:`~pdsmc_ros.control.stability.check_rate`) or is refused with the reason
     (``ros2 param set`` shows it: for an unstable gain, the lowest stable
     rate). ``apply`` receives the accepted gains only after the parameters are
     set, from the post-set callback.

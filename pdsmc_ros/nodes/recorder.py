@@ -36,15 +36,14 @@ from ..bag.reader import DESCRIPTION_KEY, RECORDER_DESCRIPTION_TOPIC
 from ..bag.stamps import effort_step, header_step
 from ..bag.writer import MessageAppender, close_chunk
 from ..errors import BagError, CdrError, ConfigError
-from ..simulator import control_steps
+from ..presets import control_steps
 from .executor import run_node
 from .io import Inputs
 from .lifecycle import EXIT_FAILURE, EXIT_OK
 from .params import (
-    declare_run_parameters,
+    declare_node_run,
     description_json,
     refuse_run_changes,
-    run_spec_from_parameters,
 )
 from .topics import (
     LATCHED_QOS,
@@ -85,9 +84,9 @@ class RecorderNode:
     def __init__(self) -> None:
         self.node = Node("recorder")
         node = self.node
-        declare_run_parameters(node)
+        run = declare_node_run(node)
+        self.spec = run.spec
         node.declare_parameter("output", "")
-        self.spec = run_spec_from_parameters(node)
         node.add_on_set_parameters_callback(refuse_run_changes)
         output = str(node.get_parameter("output").value)
         if not output:
@@ -115,8 +114,7 @@ class RecorderNode:
         # the flush timer may run in the executor's thread (real-time composed mode)
         self.lock = threading.Lock()
         # off the loop's critical path: take messages in batches (keep-all subscriptions)
-        mode = str(node.get_parameter("mode").value)
-        self.inputs = Inputs(node, mode, batch_s=RECORDER_BATCH_S)
+        self.inputs = Inputs(node, run.mode, batch_s=RECORDER_BATCH_S)
         for topic, (msg_type, type_name, qos) in RECORDED.items():
             name = "/" + topic
             self.connections[topic] = self.writer.add_connection(name, type_name, typestore=typestore)
@@ -126,7 +124,7 @@ class RecorderNode:
         # (with its gains) has been discovered and received
         own = self.writer.add_connection(RECORDER_DESCRIPTION_TOPIC, "std_msgs/msg/String", typestore=typestore)
         MessageAppender(self.writer, own).append_many(
-            time.time_ns(), [serialize_message(String(data=description_json(self.spec, mode)))])
+            time.time_ns(), [serialize_message(String(data=description_json(self.spec, run.mode)))])
         self.flush()
         # rosbags closes an MCAP chunk only at 1 MiB (seconds of data); close and flush one
         # every 0.5 s so a killed recorder loses at most that much (see bag/mcapscan.py)

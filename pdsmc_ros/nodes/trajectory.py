@@ -37,16 +37,14 @@ from trajectory_msgs.msg import JointTrajectory
 from ..bag.cdr import decode_stamp, encode_joint_trajectories, encode_point_stamped
 from ..bag.stamps import stamp_step, step_stamp
 from ..errors import CdrError
-from ..simulator import control_steps
+from ..presets import control_steps
 from .executor import run_node
 from .io import GuardedPublisher, Inputs
 from .lifecycle import EXIT_OK, end_when_plant_leaves
 from .params import (
-    declare_busy_wait,
     declare_int_parameter,
-    declare_run_parameters,
+    declare_node_run,
     refuse_run_changes,
-    run_spec_from_parameters,
 )
 from .topics import (
     STEADY_CLOCK,
@@ -68,17 +66,15 @@ class TrajectoryNode:
     def __init__(self) -> None:
         self.node = Node("trajectory")
         node = self.node
-        declare_run_parameters(node)
-        self.busy_wait = declare_busy_wait(node)  # used in real time
+        run = declare_node_run(node)
+        self.spec, self.mode, self.busy_wait = run.spec, run.mode, run.busy_wait
         self.expected = declare_int_parameter(
             node, "expected_subscribers", 2, "subscribers of /reference to wait for (controller, recorder)",
             lo=0, hi=100)
         self.lookahead = declare_int_parameter(
             node, "lookahead_steps", LOOKAHEAD_STEPS, "lockstep: references published ahead of the plant's state",
             lo=1, hi=STREAM_DEPTH // 2)
-        self.spec = run_spec_from_parameters(node)
         node.add_on_set_parameters_callback(refuse_run_changes)
-        self.mode = node.get_parameter("mode").value
         reference = self.spec.reference()
         self.robot = self.spec.robot_model()
         self.last_step = control_steps(reference.duration, self.spec.rate)

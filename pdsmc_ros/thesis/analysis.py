@@ -16,9 +16,9 @@ from typing import Any
 import numpy as np
 
 from ..bag.reader import RecordedRun, read_run, run_metrics
+from ..control import LAWS
 from ..errors import BagError, InvalidInputError
 from ..metrics import Metrics
-from ..presets import CONTROLLER_LABELS as LABEL
 
 
 def is_bag(path: Path) -> bool:
@@ -71,7 +71,7 @@ class AnalyzedBag:
     @property
     def label(self) -> str:
         d = self.run.description
-        return f"{LABEL.get(d['controller'], d['controller'])} ({self.path.name})"
+        return f"{LAWS[d['controller']].label if d['controller'] in LAWS else d['controller']} ({self.path.name})"
 
     def as_dict(self) -> dict[str, Any]:
         out = self.metrics.as_dict()

@@ -13,17 +13,14 @@ from typing import Any
 
 import numpy as np
 
-from ..presets import (
-    CONTROLLER_NAMES,
-    Gains,
-    RunSpec,
-    control_steps,
-    load_config,
-    make_run,
-    preset_gains,
-    smc_reading,
-)
-from ..simulator import RunResult
+from ..config import load_config
+from ..control import Gains, law_label
+from ..presets import RunSpec, control_steps, make_run, preset_gains, smc_reading
+from ..sim import RunResult
+
+THESIS_LAWS = ("pd", "smc", "pdsmc")
+"""The laws the thesis compares, in its order."""
+LABEL = {name: law_label(name) for name in THESIS_LAWS}
 
 REPRODUCED = 0.05
 
@@ -50,7 +47,7 @@ MISPRINT_DIGITS = 5e-4
 CONTINUOUS_CASE = ("serial_3r", "circle", "pdsmc")
 
 
-"""The run checked against its continuous-time limit (:mod:`pdsmc_ros.continuous`)."""
+"""The run checked against its continuous-time limit (:mod:`pdsmc_ros.sim.continuous`)."""
 
 
 # Statistics the thesis computed differently for one controller, found by comparing its
@@ -141,7 +138,7 @@ def matrix_specs(
     for robot, contours in tables.items():
         for contour, scenarios in contours.items():
             for scenario, entry in scenarios.items():
-                for controller in CONTROLLER_NAMES:
+                for controller in THESIS_LAWS:
                     spec = make_run(
                         robot,
                         contour,

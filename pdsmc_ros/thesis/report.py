@@ -12,19 +12,16 @@ from pathlib import Path
 import numpy as np
 
 from .. import __version__
+from ..config import load_config
 from ..errors import ConfigError
-from ..presets import CONTROLLER_LABELS as LABEL
-from ..presets import (
-    CONTROLLER_NAMES,
-    PAYLOAD_READINGS,
-    load_config,
-    preset_gains,
-)
+from ..presets import PAYLOAD_READINGS, preset_gains
 from .cells import (
     CONTINUOUS_CASE,
     GAIN_READINGS,
+    LABEL,
     REPRODUCED,
     STATISTIC_READINGS,
+    THESIS_LAWS,
     VERDICTS,
     Cell,
     Reproduction,
@@ -200,9 +197,9 @@ def write_report(rep: Reproduction, out: Path) -> dict[str, Path]:
             add(f"Note: {entry['notes']}")
         add("")
         add(
-            "| statistic | " + " | ".join(f"{LABEL[k]} thesis | {LABEL[k]} ours | dev" for k in CONTROLLER_NAMES) + " |"
+            "| statistic | " + " | ".join(f"{LABEL[k]} thesis | {LABEL[k]} ours | dev" for k in THESIS_LAWS) + " |"
         )
-        add("| --- |" + " ---: | ---: | ---: |" * len(CONTROLLER_NAMES))
+        add("| --- |" + " ---: | ---: | ---: |" * len(THESIS_LAWS))
         metrics = list(dict.fromkeys(c.metric for c in group))
         for metric in metrics:
             row = [metric]
@@ -210,7 +207,7 @@ def write_report(rep: Reproduction, out: Path) -> dict[str, Path]:
             if readers:
                 row = [(f"{metric} ({LABEL[readers[0].controller]}: vs `{readers[0].ours_metric}`, "
                        "see Statistic readings)")]
-            for ctrl in CONTROLLER_NAMES:
+            for ctrl in THESIS_LAWS:
                 match = [c for c in group if c.controller == ctrl and c.metric == metric]
                 if match:
                     c = match[0]

@@ -14,21 +14,15 @@ from typing import Any
 import numpy as np
 
 from ..bag.reader import read_run, run_samples
+from ..config import choice, load_config
 from ..errors import BagError, ConfigError
 from ..metrics import compute_metrics
-from ..presets import CONTROLLER_LABELS as LABEL
-from ..presets import (
-    PAYLOAD_READINGS,
-    RunSpec,
-    choice,
-    load_config,
-    make_run,
-    smc_reading,
-)
+from ..presets import PAYLOAD_READINGS, RunSpec, make_run, smc_reading
 from ..resources import ros_environment, script_path
-from ..simulator import RunResult, simulate, simulate_many
+from ..sim import RunResult, simulate, simulate_many
 from .cells import (
     CONTINUOUS_CASE,
+    LABEL,
     Cell,
     Reproduction,
     compare,

@@ -15,14 +15,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..control.gains import Gains
+from ..control.stability import rate_margin
 from ..errors import InvalidInputError
-from ..presets import Gains, RunSpec, make_run
-from ..simulator import simulate_many
-from ..stability import rate_margin
+from ..presets import RunSpec, make_run
+from ..robots import ROBOTS
+from ..sim import simulate_many
 
 BASELINE = {"kp": 5000.0, "kd": 1000.0, "ks": 5.0, "lam": 10.0, "phi": 0.5}
 RANGES = {"kp": (10.0, 10000.0), "kd": (0.0, 10000.0), "ks": (1.0, 200.0), "lam": (0.0, 200.0)}
-PARAM_ALIASES = {"lambda": "lam"}
 
 
 def thesis_values(lo: float, hi: float) -> list[float]:
@@ -54,12 +55,11 @@ def sweep_specs(
 
     ``values`` defaults to the thesis's values over the range of Table 4.15.
     """
-    param = PARAM_ALIASES.get(param, param)
     if param not in RANGES:
-        raise InvalidInputError(f"unknown sweep parameter {param!r}; choose one of: kp, kd, ks, lambda")
+        raise InvalidInputError(f"unknown sweep parameter {param!r}; choose one of: {', '.join(RANGES)}")
     if values is not None and (not values or any(not np.isfinite(v) or v < 0 for v in values)):
         raise InvalidInputError(f"sweep values must be finite numbers >= 0, got {values}")
-    n = 3 if robot == "serial_3r" else 2
+    n = ROBOTS[robot].n
     specs = []
     for value in values if values is not None else thesis_values(*RANGES[param]):
         gains = Gains.from_mapping({k: [v] * n for k, v in {**BASELINE, param: value}.items()}, n, "pdsmc")

@@ -7,8 +7,9 @@ import sys
 
 import numpy as np
 
-from pdsmc_ros.lyapunov import theorem_conditions
-from pdsmc_ros.presets import Gains, make_run
+from pdsmc_ros.control import Gains
+from pdsmc_ros.control.lyapunov import theorem_conditions
+from pdsmc_ros.presets import make_run
 from pdsmc_ros.thesis.sweep import sweep_specs, thesis_values
 
 
@@ -52,14 +53,14 @@ def test_check_gains_cli_reports_each_condition() -> None:
 
 
 def test_sweep_cli_writes_table_and_plot(tmp_path) -> None:  # noqa: ANN001
-    proc = subprocess.run([sys.executable, "-m", "pdsmc_ros.cli", "sweep", "--param", "lambda", "--robot",
+    proc = subprocess.run([sys.executable, "-m", "pdsmc_ros.cli", "sweep", "--param", "lam", "--robot",
                            "parallel_5r", "--contour", "ellipse_vertical", "--values", "0,10,100",
                            "--out", str(tmp_path)],
                           capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, proc.stderr
-    rows = (tmp_path / "sweep_lambda.csv").read_text().splitlines()
+    rows = (tmp_path / "sweep_lam.csv").read_text().splitlines()
     assert len(rows) == 1 + 3
-    png = (tmp_path / "sweep_lambda.png").read_bytes()
+    png = (tmp_path / "sweep_lam.png").read_bytes()
     assert png[:8] == b"\x89PNG\r\n\x1a\n"
     means = np.array([float(r.split(",")[2]) for r in rows[1:]])
     assert np.all(np.isfinite(means)) and np.all(means > 0)

@@ -15,16 +15,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pdsmc_ros.models import Parallel5R, Serial3R
-from pdsmc_ros.presets import (
-    PAYLOAD_READINGS,
-    RunSpec,
-    load_config,
-    loaded_params,
-    make_run,
-    robot_params,
-)
-from pdsmc_ros.simulator import simulate
+from pdsmc_ros.config import load_config
+from pdsmc_ros.presets import PAYLOAD_READINGS, RunSpec, loaded_params, make_run
+from pdsmc_ros.robots import Parallel5R, Serial3R, robot_params
+from pdsmc_ros.sim import simulate
 from pdsmc_ros.thesis.cells import VERDICTS, Cell, Reproduction, needed_torque
 from pdsmc_ros.thesis.report import write_report
 from pdsmc_ros.thesis.reproduce import run_reproduction
@@ -211,7 +205,7 @@ def test_discrete_loop_converges_to_the_continuous_time_limit() -> None:
     """On a short run (serial circle PD-SMC at high speed, 1.25 s) the 10 kHz loop lies within
     1e-4 of the Radau solution and the 40 kHz loop closer still (the full-length figures are in
     docs/REPRODUCTION.md)."""
-    from pdsmc_ros.continuous import simulate_continuous
+    from pdsmc_ros.sim.continuous import simulate_continuous
 
     spec = make_run("serial_3r", "circle", "pdsmc", scenario="high_speed")
     limit = simulate_continuous(spec, rtol=1e-9).metrics

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .presets import RunSpec
+from ..presets import RunSpec
 
 
 @dataclass(frozen=True)

@@ -2,7 +2,7 @@
 
 The thesis simulated in continuous time (NOTES.md section 1); the project runs a
 discrete loop (zero-order hold, RK4) fast enough to stand in for it. This module
-measures how close that is: the same plant (:func:`kernels.forward_dynamics`,
+measures how close that is: the same plant (:func:`pdsmc_ros.robots.compiled.forward_dynamics`,
 Eq. 4.1) and the same control law (:class:`simulator.ControlLaw`) evaluated at every
 instant the solver asks for, inside scipy's ``solve_ivp(method="Radau")``, with the
 statistics taken at the same sampled instants as the discrete run.
@@ -14,12 +14,13 @@ import time
 
 import numpy as np
 
-from . import kernels
-from .errors import InvalidInputError
-from .metrics import compute_metrics
-from .models import FloatArray
-from .presets import RunSpec, control_steps
-from .simulator import ControlLaw, RunResult, build_samples
+from ..control.law import ControlLaw
+from ..errors import InvalidInputError
+from ..metrics import compute_metrics
+from ..presets import RunSpec, control_steps
+from ..robots import compiled as robot_compiled
+from ..robots.base import FloatArray
+from .simulator import RunResult, build_samples
 
 
 def simulate_continuous(spec: RunSpec, *, rtol: float = 1e-10, atol: float = 1e-12) -> RunResult:
@@ -48,10 +49,10 @@ def simulate_continuous(spec: RunSpec, *, rtol: float = 1e-10, atol: float = 1e-
     start = time.perf_counter()
     robot = spec.robot_model()
     reference = spec.reference()
-    kind, params = kernels.pack_robot(robot)
-    law = ControlLaw(spec)
+    kind, params = robot_compiled.pack(robot)
+    law = ControlLaw.from_spec(spec)
     n = robot.n
-    work = kernels.workspace()
+    work = robot_compiled.workspace(n)
     qdd = np.empty(n)
     evaluations = 0
 
@@ -61,7 +62,7 @@ def simulate_continuous(spec: RunSpec, *, rtol: float = 1e-10, atol: float = 1e-
         ref = reference.sample(t)
         q, qd = np.ascontiguousarray(y[:n]), np.ascontiguousarray(y[n:])
         tau = law.torque(q, qd, ref.q[0], ref.qd[0], ref.qdd[0])
-        kernels.forward_dynamics(kind, params, q, qd, tau, qdd, work)
+        robot_compiled.forward_dynamics(kind, params, q, qd, tau, qdd, work)
         return np.concatenate([qd, qdd])
 
     duration = reference.duration

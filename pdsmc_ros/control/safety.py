@@ -15,8 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import InvalidInputError
-from .models import FloatArray
+from ..errors import InvalidInputError
+from ..robots.base import FloatArray
 
 SAFE_MODES = ("damp", "hold")
 ON_LOSS = ("resume", "end")

@@ -1,0 +1,189 @@
+"""What the controller node decides, without ROS: which state meets which reference, and
+which torque may go out."""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from typing import Protocol
+
+import numpy as np
+
+from ..bag.stamps import stamp_step
+from ..robots.base import FloatArray
+from .safety import Staleness, limit_torque
+
+MAX_STEP = 2**32 - 1  # an effort command's layout.data_offset is a uint32
+Reference = tuple[FloatArray, FloatArray, FloatArray]
+"""``(q_d, qd_d, qdd_d)`` of one instant."""
+
+
+class TrajectorySource(Protocol):
+    def sample(self, t: float) -> Reference: ...
+
+
+class LockstepPairing:
+    """Lockstep: the torque of step ``k`` once the state and the reference of step ``k`` are in.
+
+    References come from the stream (one per step, sent ahead, in step order) or
+    from a trajectory goal (sampled at ``step / rate``); whichever spoke last
+    drives. References of steps whose state will not come (the plant stepped
+    alone in safe mode) are dropped once a later state is paired.
+
+    Parameters
+    ----------
+    rate : float
+        Control rate (Hz).
+    last_step : int
+        The run's last step; :attr:`finished` once it is paired.
+    """
+
+    def __init__(self, rate: float, last_step: int) -> None:
+        self.rate = rate
+        self.last_step = last_step
+        self.state: tuple[int, FloatArray, FloatArray] | None = None  # waiting for its reference
+        self.refs: dict[int, Reference] = {}
+        self.trajectory: TrajectorySource | None = None
+        self.source: str | None = None  # "reference" or "trajectory"
+        self.next_step = 0  # the step a command would be for now
+        self.finished = False
+
+    def step_of(self, sec: int, nanosec: int) -> int | None:
+        """The control step a sim-time stamp names, or None if it names none."""
+        step = stamp_step(sec, nanosec, self.rate)
+        return step if 0 <= step <= MAX_STEP else None
+
+    @property
+    def stop_step(self) -> int:
+        """The step a zero command sent now is for."""
+        return min(self.next_step, MAX_STEP)
+
+    def add_state(self, step: int, q: FloatArray, qd: FloatArray) -> None:
+        self.state = (step, q, qd)
+
+    def add_reference(self, step: int, ref: Reference) -> None:
+        self.refs[step] = ref
+        self.source = "reference"
+
+    def drive(self, trajectory: TrajectorySource) -> None:
+        """A trajectory goal drives from now on (until the next streamed reference)."""
+        self.trajectory = trajectory
+        self.source = "trajectory"
+
+    def take(self) -> tuple[int, FloatArray, FloatArray, Reference] | None:
+        """``(step, q, qd, reference)`` if the pending state can be computed now."""
+        if self.state is None:
+            return None
+        step, q, qd = self.state
+        if self.source == "trajectory" and self.trajectory is not None:
+            ref = self.trajectory.sample(step / self.rate)
+            self.refs.pop(step, None)
+        else:
+            found = self.refs.pop(step, None)
+            if found is None:
+                return None
+            ref = found
+        while self.refs:  # in step order: the oldest entries are the skipped ones
+            oldest = next(iter(self.refs))
+            if oldest >= step:
+                break
+            del self.refs[oldest]
+        self.state = None
+        self.next_step = step + 1
+        if step >= self.last_step:
+            self.finished = True
+        return step, q, qd, ref
+
+
+class TorqueGuard:
+    """The last check before a torque goes out: never a non-finite one; clamped to the limits if set.
+
+    Counts both; :meth:`check` says when to log (the first five, then every 1000th).
+    """
+
+    def __init__(self, limit: FloatArray | None) -> None:
+        self.limit = limit
+        self.non_finite = 0
+        self.clamped = 0
+
+    def check(self, tau: FloatArray) -> tuple[list[float] | None, str]:
+        """The values to publish (None: refused) and a line to log ("" for none)."""
+        values = tau.tolist()
+        if not all(map(math.isfinite, values)):
+            self.non_finite += 1
+            note = _every(self.non_finite, f"non-finite torque {values} not published ({self.non_finite} so far)")
+            return None, note
+        if self.limit is None:
+            return values, ""
+        limited, clamped = limit_torque(np.asarray(tau), self.limit)
+        if not clamped:
+            return values, ""
+        self.clamped += 1
+        return limited.tolist(), _every(self.clamped, f"torque limited ({self.clamped} so far)")
+
+
+def _every(count: int, text: str) -> str:
+    return text if count <= 5 or count % 1000 == 0 else ""
+
+
+class LatestInputs:
+    """Real time: the latest state and reference, and whether they are fresh enough to command.
+
+    Parameters
+    ----------
+    stale_s : float
+        Inputs older than this stop the output (:class:`~pdsmc_ros.control.safety.Staleness`).
+    """
+
+    def __init__(self, stale_s: float) -> None:
+        self.staleness = Staleness(stale_s)
+        self.state: tuple[FloatArray, FloatArray] | None = None  # None: the latest state was incomplete
+        self.reference: Reference | None = None
+        self.trajectory: TrajectorySource | None = None
+        self.source: str | None = None  # "reference" or "trajectory": whichever spoke last
+        self.state_time = self.reference_time = 0.0
+
+    def add_state(self, q: FloatArray, qd: FloatArray, now: float) -> None:
+        self.state, self.state_time = (q, qd), now
+
+    def add_reference(self, ref: Reference, now: float) -> None:
+        self.reference, self.reference_time, self.source = ref, now, "reference"
+
+    def drive(self, trajectory: TrajectorySource) -> None:
+        self.trajectory, self.source = trajectory, "trajectory"
+
+    def take(self, now: float, clock: Callable[[], float]
+             ) -> tuple[tuple[FloatArray, FloatArray, Reference] | None, str]:
+        """``((q, qd, reference) or None, change)``: what to command from now (None: nothing; a
+        trajectory is sampled at ``clock()``), and ``"stale"`` / ``"fresh"`` when the inputs just
+        became so."""
+        if self.source is None or self.state_time == 0.0:
+            return None, ""
+        from_stream = self.source == "reference"
+        change = self.staleness.update(now, self.state_time, self.reference_time if from_stream else None)
+        if self.staleness.stale or self.state is None:
+            return None, change
+        ref = self.reference if from_stream else self.trajectory.sample(clock())  # type: ignore[union-attr]
+        return (*self.state, ref), change  # type: ignore[return-value]
+
+
+class TickTiming:
+    """Real time: each tick's ``[wall time, achieved period, compute time, lateness, missed so far]``."""
+
+    FIELDS = 5
+
+    def __init__(self, period: float) -> None:
+        self.period = period
+        self.missed = 0
+        self.last: float | None = None
+
+    def start(self, lateness: float) -> float:
+        """A tick starts ``lateness`` s after its deadline; its start time (``perf_counter``)."""
+        self.missed += lateness > self.period
+        return time.perf_counter()
+
+    def row(self, start: float, lateness: float) -> list[float]:
+        """The row of a tick that commanded, at its end."""
+        period = 0.0 if self.last is None else start - self.last
+        return [time.time(), period, time.perf_counter() - start, lateness, float(self.missed)]

@@ -1,0 +1,259 @@
+"""The five-bar's compiled form (numba): one state, scratch from ``work``.
+
+The same mathematics as :class:`pdsmc_ros.robots.parallel_5r.Parallel5R`
+(the reduced model, Appendix Eqs. 47-70) written as scalar loops; tests prove
+both agree to 1e-12.
+"""
+
+from __future__ import annotations
+
+import math
+
+from numba import njit
+
+from .chain import chain_coriolis_times, chain_mass_bias
+
+PARALLEL_5R = 1
+"""Code of the compiled form (:mod:`pdsmc_ros.robots.compiled`)."""
+
+# The flat parameter array of :meth:`Parallel5R.pack`, by name: each chain is
+# ``W(4) w(2) I(2) lengths(2)``
+_LEFT = 0  # links 1 and 3
+_L1 = 8
+_L3 = 9
+_RIGHT = 10  # links 2 and 4
+_L2 = 18
+_L4 = 19
+_L5 = 20  # the base
+_J = 21
+_B = 23
+_G = 25
+_MODE = 26  # assembly mode, +1 or -1
+
+GEOMETRY_SIZE = 16
+
+
+
+@njit(cache=True)
+def _geometry(p, q, qd, geo):  # noqa: ANN001, ANN202
+    """Open-tree angles/rates and ``R = d(q3, q4)/d(q1, q2)`` into ``geo``.
+
+    ``geo`` (16 floats) receives ``ql = (q1, q3)`` [0:2], ``qr = (q2, q4)``
+    [2:4], their rates ``qdl`` [4:6] and ``qdr`` [6:8], ``rho`` [8:12]
+    (row-major 2x2, rows q3, q4) and ``A_pas^{-1}`` [12:16] (row-major 2x2).
+    """
+    l1 = p[_L1]
+    l3 = p[_L3]
+    l2 = p[_L2]
+    l4 = p[_L4]
+    l5 = p[_L5]
+    mode = p[_MODE]
+    c1 = math.cos(q[0])
+    s1 = math.sin(q[0])
+    c2 = math.cos(q[1])
+    s2 = math.sin(q[1])
+    a1x = l1 * c1
+    a1y = l1 * s1
+    a2x = l5 + l2 * c2
+    a2y = l2 * s2
+    ux = a2x - a1x
+    uy = a2y - a1y
+    d2 = ux * ux + uy * uy
+    d = math.sqrt(d2)
+    along = (d2 + l3 * l3 - l4 * l4) / (2.0 * d)
+    h = math.sqrt(max(l3 * l3 - along * along, 0.0))
+    ex = ux / d
+    ey = uy / d
+    px = a1x + along * ex - mode * h * ey
+    py = a1y + along * ey + mode * h * ex
+    th13 = math.atan2(py - a1y, px - a1x)
+    th24 = math.atan2(py - a2y, px - a2x)
+    geo[0] = q[0]
+    geo[1] = th13 - q[0]
+    geo[2] = q[1]
+    geo[3] = th24 - q[1]
+    s13 = math.sin(th13)
+    c13 = math.cos(th13)
+    s24 = math.sin(th24)
+    c24 = math.cos(th24)
+    # tip Jacobians of both chains
+    jl00 = -l1 * s1 - l3 * s13
+    jl01 = -l3 * s13
+    jl10 = l1 * c1 + l3 * c13
+    jl11 = l3 * c13
+    jr00 = -l2 * s2 - l4 * s24
+    jr01 = -l4 * s24
+    jr10 = l2 * c2 + l4 * c24
+    jr11 = l4 * c24
+    # A_act = [[jl00, -jr00], [jl10, -jr10]], A_pas = [[jl01, -jr01], [jl11, -jr11]]
+    det = jl01 * (-jr11) - (-jr01) * jl11
+    i00 = -jr11 / det
+    i01 = jr01 / det
+    i10 = -jl11 / det
+    i11 = jl01 / det
+    geo[12] = i00
+    geo[13] = i01
+    geo[14] = i10
+    geo[15] = i11
+    r00 = -(i00 * jl00 + i01 * jl10)
+    r01 = -(i00 * (-jr00) + i01 * (-jr10))
+    r10 = -(i10 * jl00 + i11 * jl10)
+    r11 = -(i10 * (-jr00) + i11 * (-jr10))
+    geo[8] = r00
+    geo[9] = r01
+    geo[10] = r10
+    geo[11] = r11
+    geo[4] = qd[0]
+    geo[5] = r00 * qd[0] + r01 * qd[1]
+    geo[6] = qd[1]
+    geo[7] = r10 * qd[0] + r11 * qd[1]
+
+
+@njit(cache=True)
+def _jdot_times(p, geo, vl0, vl1, vr0, vr1):  # noqa: ANN001, ANN202
+    """``Jdot_left vl - Jdot_right vr`` (rates of the constraint), as two floats."""
+    l1 = p[_L1]
+    l3 = p[_L3]
+    l2 = p[_L2]
+    l4 = p[_L4]
+    th1 = geo[0]
+    th13 = geo[0] + geo[1]
+    w1 = geo[4]
+    w13 = geo[4] + geo[5]
+    th2 = geo[2]
+    th24 = geo[2] + geo[3]
+    w2 = geo[6]
+    w24 = geo[6] + geo[7]
+    # Jdot of a 2-link chain: [[-l1 c1 w1 - l3 c13 w13, -l3 c13 w13], [-l1 s1 w1 - l3 s13 w13, -l3 s13 w13]]
+    lx = (-l1 * math.cos(th1) * w1 - l3 * math.cos(th13) * w13) * vl0 - l3 * math.cos(
+        th13
+    ) * w13 * vl1
+    ly = (-l1 * math.sin(th1) * w1 - l3 * math.sin(th13) * w13) * vl0 - l3 * math.sin(
+        th13
+    ) * w13 * vl1
+    rx = (-l2 * math.cos(th2) * w2 - l4 * math.cos(th24) * w24) * vr0 - l4 * math.cos(
+        th24
+    ) * w24 * vr1
+    ry = (-l2 * math.sin(th2) * w2 - l4 * math.sin(th24) * w24) * vr0 - l4 * math.sin(
+        th24
+    ) * w24 * vr1
+    return lx - rx, ly - ry
+
+
+@njit(cache=True)
+def _chain_terms(p, geo, g, ml, mr, bl, br, work):  # noqa: ANN001, ANN202
+    """Mass matrices and ``C' qd' + G'`` of both open chains at ``geo``."""
+    left, right = _LEFT, _RIGHT
+    chain_mass_bias(p[left : left + 4], p[left + 4 : left + 6], p[left + 6 : left + 8], g, geo[0:2], geo[4:6],
+                    ml, bl, work)
+    chain_mass_bias(p[right : right + 4], p[right + 4 : right + 6], p[right + 6 : right + 8], g, geo[2:4],
+                    geo[6:8], mr, br, work)
+
+
+@njit(cache=True)
+def _passive_rates(geo, cdot0, cdot1):  # noqa: ANN001, ANN202
+    """``rhodot qd`` for (q3, q4) from the constraint rates: ``-A_pas^{-1} cdot``."""
+    pas0 = -(geo[12] * cdot0 + geo[13] * cdot1)
+    pas1 = -(geo[14] * cdot0 + geo[15] * cdot1)
+    return pas0, pas1
+
+
+@njit(cache=True)
+def terms(p, q, qd, mass, bias, work):  # noqa: ANN001, ANN202
+    """Reduced ``Mbar`` and ``C qd + G`` of the five-bar."""
+    geo = work[0:GEOMETRY_SIZE]
+    _geometry(p, q, qd, geo)
+    ml = work[16:20].reshape((2, 2))
+    mr = work[20:24].reshape((2, 2))
+    bl = work[24:26]
+    br = work[26:28]
+    _chain_terms(p, geo, p[_G], ml, mr, bl, br, work[28:])
+    cdot0, cdot1 = _jdot_times(p, geo, geo[4], geo[5], geo[6], geo[7])
+    pas0, pas1 = _passive_rates(geo, cdot0, cdot1)
+    # f = C' qd' + M' rhodot qd + G' per chain
+    fl0 = bl[0] + ml[0, 1] * pas0
+    fl1 = bl[1] + ml[1, 1] * pas0
+    fr0 = br[0] + mr[0, 1] * pas1
+    fr1 = br[1] + mr[1, 1] * pas1
+    # rho_left = [[1, 0], [r00, r01]], rho_right = [[0, 1], [r10, r11]]
+    r00 = geo[8]
+    r01 = geo[9]
+    r10 = geo[10]
+    r11 = geo[11]
+    bias[0] = fl0 + r00 * fl1 + r10 * fr1
+    bias[1] = r01 * fl1 + fr0 + r11 * fr1
+    # rho^T M rho for each chain
+    m00 = ml[0, 0] + 2.0 * r00 * ml[0, 1] + r00 * r00 * ml[1, 1]
+    m01 = r01 * ml[0, 1] + r00 * r01 * ml[1, 1]
+    m11 = r01 * r01 * ml[1, 1]
+    m00 += r10 * r10 * mr[1, 1]
+    m01 += r10 * mr[0, 1] + r10 * r11 * mr[1, 1]
+    m11 += mr[0, 0] + 2.0 * r11 * mr[0, 1] + r11 * r11 * mr[1, 1]
+    mass[0, 0] = m00 + p[_J]
+    mass[0, 1] = m01
+    mass[1, 0] = m01
+    mass[1, 1] = m11 + p[_J + 1]
+
+
+@njit(cache=True)
+def coriolis_times(p, q, qd, v, out, work):  # noqa: ANN001, ANN202
+    """``C(q, qd) v`` of the reduced model, ``C = rho^T C' rho + rho^T M' rhodot``."""
+    geo = work[0:GEOMETRY_SIZE]
+    _geometry(p, q, qd, geo)
+    rho = geo[8:12]
+    vl = work[16:18]
+    vr = work[18:20]
+    vl[0] = v[0]
+    vl[1] = rho[0] * v[0] + rho[1] * v[1]
+    vr[0] = v[1]
+    vr[1] = rho[2] * v[0] + rho[3] * v[1]
+    cl = work[20:22]
+    cr = work[22:24]
+    chain_coriolis_times(p[_LEFT:_LEFT + 4], geo[0:2], geo[4:6], vl, cl, work[40:])
+    chain_coriolis_times(p[_RIGHT:_RIGHT + 4], geo[2:4], geo[6:8], vr, cr, work[40:])
+    cdot0, cdot1 = _jdot_times(p, geo, vl[0], vl[1], vr[0], vr[1])
+    pas0, pas1 = _passive_rates(geo, cdot0, cdot1)
+    ml = work[24:28].reshape((2, 2))
+    mr = work[28:32].reshape((2, 2))
+    _chain_terms(p, geo, 0.0, ml, mr, work[32:34], work[34:36], work[40:])
+    fl0 = cl[0] + ml[0, 1] * pas0
+    fl1 = cl[1] + ml[1, 1] * pas0
+    fr0 = cr[0] + mr[0, 1] * pas1
+    fr1 = cr[1] + mr[1, 1] * pas1
+    out[0] = fl0 + rho[0] * fl1 + rho[2] * fr1
+    out[1] = rho[1] * fl1 + fr0 + rho[3] * fr1
+
+
+@njit(cache=True)
+def gravity(p, q, out, work):  # noqa: ANN001, ANN202
+    mass = work[0:4].reshape((2, 2))
+    qd = work[4:6]
+    qd[0] = 0.0
+    qd[1] = 0.0
+    terms(p, q, qd, mass, out, work[6:])
+
+
+@njit(cache=True)
+def motor_inertia(p, i):  # noqa: ANN001, ANN201
+    return p[_J + i]
+
+
+@njit(cache=True)
+def damping(p, i):  # noqa: ANN001, ANN201
+    return p[_B + i]
+
+
+@njit(cache=True)
+def outputs(p, q, qd, out, work):  # noqa: ANN001, ANN201
+    """End-effector ``(x, y)`` (Appendix Eqs. 26-34) into ``out[0:2]``, the passive joints
+    ``(q3, q4)`` wrapped to (-pi, pi] into ``out[2:4]`` and their rates (``rho qd``) into
+    ``out[4:6]``."""
+    geo = work[0:GEOMETRY_SIZE]
+    _geometry(p, q, qd, geo)
+    th13 = geo[0] + geo[1]
+    out[0] = p[_L1] * math.cos(geo[0]) + p[_L3] * math.cos(th13)
+    out[1] = p[_L1] * math.sin(geo[0]) + p[_L3] * math.sin(th13)
+    for i in range(2):
+        angle = geo[1 + 2 * i]
+        out[2 + i] = math.pi - (math.pi - angle) % (2.0 * math.pi)
+        out[4 + i] = geo[5 + 2 * i]

@@ -1,0 +1,115 @@
+"""Robots by name: the registry and their parameters from ``config/robots.yaml``.
+
+A robot module defines a :class:`~pdsmc_ros.robots.base.Manipulator` subclass and
+decorates it with :func:`register_robot`; its parameters and run settings live
+under its name in ``config/robots.yaml`` (or, for a robot defined outside the
+package, in the mapping given to :func:`register_robot`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import Any, TypeVar
+
+from ..config import choice, load_config
+from ..errors import ConfigError, InvalidInputError
+from .base import Manipulator, RobotParams
+
+RobotType = TypeVar("RobotType", bound=type[Manipulator])
+
+ROBOTS: dict[str, type[Manipulator]] = {}
+"""Registered robot classes by name, in registration order."""
+
+_CONFIGS: dict[str, Mapping[str, Any]] = {}  # robots registered with their own configuration
+
+
+@dataclass(frozen=True)
+class RobotSettings:
+    """How runs of a robot are set up (``config/robots.yaml``).
+
+    Attributes
+    ----------
+    control_rate : float
+        Default control rate (Hz); the thesis robots' rates reproduce its
+        continuous-time results (NOTES.md section 1).
+    sample_rate : float
+        Rate (Hz) at which errors are sampled for the statistics (Section 4.2).
+    contour_bound : float
+        Contour error bound (m) of the "% within bound" statistic.
+    """
+
+    control_rate: float
+    sample_rate: float
+    contour_bound: float
+
+
+def register_robot(
+    cls: RobotType | None = None, *, config: Mapping[str, Any] | None = None
+) -> RobotType | Callable[[RobotType], RobotType]:
+    """Register a robot class under its ``name`` (a class decorator).
+
+    Parameters
+    ----------
+    cls : type
+        A :class:`Manipulator` subclass with a unique, non-empty ``name``.
+    config : mapping, optional
+        Its parameters and settings, in the shape of one entry of
+        ``config/robots.yaml``; by default that entry is read from the file.
+    """
+
+    def register(robot: RobotType) -> RobotType:
+        name = robot.name
+        if not name or not isinstance(name, str):
+            raise InvalidInputError(f"robot class {robot.__name__} has no name")
+        if name in ROBOTS and ROBOTS[name] is not robot:
+            raise InvalidInputError(f"a robot named {name!r} is already registered ({ROBOTS[name].__name__})")
+        ROBOTS[name] = robot
+        if config is not None:
+            _CONFIGS[name] = dict(config)
+        return robot
+
+    return register if cls is None else register(cls)
+
+
+def unregister_robot(name: str) -> None:
+    """Remove a registered robot (a test's own robot, for example)."""
+    ROBOTS.pop(name, None)
+    _CONFIGS.pop(name, None)
+
+
+def robot_names() -> tuple[str, ...]:
+    """Names of the registered robots."""
+    return tuple(ROBOTS)
+
+
+def robot_config(name: str) -> Mapping[str, Any]:
+    """The robot's configuration entry (its own, else ``config/robots.yaml``)."""
+    choice(name, robot_names(), "robot")
+    if name in _CONFIGS:
+        return _CONFIGS[name]
+    data = load_config("robots")
+    if name not in data:
+        raise ConfigError(f"robot {name!r} has no entry in config/robots.yaml")
+    return data[name]
+
+
+def robot_params(name: str) -> RobotParams:
+    """Structural and motor parameters of the named robot."""
+    return RobotParams.from_mapping(robot_config(name), name=f"robots.yaml:{name}")
+
+
+def robot_settings(name: str) -> RobotSettings:
+    """Run settings of the named robot."""
+    data = robot_config(name)
+    try:
+        return RobotSettings(control_rate=float(data["control_rate"]), sample_rate=float(data["sample_rate"]),
+                             contour_bound=float(data["contour_bound"]))
+    except (KeyError, TypeError, ValueError) as exc:
+        raise ConfigError(f"robots.yaml:{name}: malformed run settings ({exc!r})") from exc
+
+
+def make_robot(name: str, *, payload: float = 0.0, params: RobotParams | None = None) -> Manipulator:
+    """Build a registered robot by name."""
+    cls = ROBOTS[choice(name, robot_names(), "robot")]
+    return cls(payload, params=params or robot_params(name))

@@ -1,0 +1,95 @@
+"""The discrete closed loop of a whole run: control at each instant, the plant in between.
+
+At every control instant ``t_k = k / rate`` the law reads the state and the
+reference sampled at ``t_k`` and computes a torque; the plant integrates
+Eq. (4.1) over one period with that torque held (:mod:`.rk4`). The compiled
+loop runs when the robot, the law and the nominal model all have compiled
+forms; the numpy loop, the same steps, otherwise.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from ..control.law import ControlLaw
+from ..control.laws import compiled_torque
+from ..robots import compiled as robot_compiled
+from ..robots.base import FloatArray, Manipulator
+from .rk4 import rk4_step, rk4_step_compiled
+
+
+@njit(cache=True)
+def _closed_loop_compiled(  # noqa: ANN202, PLR0913
+    kind, p, code, gains, smc_model, model_kind, model_p, q0, qd0, refs, h, sample_every,
+    out_q, out_qd, out_tau, work,
+):  # noqa: ANN001
+    n = q0.shape[0]
+    steps = refs.shape[0] - 1
+    q = q0.copy()
+    qd = qd0.copy()
+    q_next = np.empty(n)
+    qd_next = np.empty(n)
+    tau = np.empty(n)
+    for k in range(steps + 1):
+        compiled_torque(code, gains, smc_model, model_kind, model_p, q, qd, refs[k, 0], refs[k, 1], refs[k, 2],
+                        tau, work)
+        if k % sample_every == 0:
+            j = k // sample_every
+            for i in range(n):
+                out_q[j, i] = q[i]
+                out_qd[j, i] = qd[i]
+                out_tau[j, i] = tau[i]
+        if k < steps:
+            rk4_step_compiled(kind, p, q, qd, tau, h, q_next, qd_next, work)
+            for i in range(n):
+                q[i] = q_next[i]
+                qd[i] = qd_next[i]
+
+
+def closed_loop(
+    plant: Manipulator, law: ControlLaw, q0: FloatArray, refs: FloatArray, h: float, sample_every: int
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Run the loop from rest at ``q0``; the state and torque at every ``sample_every``-th instant.
+
+    Parameters
+    ----------
+    plant : Manipulator
+        The simulated robot.
+    law : ControlLaw
+        The controller.
+    q0 : ndarray, shape (n,)
+        Initial joint angles (the rates start at zero).
+    refs : ndarray, shape (N + 1, 3, n)
+        ``q, qd, qdd`` of the reference at the control instants.
+    h : float
+        Control period (s).
+    sample_every : int
+        Sampling of the outputs, in control steps.
+
+    Returns
+    -------
+    q, qd, tau : ndarray, shape (N // sample_every + 1, n)
+    """
+    n = plant.n
+    count = (refs.shape[0] - 1) // sample_every + 1
+    out_q = np.empty((count, n))
+    out_qd = np.empty((count, n))
+    out_tau = np.empty((count, n))
+    if law.compiled and plant.kernel is not None:
+        kind, p = robot_compiled.pack(plant)
+        _closed_loop_compiled(kind, p, law.code, law.gains, law.smc_model, law.model_kind, law.model_params,
+                              np.array(q0, dtype=float), np.zeros(n), refs, h, sample_every, out_q, out_qd, out_tau,
+                              robot_compiled.workspace(n))
+        return out_q, out_qd, out_tau
+    q = np.array(q0, dtype=float)
+    qd = np.zeros(n)
+    steps = refs.shape[0] - 1
+    for k in range(steps + 1):
+        tau = law.torque(q, qd, refs[k, 0], refs[k, 1], refs[k, 2])
+        if k % sample_every == 0:
+            j = k // sample_every
+            out_q[j], out_qd[j], out_tau[j] = q, qd, tau
+        if k < steps:
+            q, qd = rk4_step(plant, q, qd, tau, h)
+    return out_q, out_qd, out_tau

@@ -1,0 +1,83 @@
+"""The plant of Eq. (4.1) advanced one control period at a time (what the plant node runs)."""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from ..errors import InvalidInputError
+from ..robots import compiled as robot_compiled
+from ..robots.base import FloatArray, Manipulator, as_vector
+from .rk4 import rk4_step, rk4_step_compiled
+
+
+class PlantStepper:
+    """The plant of Eq. (4.1) advanced one control period at a time.
+
+    Parameters
+    ----------
+    robot : Manipulator
+        Simulated robot (with payload if any).
+    period : float
+        Control period (s) over which each torque is held.
+    q0, qd0 : array_like
+        Initial joint angles and rates.
+    """
+
+    def __init__(self, robot: Manipulator, period: float, q0: ArrayLike, qd0: ArrayLike) -> None:
+        if not np.isfinite(period) or period <= 0.0:
+            raise InvalidInputError(f"period must be > 0 s, got {period!r}")
+        self.robot = robot
+        self.period = float(period)
+        self.compiled = robot.kernel is not None
+        if self.compiled:
+            self.kind, self.params = robot_compiled.pack(robot)
+        self.q = as_vector(q0, robot.n, "q0").astype(float).copy()
+        self.qd = as_vector(qd0, robot.n, "qd0").astype(float).copy()
+        self._q_next = np.empty(robot.n)
+        self._qd_next = np.empty(robot.n)
+        self._work = robot_compiled.workspace(robot.n)
+        self._outputs = np.zeros(robot_compiled.OUTPUTS_SIZE)
+        self.steps = 0
+
+    def step(self, tau: FloatArray) -> None:
+        """Integrate one period with ``tau`` held (RK4, :mod:`pdsmc_ros.sim.rk4`)."""
+        if not self.compiled:
+            self.q, self.qd = rk4_step(self.robot, self.q, self.qd, np.asarray(tau, dtype=float), self.period)
+            self.steps += 1
+            return
+        rk4_step_compiled(
+            self.kind, self.params, self.q, self.qd, tau, self.period, self._q_next, self._qd_next, self._work,
+        )
+        self.q, self._q_next = self._q_next, self.q
+        self.qd, self._qd_next = self._qd_next, self.qd
+        self.steps += 1
+
+    def outputs(self) -> FloatArray:
+        """End-effector ``(x, y)`` and, with passive joints, their angles and rates now.
+
+        A view of ``OUTPUTS_SIZE`` floats overwritten by the next call (layout:
+        :func:`pdsmc_ros.robots.compiled.outputs`).
+        """
+        if not self.compiled:
+            self._outputs[0:2] = self.robot.position(self.q)
+            passive, passive_rates = self.robot.passive_joints(self.q, self.qd)
+            k = passive.shape[-1]
+            self._outputs[2 : 2 + k] = passive
+            self._outputs[4 : 4 + k] = passive_rates
+            return self._outputs
+        robot_compiled.outputs(self.kind, self.params, self.q, self.qd, self._outputs, self._work)
+        return self._outputs
+
+    def warm_up(self) -> None:
+        """Load the compiled step now, leaving the state untouched.
+
+        The first call of a kernel in a process loads it from numba's cache
+        (tens of ms); a real-time loop calls this before its first tick.
+        """
+        if self.compiled:
+            rk4_step_compiled(
+                self.kind, self.params, self.q, self.qd, np.zeros(self.robot.n), self.period,
+                self._q_next, self._qd_next, self._work,
+            )
+        self.outputs()

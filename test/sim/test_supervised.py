@@ -1,0 +1,107 @@
+"""The plant under supervision (the plant node's decisions) without processes."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from pdsmc_ros.control.safety import SafetyConfig, Watchdog
+from pdsmc_ros.robots import Serial3R
+from pdsmc_ros.sim import PlantStepper
+from pdsmc_ros.sim.supervised import MAX_CATCH_UP, SupervisedPlant
+
+RATE = 1000.0
+Q0 = np.array([0.3, 0.5, -0.4])
+
+
+class Recorder:
+    def __init__(self) -> None:
+        self.states: list[int] = []
+        self.reports: list[tuple[str, str]] = []
+
+
+def plant(*, lockstep: bool = True, on_loss: str = "resume", last_step: int = 50) -> tuple[SupervisedPlant, Recorder]:
+    seen = Recorder()
+    stepper = PlantStepper(Serial3R(), 1.0 / RATE, Q0, np.zeros(3))
+    supervised = SupervisedPlant(
+        stepper, last_step=last_step, watchdog=Watchdog(rate=RATE, timeout_s=0.5, periods=5, time_scale=1.0),
+        safety=SafetyConfig(mode="hold", on_loss=on_loss), lockstep=lockstep,
+        publish_state=lambda: seen.states.append(stepper.steps),
+        report=lambda level, text: seen.reports.append((level, text)))
+    return supervised, seen
+
+
+def test_lockstep_steps_once_per_effort_of_the_current_step() -> None:
+    p, seen = plant()
+    p.started = True
+    p.effort(0, (1.0, 2.0, 3.0), 0.0)
+    assert p.step == 1 and seen.states == [1] and np.array_equal(p.applied, [1.0, 2.0, 3.0])
+    p.effort(5, (1.0, 2.0, 3.0), 0.0)  # not this step's
+    p.effort(1, (1.0, float("nan"), 3.0), 0.0)
+    p.effort(1, (1.0, 2.0), 0.0)
+    assert p.step == 1 and p.rejected == 3
+    assert p.rejected_reasons == {"out of order": 1, "non-finite value": 1, "wrong length 2": 1}
+    assert [level for level, _ in seen.reports] == ["warn"] * 3
+
+
+def test_the_effort_of_the_last_step_closes_the_run() -> None:
+    p, _ = plant(last_step=2)
+    for step in range(2):
+        p.effort(step, (0.0, 0.0, 0.0), 0.0)
+    assert not p.done
+    p.effort(2, (0.0, 0.0, 0.0), 0.0)
+    assert p.done and p.step == 2
+
+
+def test_a_lost_controller_gives_safe_steps_at_wall_clock_pace_then_resumes() -> None:
+    p, seen = plant()
+    p.started = True
+    p.effort(0, (0.0, 0.0, 0.0), 0.0)
+    p.check_watchdog(0.4)
+    assert p.safe_mode == "off"
+    p.check_watchdog(0.6)  # 0.6 s without an effort > 0.5 s
+    assert p.safe_mode == "hold" and seen.reports[-1][0] == "error"
+    before = p.step
+    p.check_watchdog(0.61)  # 10 ms at 1 kHz
+    assert p.step == before + 10
+    assert np.any(p.applied != 0.0)  # the hold torque, not the last (zero) effort
+    p.effort(3, (0.0, 0.0, 0.0), 0.62)  # a controller is back with an old step: offered the state
+    assert seen.states[-1] == p.step and p.rejected == 1
+    p.check_watchdog(0.7)
+    assert p.step == before + 10  # no stepping alone while the state is offered
+    p.effort(p.step, (0.0, 0.0, 0.0), 0.71)
+    assert p.safe_mode == "off" and seen.reports[-1][0] == "info"
+
+
+def test_on_loss_end_ends_the_run() -> None:
+    p, _ = plant(on_loss="end")
+    p.started = True
+    p.effort(0, (0.0, 0.0, 0.0), 0.0)
+    p.check_watchdog(1.0)
+    assert p.done
+
+
+def test_real_time_starts_armed_and_listened_to_and_catches_up_late_ticks() -> None:
+    p, seen = plant(lockstep=False, last_step=10_000)
+    p.tick(0.0, lambda: True, 0.0)
+    assert not p.started and p.step == 0  # no controller yet: held
+    p.effort(0, (0.5, 0.5, 0.5), 0.0)
+    p.tick(0.0, lambda: False, 0.0)
+    assert not p.started  # the recorder is not listening yet
+    p.tick(0.0, lambda: True, 0.0)
+    assert p.started
+    p.tick(0.0, lambda: True, 0.0)
+    assert p.step == 1 and np.array_equal(p.applied, [0.5, 0.5, 0.5])
+    p.tick(1e6, lambda: True, 0.0)  # a stall: catches up at most MAX_CATCH_UP periods
+    assert p.step <= 2 + MAX_CATCH_UP
+    assert len(seen.states) == p.step + 3
+
+
+def test_real_time_loss_after_the_watchdog_periods_applies_the_safe_torque() -> None:
+    p, _ = plant(lockstep=False, last_step=10_000)
+    p.effort(0, (0.0, 0.0, 0.0), 0.0)
+    p.started = True
+    for _ in range(5):
+        p.tick(0.0, lambda: True, 0.0)
+    assert p.safe_mode == "off"
+    p.tick(0.0, lambda: True, 0.0)
+    assert p.safe_mode == "hold"
