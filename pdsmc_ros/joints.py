@@ -23,6 +23,8 @@ from .bag.cdr import decode_joint_state_named, decode_joint_trajectory_named
 from .errors import CdrError, ConfigError
 
 FloatArray = np.ndarray
+Values = Sequence[float] | np.ndarray
+"""A column of the controlled joints: the decoded tuple itself on the short path, else an array."""
 
 STATE_FIELDS = ("position", "velocity")  # a JointState's columns the controller reads
 REFERENCE_FIELDS = ("positions", "velocities", "accelerations")  # a trajectory point's
@@ -65,7 +67,7 @@ class JointSelector:
         self._last: tuple[np.ndarray | None, str] = (None, "")
         self._last_need = 0  # values a column needs for the last index
 
-    def state_message(self, data: bytes, topic: str) -> tuple[int, int, tuple[np.ndarray, ...] | None, str]:
+    def state_message(self, data: bytes, topic: str) -> tuple[int, int, tuple[Values, ...] | None, str]:
         """A serialized ``JointState``: ``(sec, nanosec, (q, qd), "")``, or ``(.., None, problem)``
         with a one-line problem naming ``topic``."""
         try:
@@ -79,7 +81,7 @@ class JointSelector:
 
     def reference_message(
         self, data: bytes, topic: str
-    ) -> tuple[int, int, tuple[np.ndarray, ...] | None, str]:
+    ) -> tuple[int, int, tuple[Values, ...] | None, str]:
         """A serialized one-point ``JointTrajectory`` (the reference stream), as :meth:`state_message`;
         ``(.., None, "")`` for a message without points."""
         try:
@@ -113,27 +115,28 @@ class JointSelector:
         return found
 
     def state(self, names: tuple[str, ...], position: Sequence[float],
-              velocity: Sequence[float]) -> tuple[tuple[FloatArray, ...], str]:
+              velocity: Sequence[float]) -> tuple[tuple[Values, ...], str]:
         """:meth:`select` of a JointState's ``position`` and ``velocity``.
 
-        Once per control step: a message naming exactly ``joints``, in order, takes a short path.
+        Once per control step: a message naming exactly ``joints``, in order, takes a short path
+        that returns the columns themselves (the control law stacks all its inputs into one array).
         """
         n = self.n
         if len(position) == n and len(velocity) == n and names == self.joints:
             total = sum(position) + sum(velocity)
             if total - total == 0.0:  # NaN or inf makes the sum non-finite
-                return (np.array(position), np.array(velocity)), ""
+                return (position, velocity), ""
         return self.select(names, STATE_FIELDS, position, velocity)
 
     def reference(self, names: tuple[str, ...], positions: Sequence[float], velocities: Sequence[float],
-                  accelerations: Sequence[float]) -> tuple[tuple[FloatArray, ...], str]:
+                  accelerations: Sequence[float]) -> tuple[tuple[Values, ...], str]:
         """:meth:`select` of a one-point JointTrajectory's positions, velocities and accelerations
         (the short path of :meth:`state`)."""
         n = self.n
         if len(positions) == n and len(velocities) == n and len(accelerations) == n and names == self.joints:
             total = sum(positions) + sum(velocities) + sum(accelerations)
             if total - total == 0.0:
-                return (np.array(positions), np.array(velocities), np.array(accelerations)), ""
+                return (positions, velocities, accelerations), ""
         return self.select(names, REFERENCE_FIELDS, positions, velocities, accelerations)
 
     def _match(self, names: tuple[str, ...]) -> tuple[np.ndarray | None, str]:

@@ -78,3 +78,24 @@ def test_an_old_reference_alone_is_stale() -> None:
     check = Staleness(0.02)
     assert check.update(1.0, 0.99, 0.5) == "stale"
     assert check.update(1.0, 0.99, None) == "fresh"  # a locally computed reference is never old
+
+
+def test_lockstep_pairing_pairs_by_step_and_drops_skipped_references() -> None:
+    from pdsmc_ros.control.commanding import LockstepPairing
+
+    pairing = LockstepPairing(rate=100.0, last_step=10)
+    for step in range(6):  # the trajectory sends references ahead: nothing to pair yet
+        assert pairing.add_reference(step, (step,)) is None  # type: ignore[arg-type]
+    assert pairing.add_state(0, "q0", "qd0") == (0, "q0", "qd0", (0,))  # type: ignore[arg-type]
+    assert pairing.take() is None  # no new state
+    # states 1 and 2 never came (the plant stepped alone): their references are dropped
+    assert pairing.add_state(3, "q3", "qd3") == (3, "q3", "qd3", (3,))  # type: ignore[arg-type]
+    assert sorted(pairing.refs) == [4, 5] and pairing.next_step == 4
+    assert pairing.add_reference(2, (2,)) is None  # type: ignore[arg-type]  # too late: ignored
+    assert sorted(pairing.refs) == [4, 5]
+    assert pairing.add_state(7, "q7", "qd7") is None  # type: ignore[arg-type]  # its reference is not in yet
+    assert pairing.add_reference(7, (7,)) == (7, "q7", "qd7", (7,))  # type: ignore[arg-type]
+    assert not pairing.refs and not pairing.finished
+    assert pairing.add_state(10, "q", "qd") is None  # type: ignore[arg-type]
+    assert pairing.add_reference(10, (10,)) is not None and pairing.finished  # type: ignore[arg-type]
+    assert pairing.step_of(0, 50_000_000) == 5 and pairing.step_of(-1, 0) is None

@@ -12,13 +12,12 @@ from . import cdr
 
 def step_stamp(step: int, rate: float) -> tuple[int, int]:
     """Header stamp ``(sec, nanosec)`` of control step ``step`` (time ``step / rate``)."""
-    total_ns = int(round(step * 1e9 / rate))
-    return total_ns // 1_000_000_000, total_ns % 1_000_000_000
+    return divmod(round(step * 1e9 / rate), 1_000_000_000)  # round() of a float is an int
 
 
 def stamp_step(sec: int, nanosec: int, rate: float) -> int:
     """Control step of a header stamp (the inverse of :func:`step_stamp`)."""
-    return int(round((sec + nanosec * 1e-9) * rate))
+    return round((sec + nanosec * 1e-9) * rate)
 
 
 def header_step(data: bytes, rate: float) -> int:

@@ -17,6 +17,8 @@ from .safety import Staleness, limit_torque
 MAX_STEP = 2**32 - 1  # an effort command's layout.data_offset is a uint32
 Reference = tuple[FloatArray, FloatArray, FloatArray]
 """``(q_d, qd_d, qdd_d)`` of one instant."""
+Paired = tuple[int, FloatArray, FloatArray, Reference]
+"""``(step, q, qd, reference)``: a state and its reference, ready for the law."""
 
 
 class TrajectorySource(Protocol):
@@ -44,6 +46,7 @@ class LockstepPairing:
         self.last_step = last_step
         self.state: tuple[int, FloatArray, FloatArray] | None = None  # waiting for its reference
         self.refs: dict[int, Reference] = {}
+        self.oldest = 0  # no reference of an earlier step is kept
         self.trajectory: TrajectorySource | None = None
         self.source: str | None = None  # "reference" or "trajectory"
         self.next_step = 0  # the step a command would be for now
@@ -59,19 +62,29 @@ class LockstepPairing:
         """The step a zero command sent now is for."""
         return min(self.next_step, MAX_STEP)
 
-    def add_state(self, step: int, q: FloatArray, qd: FloatArray) -> None:
+    def add_state(self, step: int, q: FloatArray, qd: FloatArray) -> Paired | None:
+        """The state of ``step``; what :meth:`take` gives now."""
         self.state = (step, q, qd)
+        return self.take()
 
-    def add_reference(self, step: int, ref: Reference) -> None:
-        self.refs[step] = ref
+    def add_reference(self, step: int, ref: Reference) -> Paired | None:
+        """The reference of ``step``; what :meth:`take` gives now (usually nothing: references
+        come ahead of their states)."""
         self.source = "reference"
+        if step < self.oldest:
+            return None  # a step already paired or skipped
+        if not self.refs:
+            self.oldest = step
+        self.refs[step] = ref
+        state = self.state
+        return None if state is None or state[0] != step else self.take()
 
     def drive(self, trajectory: TrajectorySource) -> None:
         """A trajectory goal drives from now on (until the next streamed reference)."""
         self.trajectory = trajectory
         self.source = "trajectory"
 
-    def take(self) -> tuple[int, FloatArray, FloatArray, Reference] | None:
+    def take(self) -> Paired | None:
         """``(step, q, qd, reference)`` if the pending state can be computed now."""
         if self.state is None:
             return None
@@ -84,11 +97,13 @@ class LockstepPairing:
             if found is None:
                 return None
             ref = found
-        while self.refs:  # in step order: the oldest entries are the skipped ones
-            oldest = next(iter(self.refs))
-            if oldest >= step:
-                break
-            del self.refs[oldest]
+        if self.oldest <= step:
+            # references of states that will not come (the plant stepped alone): by step, not by
+            # iterating the dict, whose scan over the popped entries at its front grows with the
+            # lookahead (about 0.4 us a step at 500 references ahead)
+            for skipped in range(self.oldest, step):
+                self.refs.pop(skipped, None)
+            self.oldest = step + 1
         self.state = None
         self.next_step = step + 1
         if step >= self.last_step:

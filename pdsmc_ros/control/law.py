@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -13,6 +14,9 @@ from .registry import LawSetup, law
 
 if TYPE_CHECKING:
     from ..presets import RunSpec
+
+Vector = Sequence[float] | FloatArray
+"""``n`` floats: a decoded message's tuple or an array."""
 
 
 class ControlLaw:
@@ -56,15 +60,14 @@ class ControlLaw:
     def smc_model(self) -> FloatArray:
         return self.setup.smc_model
 
-    def torque(
-        self, q: FloatArray, qd: FloatArray, q_ref: FloatArray, qd_ref: FloatArray, qdd_ref: FloatArray
-    ) -> FloatArray:
+    def torque(self, q: Vector, qd: Vector, q_ref: Vector, qd_ref: Vector, qdd_ref: Vector) -> FloatArray:
         """Torque (N m) for the measured state and the reference (new array)."""
+        x = np.array([*q, *qd, *q_ref, *qd_ref, *qdd_ref])  # 5 sequences of n floats: float64
         if not self.compiled:
-            return np.asarray(self.entry.torque(self.setup, q, qd, q_ref, qd_ref, qdd_ref), dtype=float)
+            return np.asarray(self.entry.torque(self.setup, *x.reshape(5, self.n)), dtype=float)
         tau = np.empty(self.n)
         compiled_torque(self.code, self.setup.gains, self.setup.smc_model, self.model_kind, self.model_params,
-                        q, qd, q_ref, qd_ref, qdd_ref, tau, self._work)
+                        x, tau, self._work)
         return tau
 
     def warm_up(self, q: FloatArray, qd: FloatArray) -> ControlLaw:

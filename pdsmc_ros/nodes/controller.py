@@ -25,7 +25,7 @@ from std_msgs.msg import String
 from trajectory_msgs.msg import JointTrajectory
 
 from ..control import ControlLaw, Gains
-from ..control.commanding import LatestInputs, LockstepPairing, TickTiming, TorqueGuard
+from ..control.commanding import LatestInputs, LockstepPairing, Paired, TickTiming, TorqueGuard
 from ..control.stability import check_rate
 from ..joint_trajectory import JointTrajectoryReference
 from ..joints import JointSelector
@@ -118,8 +118,7 @@ class ControllerNode(CommandingEntity):
         q, qd = arrays
         self.last_state = (step, q, qd)
         if self.lockstep:
-            self.pairing.add_state(step, q, qd)
-            self.try_compute()
+            self.compute(self.pairing.add_state(step, q, qd))
         else:
             self.latest.add_state(q, qd, time.perf_counter())
 
@@ -131,8 +130,7 @@ class ControllerNode(CommandingEntity):
         elif not self.lockstep:
             self.latest.add_reference(ref, time.perf_counter())
         elif (step := self.pairing.step_of(sec, nanosec)) is not None:
-            self.pairing.add_reference(step, ref)
-            self.try_compute()
+            self.compute(self.pairing.add_reference(step, ref))
 
     def now(self) -> float:  # the controller's time (s): the lockstep state's sim time, else the node's clock
         if self.lockstep:
@@ -151,14 +149,14 @@ class ControllerNode(CommandingEntity):
             (self.pairing if self.lockstep else self.latest).drive(reference)
             log.info(f"{topic}: {len(reference.times)} points until t = {reference.end_time:.3f} s; driving from it")
             if self.lockstep:
-                self.try_compute()
+                self.compute(self.pairing.take())
 
     # -- control -------------------------------------------------------------- #
-    def try_compute(self) -> None:
-        """Lockstep: the torque of the pending state once its reference is in."""
-        paired, law = self.pairing.take(), self.law
+    def compute(self, paired: Paired | None) -> None:
+        """Lockstep: the torque of a state paired with its reference."""
         if paired is not None:
             step, q, qd, ref = paired
+            law = self.law
             if self.active and law is not None:
                 self.effort.publish(law.torque(q, qd, *ref), step)
             self.done = self.pairing.finished

@@ -92,6 +92,7 @@ class PlantNode:
         self.names = list(robot.joint_names) + list(robot.passive_joint_names)
         self.n_passive = len(robot.passive_joint_names)
         self.clock_every = decimation(spec.rate, node.get_parameter("clock_rate").value)
+        self.ee_every = spec.sample_every
         self.exit_code = EXIT_OK
 
         self.pub_state = GuardedPublisher(node.create_publisher(JointState, TOPIC_JOINT_STATES, STREAM_QOS), node)
@@ -147,7 +148,7 @@ class PlantNode:
         else:
             position, velocity, effort = q.tolist(), qd.tolist(), applied.tolist()
         self.pub_state.publish(encode_joint_state(sec, nanosec, self.names, position, velocity, effort))
-        if step % self.spec.sample_every and step != self.plant.last_step:
+        if step % self.ee_every and step != self.plant.last_step:
             return  # the end-effector point goes out at the statistics rate
         if outputs is None:
             outputs = self.stepper.outputs().tolist()

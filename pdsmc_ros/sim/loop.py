@@ -26,14 +26,17 @@ def _closed_loop_compiled(  # noqa: ANN202, PLR0913
 ):  # noqa: ANN001
     n = q0.shape[0]
     steps = refs.shape[0] - 1
-    q = q0.copy()
-    qd = qd0.copy()
-    q_next = np.empty(n)
-    qd_next = np.empty(n)
+    x = np.empty(5 * n)  # the law's inputs: q, qd, then the reference's three rows
+    q = x[0:n]
+    qd = x[n : 2 * n]
+    q[:] = q0
+    qd[:] = qd0
     tau = np.empty(n)
     for k in range(steps + 1):
-        compiled_torque(code, gains, smc_model, model_kind, model_p, q, qd, refs[k, 0], refs[k, 1], refs[k, 2],
-                        tau, work)
+        for j in range(3):
+            for i in range(n):
+                x[(2 + j) * n + i] = refs[k, j, i]
+        compiled_torque(code, gains, smc_model, model_kind, model_p, x, tau, work)
         if k % sample_every == 0:
             j = k // sample_every
             for i in range(n):
@@ -41,10 +44,7 @@ def _closed_loop_compiled(  # noqa: ANN202, PLR0913
                 out_qd[j, i] = qd[i]
                 out_tau[j, i] = tau[i]
         if k < steps:
-            rk4_step_compiled(kind, p, q, qd, tau, h, q_next, qd_next, work)
-            for i in range(n):
-                q[i] = q_next[i]
-                qd[i] = qd_next[i]
+            rk4_step_compiled(kind, p, x, tau, h, work)  # q, qd at the front of x
 
 
 def closed_loop(

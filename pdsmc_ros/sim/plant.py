@@ -32,25 +32,38 @@ class PlantStepper:
         self.compiled = robot.kernel is not None
         if self.compiled:
             self.kind, self.params = robot_compiled.pack(robot)
-        self.q = as_vector(q0, robot.n, "q0").astype(float).copy()
-        self.qd = as_vector(qd0, robot.n, "qd0").astype(float).copy()
-        self._q_next = np.empty(robot.n)
-        self._qd_next = np.empty(robot.n)
+        n = robot.n
+        self.state = np.concatenate([as_vector(q0, n, "q0"), as_vector(qd0, n, "qd0")]).astype(float)
+        self._q = self.state[:n]  # views: step() advances the state in place
+        self._qd = self.state[n:]
         self._work = robot_compiled.workspace(robot.n)
         self._outputs = np.zeros(robot_compiled.OUTPUTS_SIZE)
         self.steps = 0
 
+    @property
+    def q(self) -> FloatArray:
+        """Joint angles now (a view of :attr:`state`; assigning sets the values)."""
+        return self._q
+
+    @q.setter
+    def q(self, value: ArrayLike) -> None:
+        self._q[:] = value
+
+    @property
+    def qd(self) -> FloatArray:
+        """Joint rates now (a view of :attr:`state`; assigning sets the values)."""
+        return self._qd
+
+    @qd.setter
+    def qd(self, value: ArrayLike) -> None:
+        self._qd[:] = value
+
     def step(self, tau: FloatArray) -> None:
         """Integrate one period with ``tau`` held (RK4, :mod:`pdsmc_ros.sim.rk4`)."""
-        if not self.compiled:
-            self.q, self.qd = rk4_step(self.robot, self.q, self.qd, np.asarray(tau, dtype=float), self.period)
-            self.steps += 1
-            return
-        rk4_step_compiled(
-            self.kind, self.params, self.q, self.qd, tau, self.period, self._q_next, self._qd_next, self._work,
-        )
-        self.q, self._q_next = self._q_next, self.q
-        self.qd, self._qd_next = self._qd_next, self.qd
+        if self.compiled:
+            rk4_step_compiled(self.kind, self.params, self.state, tau, self.period, self._work)
+        else:
+            self._q[:], self._qd[:] = rk4_step(self.robot, self.q, self.qd, np.asarray(tau, dtype=float), self.period)
         self.steps += 1
 
     def outputs(self) -> FloatArray:
@@ -76,8 +89,6 @@ class PlantStepper:
         (tens of ms); a real-time loop calls this before its first tick.
         """
         if self.compiled:
-            rk4_step_compiled(
-                self.kind, self.params, self.q, self.qd, np.zeros(self.robot.n), self.period,
-                self._q_next, self._qd_next, self._work,
-            )
+            rk4_step_compiled(self.kind, self.params, self.state.copy(), np.zeros(self.robot.n), self.period,
+                              self._work)
         self.outputs()

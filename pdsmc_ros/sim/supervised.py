@@ -54,7 +54,7 @@ class SupervisedPlant:
         self.lockstep = lockstep
         self.publish_state = publish_state
         self.report = report
-        n = stepper.robot.n
+        self.n = n = stepper.robot.n
         self.applied = np.zeros(n)  # the torque held over the period that ended at the current state
         self.latest_effort = np.zeros(n)
         self.q_hold = stepper.q.copy()
@@ -84,7 +84,7 @@ class SupervisedPlant:
 
     def effort(self, step: int, values: object, now: float) -> None:
         """An effort command (``step`` from its ``layout.data_offset``) arrived at ``now``."""
-        tau, reason = check_effort(values, self.stepper.robot.n)
+        tau, reason = check_effort(values, self.n)
         if tau is None:
             self.reject(reason)
             return
@@ -104,7 +104,9 @@ class SupervisedPlant:
         if step >= self.last_step:
             self.done = True  # the controller's effort for t = T closes the run
             return
-        self.advance(tau)
+        self.stepper.step(tau)  # advance(), inline: once per control step
+        self.applied = tau
+        self.publish_state()
 
     def advance(self, tau: FloatArray) -> None:
         """Integrate one period with ``tau`` held and publish the new state."""

@@ -105,3 +105,12 @@ def test_real_time_loss_after_the_watchdog_periods_applies_the_safe_torque() -> 
     assert p.safe_mode == "off"
     p.tick(0.0, lambda: True, 0.0)
     assert p.safe_mode == "hold"
+
+
+def test_plant_stepper_state_assigned_between_steps_is_the_state_stepped() -> None:
+    stepper = PlantStepper(Serial3R(), 1.0 / RATE, Q0, np.zeros(3))
+    stepper.q, stepper.qd = np.array([0.1, 0.2, 0.3]), np.array([0.5, 0.0, -0.5])
+    fresh = PlantStepper(Serial3R(), 1.0 / RATE, [0.1, 0.2, 0.3], [0.5, 0.0, -0.5])
+    stepper.step(np.ones(3))
+    fresh.step(np.ones(3))
+    assert np.array_equal(stepper.state, fresh.state) and np.array_equal(stepper.q, fresh.q)
