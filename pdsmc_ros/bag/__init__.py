@@ -22,12 +22,13 @@ from .cdr import (
 from .mcapscan import scan
 from .reader import DESCRIPTION_KEY, RecordedRun, read_run, run_metrics, run_samples
 from .stamps import effort_step, header_step, stamp_step, step_stamp
-from .writer import MessageAppender, close_chunk
+from .writer import MessageAppender, RunProgress, close_chunk
 
 __all__ = [
     "DESCRIPTION_KEY",
     "MessageAppender",
     "RecordedRun",
+    "RunProgress",
     "close_chunk",
     "decode_float64_multi_array",
     "decode_joint_state",

@@ -23,6 +23,9 @@ from typing import Any, cast
 from rosbags.rosbag2 import CompressionMode, Writer
 from rosbags.rosbag2.storage_mcap import McapWriter, PendingChunk
 
+from ..errors import CdrError
+from .stamps import effort_step, header_step
+
 # MCAP Message record: opcode, record length, channel id, sequence, log time, publish time
 _MESSAGE = struct.Struct("<BQHIQQ")
 _MESSAGE_FIELDS = _MESSAGE.size - 9  # the record length counts what follows opcode and length
@@ -137,3 +140,48 @@ def close_chunk(storage: McapWriter) -> None:
     index.write(struct.pack("<QQ", len(compressed), len(data)))
     storage.chunks.append(index)
     storage.chunk = PendingChunk(2**63 - 1, 0, BytesIO(), defaultdict(list))
+
+
+class RunProgress:
+    """How far a recorded run is: the newest control step seen on each stepped topic.
+
+    Parameters
+    ----------
+    topics : sequence of str
+        Topics with one message per control step.
+    effort_topic : str
+        The one among them whose step is ``layout.data_offset`` (the others': header stamps).
+    last_step : int
+        The run's last step: the run is complete when every topic has it.
+    rate : float
+        Control rate (Hz) of the stamps.
+    """
+
+    def __init__(self, topics: Sequence[str], effort_topic: str, last_step: int, rate: float) -> None:
+        self.seen = dict.fromkeys(topics, -1)
+        self.effort_topic = effort_topic
+        self.last_step = last_step
+        self.rate = rate
+
+    def step_of(self, topic: str, data: bytes) -> int | None:
+        """The control step of a message of this run, or None (recorded, not counted): an
+        effort with layout dimensions is not this loop's, a step beyond the run is a rogue
+        publisher's."""
+        try:
+            step = effort_step(data) if topic == self.effort_topic else header_step(data, self.rate)
+        except CdrError:
+            return None
+        return step if step <= self.last_step else None
+
+    def batch(self, topic: str, batch: Sequence[bytes]) -> bool:
+        """A batch of a stepped topic's messages, in arrival order; whether the run is complete."""
+        # a topic's steps arrive in order, so the last message normally holds the newest; if it
+        # does not count, every message of the batch is looked at
+        seen = self.seen[topic]
+        step = self.step_of(topic, batch[-1])
+        if step is None or step <= seen:
+            step = max((k for k in (self.step_of(topic, data) for data in batch) if k is not None), default=None)
+        if step is None or step <= seen:
+            return False
+        self.seen[topic] = step
+        return step >= self.last_step and all(v >= self.last_step for v in self.seen.values())

@@ -151,7 +151,6 @@ class ControllerNode(CommandingEntity):
             if self.lockstep:
                 self.compute(self.pairing.take())
 
-    # -- control -------------------------------------------------------------- #
     def compute(self, paired: Paired | None) -> None:
         """Lockstep: the torque of a state paired with its reference."""
         if paired is not None:

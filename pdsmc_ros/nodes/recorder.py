@@ -33,9 +33,8 @@ from std_msgs.msg import Float64MultiArray, String
 from trajectory_msgs.msg import JointTrajectory
 
 from ..bag.reader import DESCRIPTION_KEY, RECORDER_DESCRIPTION_TOPIC
-from ..bag.stamps import effort_step, header_step
-from ..bag.writer import MessageAppender, close_chunk
-from ..errors import BagError, CdrError, ConfigError
+from ..bag.writer import MessageAppender, RunProgress, close_chunk
+from ..errors import BagError, ConfigError
 from ..presets import control_steps
 from .executor import run_node
 from .io import Inputs
@@ -98,11 +97,11 @@ class RecorderNode:
             self.path.parent.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
             raise ConfigError(f"parameter output: cannot create {str(self.path.parent)!r}: {exc.strerror}") from None
-        self.last_step = control_steps(self.spec.contour_model().duration, self.spec.rate)
+        self.progress = RunProgress(STEPPED, TOPIC_EFFORT, control_steps(self.spec.contour_model().duration,
+                                                                          self.spec.rate), self.spec.rate)
         self.done = False
         self.exit_code = EXIT_OK
         self.description: str | None = None
-        self.seen = dict.fromkeys(STEPPED, -1)
         self.counts = dict.fromkeys(RECORDED, 0)
         typestore = get_typestore(Stores.ROS2_JAZZY)
         self.writer = Writer(self.path, version=9, storage_plugin=StoragePlugin.MCAP)
@@ -153,26 +152,8 @@ class RecorderNode:
                 # a topic's first messages (the run description above all) go to disk at once,
                 # so a recorder killed at any moment after start leaves a bag that names its run
                 self.flush()
-            if stepped:
-                # a topic's steps arrive in order, so the last message normally holds the newest;
-                # if it does not count, every message of the batch is looked at
-                step = step_of(batch[-1])
-                if step is None or step <= self.seen[topic]:
-                    step = max((k for k in map(step_of, batch) if k is not None), default=None)
-                if step is not None and step > self.seen[topic]:
-                    self.seen[topic] = step
-                    if step >= self.last_step and all(v >= self.last_step for v in self.seen.values()):
-                        self.done = True
-
-        def step_of(data: bytes) -> int | None:
-            """The control step of a message of this run, or None (recorded, not counted): an
-            effort with layout dimensions is not this loop's, a step beyond the run is a rogue
-            publisher's."""
-            try:
-                step = effort_step(data) if topic == TOPIC_EFFORT else header_step(data, self.spec.rate)
-            except CdrError:
-                return None
-            return step if step <= self.last_step else None
+            if stepped and self.progress.batch(topic, batch):
+                self.done = True
 
         return callback
 

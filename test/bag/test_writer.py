@@ -93,3 +93,21 @@ def test_appender_refuses_a_closed_bag_or_a_foreign_connection(tmp_path: Path) -
         foreign = other.add_connection("/x", "std_msgs/msg/String", typestore=store)
         with pytest.raises(ValueError, match="'/x' is not one of this bag's"):
             MessageAppender(writer, foreign)
+
+
+def test_run_progress_counts_the_newest_step_of_each_topic_and_ignores_foreign_messages() -> None:
+    from pdsmc_ros.bag.cdr import encode_float64_multi_array, encode_joint_state
+    from pdsmc_ros.bag.stamps import step_stamp
+    from pdsmc_ros.bag.writer import RunProgress
+
+    rate = 100.0
+
+    def state(k: int) -> bytes:
+        return encode_joint_state(*step_stamp(k, rate), ["j"], [0.0], [0.0], [0.0])
+
+    progress = RunProgress(("joint_states", "effort"), "effort", last_step=5, rate=rate)
+    assert not progress.batch("joint_states", [state(k) for k in range(6)])  # efforts still missing
+    assert not progress.batch("effort", [encode_float64_multi_array([0.0], 4), state(99)])  # a foreign one
+    assert progress.seen == {"joint_states": 5, "effort": 4}
+    assert not progress.batch("effort", [encode_float64_multi_array([0.0], 1000)])  # beyond the run: a rogue's
+    assert progress.batch("effort", [encode_float64_multi_array([0.0], 5)])
