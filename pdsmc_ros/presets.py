@@ -20,7 +20,7 @@ from .control.gains import Gains
 from .control.registry import GAIN_NAMES, SMC_MODEL_KEYS, law
 from .errors import ConfigError
 from .robots import ROBOTS, Manipulator, RobotParams, make_robot, robot_names, robot_params, robot_settings
-from .trajectories import Contour, EllipseContour, JointReference, SegmentContour
+from .trajectories import Contour, EllipseContour, JointReference, SegmentContour, load_waypoints_csv
 
 MAX_CONTROL_STEPS = 10_000_000
 """Control steps one run may hold: the sampled reference and its temporaries take about
@@ -247,8 +247,6 @@ def build_contour(
     if name == "csv":
         if not waypoints_file:
             raise ConfigError("contour 'csv' needs a waypoints file (--waypoints FILE)")
-        from .trajectories import load_waypoints_csv
-
         pts = load_waypoints_csv(waypoints_file, dim=dim)
         return SegmentContour("csv", pts, segment_duration, metric="nearest")
     presets = load_config("contours")[robot]

@@ -440,7 +440,12 @@ def test_lockstep_controller_follows_a_standard_trajectory_in_sim_time(
 
     try:
         driver.state = sim_state
-        driver.spin(30, until=lambda: driver.pub_traj.get_subscription_count() > 0 and step[0] > 100)
+        # the goal needs a state the controller has received (the motion starts from it): wait for
+        # both of its subscriptions (companion nodes, discovered one by one), then for states sent since
+        driver.spin(30, until=lambda: driver.pub_traj.get_subscription_count() > 0
+                    and driver.pub_state.get_subscription_count() > 0)
+        matched = step[0]
+        driver.spin(30, until=lambda: step[0] > matched + 50)
         assert driver.efforts == [], log.read_text()  # no reference source yet
         msg = JointTrajectory(joint_names=["joint1", "joint2"], points=[JointTrajectoryPoint(
             positions=[0.4, 1.0], time_from_start=rclpy.duration.Duration(seconds=0.01).to_msg())])

@@ -192,7 +192,7 @@ def read_run(path: str | Path) -> RecordedRun:
 
 def run_samples(run: RecordedRun) -> Samples:
     """Signals of a recorded run at the thesis's analysis instants (complete steps only)."""
-    from ..sim import build_samples
+    from ..sim import build_samples  # here: reading a bag's messages needs no numba kernels
 
     every = run.spec.sample_every
     robot = run.spec.robot_model()

@@ -28,7 +28,7 @@ from ..control import GAIN_NAMES, Gains, law_names
 from ..control.safety import MAX_SAFE_DAMPING, MAX_SAFE_STIFFNESS, SafetyConfig
 from ..errors import ConfigError, InvalidInputError
 from ..joints import check_joint_names
-from ..presets import RunSpec, make_run
+from ..presets import RunSpec, make_run, smc_reading
 from ..robots import Manipulator, robot_names
 from .topics import MODES
 
@@ -248,8 +248,6 @@ def run_spec_from_parameters(node: Node) -> RunSpec:
         p[name] = value
     if p["mode"] not in MODES:
         raise ConfigError(f"parameter mode: unknown value {p['mode']!r}; choose one of: lockstep, realtime")
-    from ..presets import smc_reading
-
     try:
         spec = make_run(
             p["robot"],
