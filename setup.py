@@ -24,7 +24,7 @@ setup(
         (f"share/{PACKAGE}/config", sorted(glob("config/*.yaml")) + sorted(glob("config/*.xml"))),
         (f"share/{PACKAGE}/scripts", sorted(glob("scripts/*.sh"))),
     ],
-    install_requires=["setuptools", "numpy", "PyYAML", "numba", "rosbags", "mcap"],
+    install_requires=["setuptools", "numpy", "PyYAML", "numba", "rosbags", "mcap", "pin"],
     zip_safe=True,
     maintainer="pdsmc_ros developers",
     maintainer_email="pdsmc_ros@example.org",

@@ -11,6 +11,7 @@ from .serial_3r import Serial3R  # noqa: I001
 from .parallel_5r import FiveBarState, Parallel5R
 from .base import GRAVITY, FloatArray, LinkParams, Manipulator, RobotParams, as_vector
 from .chain import PlanarChain
+from .urdf_robot import UrdfRobot, from_urdf
 from .registry import (
     ROBOTS,
     RobotSettings,
@@ -42,5 +43,7 @@ __all__ = [
     "robot_names",
     "robot_params",
     "robot_settings",
+    "UrdfRobot",
+    "from_urdf",
     "unregister_robot",
 ]
