@@ -17,7 +17,7 @@ import numpy as np
 from . import __version__
 from .config import choice, load_config
 from .control.gains import Gains
-from .control.registry import GAIN_NAMES, SMC_MODEL_KEYS, law
+from .control.registry import GAIN_NAMES, SMC_MODEL_KEYS, law, smc_model_vector
 from .errors import ConfigError
 from .robots import ROBOTS, Manipulator, RobotParams, make_robot, robot_names, robot_params, robot_settings
 from .trajectories import Contour, EllipseContour, JointReference, SegmentContour, load_waypoints_csv
@@ -147,8 +147,7 @@ class RunSpec:
 
     def smc_model_vector(self) -> np.ndarray:
         """:attr:`smc_model` as :attr:`pdsmc_ros.control.LawSetup.smc_model`."""
-        m = {**smc_model_default(), **self.smc_model}
-        return np.array([float(m[key]) for key in SMC_MODEL_KEYS], dtype=float)
+        return smc_model_vector({**smc_model_default(), **self.smc_model})
 
     def describe(self) -> dict[str, Any]:
         """Plain-data description (stored in bags and reports)."""

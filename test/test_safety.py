@@ -99,3 +99,15 @@ def test_lockstep_pairing_pairs_by_step_and_drops_skipped_references() -> None:
     assert pairing.add_state(10, "q", "qd") is None  # type: ignore[arg-type]
     assert pairing.add_reference(10, (10,)) is not None and pairing.finished  # type: ignore[arg-type]
     assert pairing.step_of(0, 50_000_000) == 5 and pairing.step_of(-1, 0) is None
+
+
+def test_tick_timing_periods_are_between_tick_starts_and_misses_count() -> None:
+    from pdsmc_ros.control.commanding import TickTiming
+
+    timing = TickTiming(period=0.001)
+    first = timing.start(0.0)
+    assert timing.row(first, 0.0)[1] == 0.0 and timing.missed == 0  # no tick before the first
+    second = timing.start(0.002)  # two periods late: a missed deadline
+    row = timing.row(second, 0.002)
+    assert row[1] == second - first and row[3] == 0.002 and row[4] == 1.0
+    assert len(row) == TickTiming.FIELDS

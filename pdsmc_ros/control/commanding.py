@@ -191,14 +191,17 @@ class TickTiming:
     def __init__(self, period: float) -> None:
         self.period = period
         self.missed = 0
-        self.last: float | None = None
+        self.last: float | None = None  # the start of the latest tick
+        self.achieved = 0.0  # the latest tick's start minus the one before (0 for the first)
 
     def start(self, lateness: float) -> float:
         """A tick starts ``lateness`` s after its deadline; its start time (``perf_counter``)."""
         self.missed += lateness > self.period
-        return time.perf_counter()
+        now = time.perf_counter()
+        self.achieved = 0.0 if self.last is None else now - self.last
+        self.last = now
+        return now
 
     def row(self, start: float, lateness: float) -> list[float]:
         """The row of a tick that commanded, at its end."""
-        period = 0.0 if self.last is None else start - self.last
-        return [time.time(), period, time.perf_counter() - start, lateness, float(self.missed)]
+        return [time.time(), self.achieved, time.perf_counter() - start, lateness, float(self.missed)]

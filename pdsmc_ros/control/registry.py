@@ -8,7 +8,7 @@ A law without a compiled form runs on the numpy path (see :mod:`pdsmc_ros.sim`).
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -123,6 +123,6 @@ def law_label(name: str) -> str:
     return law(name).label
 
 
-def smc_model_vector(smc_model: dict[str, float]) -> FloatArray:
-    """:attr:`LawSetup.smc_model` from its mapping."""
+def smc_model_vector(smc_model: Mapping[str, float]) -> FloatArray:
+    """:attr:`LawSetup.smc_model` from its mapping (every key of :data:`SMC_MODEL_KEYS`)."""
     return np.array([float(smc_model[k]) for k in SMC_MODEL_KEYS])

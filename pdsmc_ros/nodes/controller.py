@@ -181,7 +181,6 @@ class ControllerNode(CommandingEntity):
                     if self.active:
                         self.effort.publish(tau, 0)
                 self.timing_rows.add(self.timing.row(now, lateness))
-        self.timing.last = now
         self.plant_watch.poll()
 
     def close(self) -> None:

@@ -21,7 +21,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ..errors import InvalidInputError
-from .base import FloatArray, LinkParams, Manipulator, RobotParams
+from .base import FloatArray, Manipulator
 
 
 def _pinocchio() -> Any:
@@ -106,15 +106,9 @@ class UrdfRobot(Manipulator):
         self.n_joints = n
         self.robot_name = name
         self.joint_names_ = tuple(model.names[i] for i in range(1, model.njoints))
-        damping = np.asarray(model.damping, dtype=float).copy()
-        links = tuple(LinkParams(mass=float(model.inertias[i].mass), length=1.0, com=0.0, inertia=0.0)
-                      for i in range(1, model.njoints))
-        params = RobotParams(links=links, motor_inertia=0.0, motor_damping=0.0,
-                             gravity=float(-model.gravity.linear[2]))
-        self.params = params
         self.payload = 0.0
         self.J = np.asarray(armature, dtype=float)
-        self.B = damping
+        self.B = np.asarray(model.damping, dtype=float).copy()
         self.torque_limit = np.asarray(model.effortLimit, dtype=float).copy()
         self.velocity_limit = np.asarray(model.velocityLimit, dtype=float).copy()
         self._pin = pin

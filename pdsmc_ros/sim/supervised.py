@@ -104,9 +104,7 @@ class SupervisedPlant:
         if step >= self.last_step:
             self.done = True  # the controller's effort for t = T closes the run
             return
-        self.stepper.step(tau)  # advance(), inline: once per control step
-        self.applied = tau
-        self.publish_state()
+        self.advance(tau)
 
     def advance(self, tau: FloatArray) -> None:
         """Integrate one period with ``tau`` held and publish the new state."""
