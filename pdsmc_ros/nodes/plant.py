@@ -125,6 +125,10 @@ class PlantNode:
     def done(self) -> bool:
         return self.plant.done
 
+    @done.setter
+    def done(self, value: bool) -> None:  # a signal ends the run (the executor's handler)
+        self.plant.done = value
+
     def stamp(self) -> tuple[int, int]:
         """The current state's stamp: sim time of the plant's step."""
         return step_stamp(self.stepper.steps, self.spec.rate)
