@@ -165,9 +165,8 @@ class PlantNode:
     def try_start(self) -> None:
         """Lockstep: publish state 0 once every participant is listening."""
         if not self.plant.started and self.listeners_ready():
-            self.plant.started = True
             self.timer.cancel()
-            self.publish_state()
+            self.plant.start(time.monotonic())
 
     def on_effort(self, data: bytes) -> None:
         try:

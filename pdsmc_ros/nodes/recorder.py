@@ -152,6 +152,7 @@ class RecorderNode:
                 # a topic's first messages (the run description above all) go to disk at once,
                 # so a recorder killed at any moment after start leaves a bag that names its run
                 self.flush()
+                self.node.get_logger().info(f"first message on /{topic} is on disk")
             if stepped and self.progress.batch(topic, batch):
                 self.done = True
 

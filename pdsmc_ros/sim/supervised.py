@@ -19,6 +19,10 @@ from ..robots.base import FloatArray
 from .plant import PlantStepper
 
 MAX_CATCH_UP = 100  # real time: periods a late tick integrates at most besides its own
+# lockstep: the first state goes out again at this period until a controller answers it. A
+# subscriber the plant counts as matched may not yet have matched the plant (discovery is
+# asymmetric), and with volatile durability it never gets a sample written before then.
+FIRST_STATE_RESEND_S = 0.5
 
 Report = Callable[[str, str], None]
 """``report(level, text)`` with level ``"info"``, ``"warn"`` or ``"error"``: a log line and a diagnostic."""
@@ -59,6 +63,7 @@ class SupervisedPlant:
         self.latest_effort = np.zeros(n)
         self.q_hold = stepper.q.copy()
         self.started = False
+        self.first_state_sent_at: float | None = None
         self.done = False
         self.rejected = 0
         self.rejected_reasons: dict[str, int] = {}
@@ -113,10 +118,22 @@ class SupervisedPlant:
         self.publish_state()
 
     # -- watchdog and safe mode ---------------------------------------------- #
+    def start(self, now: float) -> None:
+        """Lockstep: everyone listens; publish the first state."""
+        self.started = True
+        self.first_state_sent_at = now
+        self.publish_state()
+
     def check_watchdog(self, now: float) -> None:
         """Lockstep: no effort within the watchdog's timeout -> safe mode; in safe mode,
-        the arm advances with the safe torque at the watchdog's pace."""
+        the arm advances with the safe torque at the watchdog's pace. Until a controller
+        has answered, the first state is sent again every ``FIRST_STATE_RESEND_S``."""
         if not self.started or self.done:
+            return
+        if not self.watch.armed and self.stepper.steps == 0 and self.first_state_sent_at is not None \
+                and now - self.first_state_sent_at >= FIRST_STATE_RESEND_S:
+            self.first_state_sent_at = now
+            self.publish_state()
             return
         if self.watch.lost_in_lockstep(now):
             self.lost(f"no effort for step {self.stepper.steps} within {self.watch.timeout_s:g} s", now)

@@ -7,7 +7,7 @@ import numpy as np
 from pdsmc_ros.control.safety import SafetyConfig, Watchdog
 from pdsmc_ros.robots import Serial3R
 from pdsmc_ros.sim import PlantStepper
-from pdsmc_ros.sim.supervised import MAX_CATCH_UP, SupervisedPlant
+from pdsmc_ros.sim.supervised import FIRST_STATE_RESEND_S, MAX_CATCH_UP, SupervisedPlant
 
 RATE = 1000.0
 Q0 = np.array([0.3, 0.5, -0.4])
@@ -114,3 +114,27 @@ def test_plant_stepper_state_assigned_between_steps_is_the_state_stepped() -> No
     stepper.step(np.ones(3))
     fresh.step(np.ones(3))
     assert np.array_equal(stepper.state, fresh.state) and np.array_equal(stepper.q, fresh.q)
+
+
+def test_lockstep_sends_the_first_state_again_until_a_controller_answers() -> None:
+    """A subscriber counted as matched may miss the first state (asymmetric discovery)."""
+    p, seen = plant()
+    p.check_watchdog(10.0)
+    assert seen.states == []  # not started: nothing goes out
+    p.start(100.0)
+    assert seen.states == [0]
+    p.check_watchdog(100.0 + FIRST_STATE_RESEND_S / 2)
+    assert seen.states == [0]
+    p.check_watchdog(100.0 + FIRST_STATE_RESEND_S)
+    p.check_watchdog(100.0 + 1.5 * FIRST_STATE_RESEND_S)
+    p.check_watchdog(100.0 + 2 * FIRST_STATE_RESEND_S)
+    assert seen.states == [0, 0, 0]
+    p.effort(1, (0.0, 0.0, 0.0), 100.0)  # a rogue's command does not count as an answer
+    p.check_watchdog(100.0 + 3 * FIRST_STATE_RESEND_S)
+    assert seen.states == [0, 0, 0, 0] and p.rejected == 1
+    p.effort(0, (0.0, 0.0, 0.0), 101.0)
+    assert seen.states == [0, 0, 0, 0, 1]
+    p.check_watchdog(101.0 + 0.1)  # answered: no more resends, the watchdog is armed
+    assert seen.states == [0, 0, 0, 0, 1] and p.safe_mode == "off"
+    p.check_watchdog(101.0 + 0.6)
+    assert p.safe_mode == "hold"
