@@ -168,8 +168,8 @@ def test_respawned_controller_resumes_the_run(ros_env: dict, tmp_path: Path) -> 
     out = tmp_path / "respawn"
     env = run_env(ros_env, out)
     # safe mode advances sim time at 0.05 x wall clock (the rest of the motion lasts over 30 s),
-    # so the respawned controller (about 4 s to start, over 15 s seen on a loaded machine)
-    # finds the motion still running
+    # so the respawned controller (about 4 s to start) finds the motion still running; at
+    # 0.1 x (17 s) it once did not answer in time, on a loaded machine
     proc = start_experiment(env, out, "--duration-factor", "0.4", "--respawn", "controller",
                             "--param", "watchdog_timeout:=0.5", "--param", "safe_time_scale:=0.05")
     wait_steps(out, 3000)
