@@ -17,7 +17,7 @@ export NUMBA_CACHE_DIR := $(abspath $(VENV))/numba-cache
 
 setup: $(STAMP)
 
-SOURCES := setup.py setup.cfg package.xml $(wildcard config/*.yaml config/*.xml) $(wildcard scripts/*.sh) \
+SOURCES := setup.py setup.cfg package.xml $(wildcard config/*.yaml config/*.xml config/urdf/*) $(wildcard scripts/*.sh) \
 	$(wildcard pdsmc_ros/*.py pdsmc_ros/*/*.py)
 DEPS_STAMP := $(VENV)/.pdsmc-deps
 
@@ -31,6 +31,9 @@ $(DEPS_STAMP): requirements.txt requirements-test.txt constraints.txt
 $(STAMP): $(DEPS_STAMP) $(SOURCES)
 	$(PY) -m pip install --quiet --disable-pip-version-check --no-deps --no-build-isolation --force-reinstall .
 	@rm -rf build pdsmc_ros.egg-info
+	@# numba checks a cached kernel against its own file only, not the kernels it calls: a new
+	@# install starts from an empty cache so no kernel calls an older version of another
+	@rm -rf $(NUMBA_CACHE_DIR)
 	@# ament layout: executables under <prefix>/lib/<package>, as colcon installs them
 	@mkdir -p $(VENV)/lib/pdsmc_ros
 	@for exe in $(EXECUTABLES); do ln -sf ../../bin/$$exe $(VENV)/lib/pdsmc_ros/$$exe; done

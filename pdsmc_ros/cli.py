@@ -84,7 +84,8 @@ def _add_payload_reading(p: argparse.ArgumentParser) -> None:
 def _add_run_arguments(p: argparse.ArgumentParser) -> None:
     # robots and laws are checked against their registries when the run is built (importing them here
     # would load numba for every command, --help included)
-    p.add_argument("--robot", required=True, help="a registered robot: serial_3r, parallel_5r, ...")
+    p.add_argument("--robot", required=True,
+                   help="serial_3r, parallel_5r, an arm of example-robot-data (ur5, panda, ...) or a .urdf file")
     p.add_argument(
         "--contour",
         required=True,
@@ -104,6 +105,8 @@ def _add_run_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--waypoints", default=None, help="CSV of task-space waypoints (--contour csv)")
     p.add_argument("--segment-duration", type=positive_float, default=2.0,
                    help="seconds per segment of a CSV contour (default 2)")
+    p.add_argument("--params-file", default=None,
+                   help="gains from a ROS 2 params file (the controller's, e.g. written by pdsmc tune)")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -150,12 +153,30 @@ def build_parser() -> argparse.ArgumentParser:
 
     chk = sub.add_parser("check-gains", help="discrete-rate stability of a run's gains")
     _add_run_arguments(chk)
+
+    tun = sub.add_parser("tune", help="propose gains by the thesis's recipe (Section 4.2.3) and write a params file")
+    tun.add_argument("--robot", required=True,
+                     help="serial_3r, parallel_5r, an arm of example-robot-data (ur5, panda, ...) or a .urdf file")
+    tun.add_argument("--contour", required=True)
+    tun.add_argument("--controller", required=True, help="a registered control law: pd, smc, pdsmc, ...")
+    tun.add_argument("--rate", type=positive_float, default=None, help="control rate in Hz (default: the robot's)")
+    tun.add_argument("--rounds", type=positive_int, default=3, help="sweeps over kp, kd, ks, lam (default 3)")
+    tun.add_argument("--out", default=None,
+                     help="the params file to write (default: <robot>_<contour>_<controller>.yaml here)")
+    tun.add_argument("--quiet", action="store_true", help="no line per candidate")
     return parser
 
 
 def _spec_from_args(args: argparse.Namespace):  # noqa: ANN202
     from .presets import make_run, smc_reading
 
+    gains = None
+    if args.params_file:
+        from .robots import ROBOTS
+        from .robots.catalog import resolve_robot
+        from .tuning import read_params_file
+
+        gains = read_params_file(args.params_file, ROBOTS[resolve_robot(args.robot)].n, args.controller)
     return make_run(
         args.robot,
         args.contour,
@@ -167,6 +188,7 @@ def _spec_from_args(args: argparse.Namespace):  # noqa: ANN202
         waypoints_file=args.waypoints,
         segment_duration=args.segment_duration,
         payload_reading=args.payload_reading,
+        gains=gains,
     )
 
 
@@ -345,7 +367,31 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_tune(args: argparse.Namespace) -> int:
+    from .tuning import Candidate, tune, write_params_file
+
+    def progress(candidate: Candidate) -> None:
+        error = "-" if candidate.contour_mean is None else f"{candidate.contour_mean:.4e} m"
+        gains = ", ".join(f"{k}={[float(f'{x:.4g}') for x in v]}" for k, v in candidate.gains.as_dict().items()
+                          if k in ("kp", "kd", "ks", "lam"))
+        print(f"contour mean {error:>14s}  {candidate.verdict:.90s}  {gains}", file=sys.stderr, flush=True)
+
+    result = tune(args.robot, args.contour, args.controller, rate=args.rate, rounds=args.rounds,
+                  progress=None if args.quiet else progress)
+    spec = result.spec
+    out = Path(args.out or f"{Path(args.robot).stem}_{args.contour}_{args.controller}.yaml")
+    write_params_file(out, result.best.gains, controller=spec.controller, robot=spec.robot,
+                      contour=spec.contour, rate=spec.rate)
+    tried = len(result.tried)
+    refused = sum(not c.ok for c in result.tried)
+    print(f"{spec.robot}/{spec.contour}/{spec.controller} at {spec.rate:g} Hz: contour error mean "
+          f"{result.best.contour_mean:.4e} m (start {result.tried[0].contour_mean:.4e} m) after {tried} runs "
+          f"({refused} refused); wrote {out}")
+    return 0
+
+
 COMMANDS = {
+    "tune": cmd_tune,
     "sweep": cmd_sweep,
     "simulate": cmd_simulate,
     "reproduce": cmd_reproduce,

@@ -27,6 +27,10 @@ class ConfigError(InvalidInputError):
     """A preset, parameter file or named option is unknown or malformed."""
 
 
+class MissingGainsError(ConfigError):
+    """No preset gains for this robot, contour group and controller (give them, or tune)."""
+
+
 class UnstableRateError(InvalidInputError):
     """The chosen control rate cannot be stable with the chosen gains."""
 

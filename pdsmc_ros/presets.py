@@ -18,9 +18,11 @@ from . import __version__
 from .config import choice, load_config
 from .control.gains import Gains
 from .control.registry import GAIN_NAMES, SMC_MODEL_KEYS, law, smc_model_vector
-from .errors import ConfigError
-from .robots import ROBOTS, Manipulator, RobotParams, make_robot, robot_names, robot_params, robot_settings
+from .errors import ConfigError, MissingGainsError
+from .robots import ROBOTS, Manipulator, RobotParams, UrdfRobot, make_robot, robot_params, robot_settings
+from .robots.catalog import resolve_robot
 from .trajectories import Contour, EllipseContour, JointReference, SegmentContour, load_waypoints_csv
+from .urdf import robot_urdf
 
 MAX_CONTROL_STEPS = 10_000_000
 """Control steps one run may hold: the sampled reference and its temporaries take about
@@ -91,7 +93,7 @@ class RunSpec:
     bound: float = 0.0
 
     def __post_init__(self) -> None:
-        choice(self.robot, robot_names(), "robot")
+        resolve_robot(self.robot)
         law(self.controller)
         for label, value in (("rate", self.rate), ("sample_rate", self.sample_rate)):
             if not np.isfinite(value) or value <= 0.0:
@@ -124,14 +126,14 @@ class RunSpec:
         """The simulated plant (with the scenario's payload, placed as ``payload_reading`` says)."""
         if self.payload_reading == "link_com":
             return make_robot(self.robot, params=loaded_params(self.robot, self.payload))
-        return make_robot(self.robot, payload=self.payload, params=robot_params(self.robot))
+        return make_robot(self.robot, payload=self.payload)
 
     def nominal_model(self) -> Manipulator:
         """The model the SMC knows: the nominal robot (``tip``: never the payload;
         ``link_com``: rebuilt with the load on its link)."""
         if self.payload_reading == "link_com":
             return make_robot(self.robot, params=loaded_params(self.robot, self.payload))
-        return make_robot(self.robot, params=robot_params(self.robot))
+        return make_robot(self.robot)
 
     def contour_model(self) -> Contour:
         return build_contour(
@@ -141,6 +143,13 @@ class RunSpec:
             waypoints_file=self.waypoints_file,
             segment_duration=self.segment_duration,
         ).scaled(self.duration_factor)
+
+    def robot_description(self) -> str:
+        """The URDF of the simulated robot (the plant's ``/robot_description``)."""
+        cls = ROBOTS[self.robot]
+        if issubclass(cls, UrdfRobot):
+            return cls.urdf
+        return robot_urdf(self.robot, robot_params(self.robot), self.payload)
 
     def reference(self) -> JointReference:
         return JointReference(self.robot_model(), self.contour_model())
@@ -217,6 +226,8 @@ def control_steps(duration: float, rate: float) -> int:
 def loaded_params(robot: str, payload: float) -> RobotParams:
     """Parameters of ``robot`` with ``payload`` kg added to the mass of the link that carries
     the end-effector (the robot's ``payload_link``), at its centre of mass; its inertia unchanged."""
+    if issubclass(ROBOTS[robot], UrdfRobot):
+        raise ConfigError(f"robot {robot!r}: a payload on a URDF arm is a fixed link of its URDF")
     params = robot_params(robot)
     links = list(params.links)
     k = ROBOTS[robot].payload_link
@@ -226,7 +237,16 @@ def loaded_params(robot: str, payload: float) -> RobotParams:
 
 def contour_names(robot: str) -> tuple[str, ...]:
     """The robot's contour presets (``config/contours.yaml``) and ``csv``."""
-    return tuple(load_config("contours").get(choice(robot, robot_names(), "robot")) or ()) + ("csv",)
+    return tuple(load_config("contours").get(contour_set(robot)) or ()) + ("csv",)
+
+
+def contour_set(robot: str) -> str:
+    """Whose contour presets ``robot`` runs: its own, or for a URDF arm the set its settings
+    name (the serial arm's by default: the thesis's task-space contours)."""
+    cls = ROBOTS[resolve_robot(robot)]
+    if issubclass(cls, UrdfRobot):
+        return str(cls.settings.get("contours", "serial_3r"))
+    return robot
 
 
 def scenario_names() -> tuple[str, ...]:
@@ -241,13 +261,25 @@ def build_contour(
     waypoints_file: str | None = None,
     segment_duration: float = 2.0,
 ) -> Contour:
-    """The named contour preset (or a CSV contour) for ``robot``."""
-    dim = ROBOTS[choice(robot, robot_names(), "robot")].task_dim
+    """The named contour preset (or a CSV contour) for ``robot``.
+
+    A URDF arm runs its contour set's presets fitted to its ``contour_size`` (m, the box's
+    longer side, centred on its task plane's origin; none: as they are) and CSV contours as
+    given, in its task plane's coordinates.
+    """
+    cls = ROBOTS[resolve_robot(robot)]
+    dim = cls.task_dim
     if name == "csv":
         if not waypoints_file:
             raise ConfigError("contour 'csv' needs a waypoints file (--waypoints FILE)")
         pts = load_waypoints_csv(waypoints_file, dim=dim)
         return SegmentContour("csv", pts, segment_duration, metric="nearest")
+    preset = _preset_contour(contour_set(robot), name, dim, ellipse_error)
+    size = cls.settings.get("contour_size") if issubclass(cls, UrdfRobot) else None
+    return preset.fitted(float(size)) if size else preset
+
+
+def _preset_contour(robot: str, name: str, dim: int, ellipse_error: str) -> Contour:
     presets = load_config("contours")[robot]
     spec = presets[choice(name, contour_names(robot), f"contour for {robot}")]
     if spec["type"] == "segments":
@@ -272,12 +304,15 @@ def build_contour(
 def preset_gains(robot: str, contour: str, controller: str) -> Gains:
     """Gains of Table 4.16 / 4.33 for this robot, contour and controller."""
     law(controller)
-    group = "linear" if contour == "csv" else load_config("contours")[robot][contour]["gain_group"]
-    table = load_config("gains").get(robot, {}).get(group, {}).get(controller)
+    cls = ROBOTS[resolve_robot(robot)]
+    group = "linear" if contour == "csv" else load_config("contours")[contour_set(robot)][contour]["gain_group"]
+    source = cls.settings.get("gains", robot) if issubclass(cls, UrdfRobot) else robot
+    tables = source if isinstance(source, dict) else load_config("gains").get(source, {})
+    table = tables.get(group, {}).get(controller)
     if table is None:
-        raise ConfigError(f"config/gains.yaml has no {controller} gains for {robot} ({group} contours); "
-                          "give the gains")
-    return Gains.from_mapping(table, ROBOTS[robot].n, controller)
+        raise MissingGainsError(f"config/gains.yaml has no {controller} gains for {robot} ({group} contours); "
+                          "give the gains, or let `pdsmc tune` propose them")
+    return Gains.from_mapping(table, cls.n, controller)
 
 
 def make_run(

@@ -77,6 +77,22 @@ class Contour:
         """Plain-data description, stored with every run."""
         raise NotImplementedError
 
+    def extent(self) -> tuple[FloatArray, FloatArray]:
+        """Corners ``(low, high)`` of the box around the path's points ``(x, y)``."""
+        raise NotImplementedError
+
+    def placed(self, scale: float, shift: ArrayLike) -> Contour:
+        """The same timed path with its points ``(x, y)`` mapped to ``scale * (x, y) + shift``
+        (a contour sized and placed in an arm's workspace; the pose is unchanged)."""
+        raise NotImplementedError
+
+    def fitted(self, size: float) -> Contour:
+        """Placed so its box is centred at ``(0, 0)`` with its longer side ``size`` (m)."""
+        _require_positive("contour size", size)
+        low, high = self.extent()
+        scale = size / float(np.max(high - low))
+        return self.placed(scale, -scale * (low + high) / 2.0)
+
 
 class SegmentContour(Contour):
     """Stop-and-go straight segments through waypoints, Eq. (4.5).
@@ -145,6 +161,16 @@ class SegmentContour(Contour):
 
     def scaled(self, factor: float) -> SegmentContour:
         return SegmentContour(self.name, self.waypoints, self.durations * factor, metric=self.metric)
+
+    def extent(self) -> tuple[FloatArray, FloatArray]:
+        xy = self.waypoints[:, :2]
+        return xy.min(axis=0), xy.max(axis=0)
+
+    def placed(self, scale: float, shift: ArrayLike) -> SegmentContour:
+        _require_positive("contour scale", scale)
+        pts = self.waypoints.copy()
+        pts[:, :2] = scale * pts[:, :2] + as_vector(shift, 2, "shift")
+        return SegmentContour(self.name, pts, self.durations, metric=self.metric)
 
     def describe(self) -> dict[str, object]:
         return {
@@ -251,6 +277,15 @@ class EllipseContour(Contour):
             ellipse_error=self.ellipse_error,
         )
 
+    def extent(self) -> tuple[FloatArray, FloatArray]:
+        radii = np.array([self.rx, self.ry])
+        return self.center - radii, self.center + radii
+
+    def placed(self, scale: float, shift: ArrayLike) -> EllipseContour:
+        _require_positive("contour scale", scale)
+        return EllipseContour(self.name, scale * self.center + as_vector(shift, 2, "shift"), scale * self.rx,
+                              scale * self.ry, self.duration, pose=self.pose, ellipse_error=self.ellipse_error)
+
     def describe(self) -> dict[str, object]:
         return {
             "type": "circle" if self.is_circle else "ellipse",
@@ -347,11 +382,12 @@ class JointSample:
 class JointReference:
     """Continuous joint references of a contour for one robot.
 
-    Inverse kinematics wraps angles; the branch offset (a multiple of 2 pi per
-    joint) at time ``t`` is chosen so the reference stays continuous along the
-    motion, using the unwrapped solution on a dense grid built once. The
-    result at a given ``t`` therefore does not depend on which instants were
-    asked before, so a node and the in-process simulator agree exactly.
+    The path is solved once on a dense grid (:meth:`Manipulator.ik_path`, continuous
+    along the motion); the reference at time ``t`` is the solution nearest the
+    grid's, interpolated at ``t`` (:meth:`Manipulator.ik_near`: the branch offset of
+    a closed-form solution, or the seed of a numerical one). The result at a given
+    ``t`` therefore does not depend on which instants were asked before, so a node
+    and the in-process simulator agree exactly.
 
     Raises
     ------
@@ -370,7 +406,7 @@ class JointReference:
         count = max(int(np.ceil(contour.duration * grid_rate)), 200) + 1
         self._grid_t = np.linspace(0.0, contour.duration, count)
         p = contour.task(self._grid_t).p
-        ok = robot.reachable(p)
+        self._grid_q, ok = robot.ik_path(p)
         if not np.all(ok):
             first = int(np.argmin(ok))
             raise UnreachableError(
@@ -378,8 +414,6 @@ class JointReference:
                 f"t = {self._grid_t[first]:.4f} s, point "
                 f"{np.array2string(p[first], precision=4)}"
             )
-        raw = robot._ik(p)
-        self._grid_q = np.unwrap(raw, axis=0)
 
     @property
     def duration(self) -> float:
@@ -389,10 +423,9 @@ class JointReference:
         """``q_d, qd_d, qdd_d`` at times ``t`` (held at the end after ``duration``)."""
         t = np.atleast_1d(np.asarray(t, dtype=float))
         task = self.contour.task(t)
-        raw = self.robot._ik(task.p)
         guide = np.stack(
             [np.interp(t, self._grid_t, self._grid_q[:, i]) for i in range(self.robot.n)], axis=-1
         )
-        q = raw + 2.0 * np.pi * np.round((guide - raw) / (2.0 * np.pi))
+        q = self.robot.ik_near(task.p, guide)
         qd, qdd = self.robot.joint_rates(q, task.pd, task.pdd)
         return JointSample(q=q, qd=qd, qdd=qdd)

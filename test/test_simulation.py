@@ -327,7 +327,7 @@ def test_cli_simulate_json_has_documented_keys() -> None:
     ("args", "message"),
     [
         (["--robot", "scara", "--contour", "circle", "--controller", "pd"],
-         "unknown robot 'scara'; choose one of: serial_3r, parallel_5r"),
+         "unknown robot 'scara'; allowed: serial_3r, parallel_5r, ur5, ur10, ur3, panda, or a path to a .urdf file"),
         (["--robot", "serial_3r", "--contour", "circle", "--controller", "lqr"],
          "unknown controller 'lqr'; choose one of: pd, smc, pdsmc"),
         (["--robot", "serial_3r", "--contour", "star", "--controller", "pd"], "unknown contour for serial_3r 'star'"),

@@ -26,10 +26,11 @@ from rclpy.parameter import Parameter
 
 from ..control import GAIN_NAMES, Gains, law_names
 from ..control.safety import MAX_SAFE_DAMPING, MAX_SAFE_STIFFNESS, SafetyConfig
-from ..errors import ConfigError, InvalidInputError
+from ..errors import ConfigError, InvalidInputError, MissingGainsError
 from ..joints import check_joint_names
 from ..presets import RunSpec, make_run, smc_reading
-from ..robots import Manipulator, robot_names
+from ..robots import ROBOTS, Manipulator
+from ..robots.catalog import allowed_robots, resolve_robot
 from .topics import MODES
 
 BUSY_WAIT_S = 0.0002  # real time: default busy-wait before a tick (parameter busy_wait)
@@ -49,7 +50,7 @@ def _descriptor(
 
 
 RUN_PARAMETERS: dict[str, tuple[Any, ParameterDescriptor]] = {
-    "robot": ("serial_3r", _descriptor("manipulator", constraints="one of: " + ", ".join(robot_names()))),
+    "robot": ("serial_3r", _descriptor("manipulator", constraints="one of: " + allowed_robots())),
     "contour": ("circle", _descriptor("contour preset (config/contours.yaml) or csv")),
     "type": ("pdsmc", _descriptor("controller type", constraints="one of: " + ", ".join(law_names()))),
     "scenario": ("nominal", _descriptor("robustness scenario (config/scenarios.yaml)")),
@@ -248,23 +249,6 @@ def run_spec_from_parameters(node: Node) -> RunSpec:
         p[name] = value
     if p["mode"] not in MODES:
         raise ConfigError(f"parameter mode: unknown value {p['mode']!r}; choose one of: lockstep, realtime")
-    try:
-        spec = make_run(
-            p["robot"],
-            p["contour"],
-            p["type"],
-            scenario=p["scenario"],
-            rate=p["rate"] or None,
-            sample_rate=p["sample_rate"] or None,
-            smc_model=smc_reading(p["smc_reading"]) if p["type"] == "smc" else None,
-            ellipse_error=p["ellipse_error"],
-            waypoints_file=p["waypoints_file"] or None,
-            segment_duration=p["segment_duration"],
-        )
-    except ConfigError as exc:
-        raise ConfigError(f"parameters: {exc}") from None
-    if p["duration_factor"] != 1.0:
-        spec = dataclasses.replace(spec, duration_factor=spec.duration_factor * p["duration_factor"])
     overrides = {}
     for name in GAIN_NAMES:
         if not node.has_parameter(name):
@@ -279,6 +263,27 @@ def run_spec_from_parameters(node: Node) -> RunSpec:
             ):
                 raise ConfigError(f"parameter {name} must be a list of numbers, got {value!r}")
             overrides[name] = [float(v) for v in value]
+    options = {
+        "scenario": p["scenario"],
+        "rate": p["rate"] or None,
+        "sample_rate": p["sample_rate"] or None,
+        "smc_model": smc_reading(p["smc_reading"]) if p["type"] == "smc" else None,
+        "ellipse_error": p["ellipse_error"],
+        "waypoints_file": p["waypoints_file"] or None,
+        "segment_duration": p["segment_duration"],
+    }
+    try:
+        try:
+            spec = make_run(p["robot"], p["contour"], p["type"], **options)
+        except MissingGainsError:
+            # an arm without preset gains (a URDF arm): the given ones must be complete
+            n = ROBOTS[resolve_robot(p["robot"])].n
+            gains = Gains.from_mapping(overrides, n, p["type"])
+            spec = make_run(p["robot"], p["contour"], p["type"], gains=gains, **options)
+    except ConfigError as exc:
+        raise ConfigError(f"parameters: {exc}") from None
+    if p["duration_factor"] != 1.0:
+        spec = dataclasses.replace(spec, duration_factor=spec.duration_factor * p["duration_factor"])
     if overrides:
         merged = {**spec.gains.as_dict(), **overrides}
         n = len(spec.gains.kp)

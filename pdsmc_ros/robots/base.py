@@ -174,6 +174,13 @@ class Manipulator:
         self.J = motor_array(params.motor_inertia, self.n)
         self.B = motor_array(params.motor_damping, self.n)
 
+    @classmethod
+    def create(cls, payload: float = 0.0, *, params: RobotParams | None = None) -> Manipulator:
+        """The robot with ``params`` (by default its entry of ``config/robots.yaml``)."""
+        from .registry import robot_params  # the registry imports this module
+
+        return cls(payload, params=params or robot_params(cls.name))
+
     def with_payload(self, payload: float) -> Manipulator:
         """The same robot carrying ``payload`` kg at the end-effector."""
         return type(self)(payload, params=self.params)
@@ -237,6 +244,20 @@ class Manipulator:
     def reachable(self, p: ArrayLike) -> NDArray[np.bool_]:
         """Whether each task point of ``p`` (shape ``(..., task_dim)``) can be reached."""
         raise NotImplementedError
+
+    def ik_path(self, p: FloatArray) -> tuple[FloatArray, NDArray[np.bool_]]:
+        """Joint angles along a path of task points ``p`` ``(k, task_dim)``, continuous
+        from one point to the next, and whether each point is reachable."""
+        ok = np.asarray(self.reachable(p))
+        if not np.all(ok):
+            return np.zeros(p.shape[:-1] + (self.n,)), ok
+        return np.unwrap(self._ik(p), axis=0), ok
+
+    def ik_near(self, p: FloatArray, guide: FloatArray) -> FloatArray:
+        """Joint angles placing the end effector at ``p``, nearest ``guide`` (same shape
+        as the answer): the closed-form solution shifted by whole turns."""
+        raw = self._ik(p)
+        return raw + 2.0 * np.pi * np.round((guide - raw) / (2.0 * np.pi))
 
     def joint_rates(
         self, q: FloatArray, pd: FloatArray, pdd: FloatArray

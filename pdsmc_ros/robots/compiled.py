@@ -20,9 +20,11 @@ from numba import njit
 
 from . import parallel_5r_kernels as five_bar
 from . import serial_3r as serial
+from . import spatial_kernels as chain
 from .base import FloatArray, Manipulator
 from .parallel_5r_kernels import PARALLEL_5R
 from .serial_3r import SERIAL_3R
+from .spatial_kernels import SERIAL_CHAIN, workspace_size
 
 OUTPUTS_SIZE = 6
 """Floats of :func:`outputs`: end effector (x, y), passive joints and their rates."""
@@ -30,7 +32,7 @@ OUTPUTS_SIZE = 6
 
 def workspace(n: int = 3) -> FloatArray:
     """Scratch array for the compiled functions of a robot with ``n`` joints."""
-    return np.empty(max(128, 32 * n + 4 * n * n))
+    return np.empty(max(128, 32 * n + 4 * n * n, 2 * n + n * n + workspace_size(n)))
 
 
 def pack(robot: Manipulator) -> tuple[int, FloatArray]:
@@ -56,6 +58,8 @@ def terms(kind, p, q, qd, mass, bias, work):  # noqa: ANN001, ANN201
         serial.terms(p, q, qd, mass, bias, work)
     elif kind == PARALLEL_5R:
         five_bar.terms(p, q, qd, mass, bias, work)
+    elif kind == SERIAL_CHAIN:
+        chain.terms(p, q, qd, mass, bias, work)
 
 
 @njit(cache=True)
@@ -65,6 +69,8 @@ def coriolis_times(kind, p, q, qd, v, out, work):  # noqa: ANN001, ANN201
         serial.coriolis_times(p, q, qd, v, out, work)
     elif kind == PARALLEL_5R:
         five_bar.coriolis_times(p, q, qd, v, out, work)
+    elif kind == SERIAL_CHAIN:
+        chain.coriolis_times(p, q, qd, v, out, work)
 
 
 @njit(cache=True)
@@ -74,6 +80,8 @@ def gravity(kind, p, q, out, work):  # noqa: ANN001, ANN201
         serial.gravity(p, q, out)
     elif kind == PARALLEL_5R:
         five_bar.gravity(p, q, out, work)
+    elif kind == SERIAL_CHAIN:
+        chain.gravity(p, q, out, work)
 
 
 @njit(cache=True)
@@ -81,6 +89,8 @@ def damping(kind, p, i):  # noqa: ANN001, ANN201
     """Motor damping ``B_i``."""
     if kind == SERIAL_3R:
         return serial.damping(p, i)
+    if kind == SERIAL_CHAIN:
+        return chain.damping(p, i)
     return five_bar.damping(p, i)
 
 
@@ -89,6 +99,8 @@ def motor_inertia(kind, p, i):  # noqa: ANN001, ANN201
     """Motor inertia ``J_i``."""
     if kind == SERIAL_3R:
         return serial.motor_inertia(p, i)
+    if kind == SERIAL_CHAIN:
+        return chain.motor_inertia(p, i)
     return five_bar.motor_inertia(p, i)
 
 
@@ -104,6 +116,8 @@ def outputs(kind, p, q, qd, out, work):  # noqa: ANN001, ANN201
         serial.outputs(p, q, out)
     elif kind == PARALLEL_5R:
         five_bar.outputs(p, q, qd, out, work)
+    elif kind == SERIAL_CHAIN:
+        chain.outputs(p, q, out, work)
 
 
 # --------------------------------------------------------------------------- #

@@ -111,5 +111,4 @@ def robot_settings(name: str) -> RobotSettings:
 
 def make_robot(name: str, *, payload: float = 0.0, params: RobotParams | None = None) -> Manipulator:
     """Build a registered robot by name."""
-    cls = ROBOTS[choice(name, robot_names(), "robot")]
-    return cls(payload, params=params or robot_params(name))
+    return ROBOTS[choice(name, robot_names(), "robot")].create(payload, params=params)

@@ -1,27 +1,63 @@
-"""Any serial arm from its URDF, with Pinocchio (numpy path; issue 16's first part).
+"""Any serial arm from its URDF, with Pinocchio: dynamics, kinematics and the task plane.
 
-:func:`from_urdf` returns a :class:`UrdfRobot` with the interface of the built-in robots:
-``joint_names``, ``mass_matrix``, ``coriolis_matrix``, ``gravity``, ``forward_dynamics``,
-forward kinematics of the end-effector frame (its position, metres) and its Jacobian. Conventions
-(the issue's): URDF ``<dynamics damping>`` is the motor damping ``B`` (Pinocchio reads it but its
-``aba`` does not apply it, so Eq. (4.1) adds it here); ``armature`` is the motor inertia ``J`` (URDF
-has no element for it), added to the mass matrix's diagonal; ``<limit effort velocity>`` are
-:attr:`UrdfRobot.torque_limit` and :attr:`UrdfRobot.velocity_limit`; gravity is URDF's, along -z.
+:func:`urdf_robot_class` turns a URDF into a robot class with the interface of the
+built-in ones (``name``, ``n``, ``joint_names``, ``mass_matrix``, ``coriolis_matrix``,
+``gravity``, ``forward_dynamics``, forward and inverse kinematics, Jacobian), so a
+registered URDF arm runs wherever ``serial_3r`` does; :func:`from_urdf` returns one
+instance. Conventions (issue 16): URDF ``<dynamics damping>`` is the motor damping
+``B`` (Pinocchio reads it, its ``aba`` does not apply it, so Eq. (4.1) adds it here);
+``armature`` is the motor inertia ``J`` (URDF has no element for it), added to the
+mass matrix's diagonal; ``<limit effort velocity>`` are :attr:`UrdfRobot.torque_limit`
+and :attr:`UrdfRobot.velocity_limit`; gravity is URDF's, along -z.
 
-Not yet: inverse kinematics (task-space contours on such an arm), robots by name from
-example-robot-data, a compiled form.
+Task space: the thesis's planar contours run in a :class:`~.task.TaskPlane`. A task
+point is ``(u, v, pose)``: the end effector's plane coordinates and its rotation about
+the plane's normal. Which of the six task rows (three positions, three rotations, in
+the plane's axes) the arm is asked to follow is its ``orientation``:
+
+``contour``
+    a planar arm moving in the plane (its out-of-plane rows are zero): position and
+    the contour's pose, as the thesis's serial arm;
+``held``
+    six or more joints: position, and the orientation of the home configuration held
+    (the contour's pose is not used);
+``free``
+    fewer joints: position only.
+
+Inverse kinematics is numerical: damped least squares, seeded continuously along the
+path (:meth:`UrdfRobot.ik_path`) and converged to :data:`IK_TOLERANCE`.
 """
 
 from __future__ import annotations
 
+import contextlib
+import os
+import sys
+import tempfile
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any, ClassVar
+from xml.etree import ElementTree
 
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 
-from ..errors import InvalidInputError
-from .base import FloatArray, Manipulator
+from ..errors import InvalidInputError, UnreachableError
+from . import ik_kernels, spatial_kernels
+from .base import FloatArray, Manipulator, RobotParams
+from .task import TaskPlane, axis_rotation, rotation_log
+
+ORIENTATIONS = ("contour", "held", "free")
+IK_TOLERANCE = 1e-14
+"""Task error (m and rad, largest row) at which inverse kinematics stops."""
+IK_MAX_ITERATIONS = 60
+IK_DAMPING = 1e-3
+"""Damping of the least-squares step while the error exceeds :data:`IK_UNDAMPED_BELOW`."""
+IK_UNDAMPED_BELOW = 1e-5
+IK_MAX_STEP = 0.3
+"""Largest joint change (rad or m) of one iteration: a step away from a singularity stays local."""
+APPROACH_STEPS = 50
+"""Intermediate targets from the home configuration to a path's first point."""
 
 
 def _pinocchio() -> Any:
@@ -32,110 +68,146 @@ def _pinocchio() -> Any:
     return pinocchio
 
 
-def from_urdf(source: str | Path, *, armature: ArrayLike | None = None, ee_frame: str | None = None,
-              name: str | None = None) -> UrdfRobot:
-    """A robot from a URDF file (or the URDF text itself).
+@contextlib.contextmanager
+def captured_stderr() -> Iterator[Callable[[], list[str]]]:
+    """Collect what C++ code (urdfdom's console bridge) writes to file descriptor 2, so a bad
+    URDF is our one line instead of the parser's several."""
+    sys.stderr.flush()
+    saved = os.dup(2)
+    with tempfile.TemporaryFile(mode="w+b") as sink:
+        os.dup2(sink.fileno(), 2)
+        lines: list[str] = []
+        try:
+            yield lambda: lines
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+            sink.seek(0)
+            lines.extend(sink.read().decode(errors="replace").splitlines())
 
-    Parameters
-    ----------
-    source : str or Path
-        The URDF file, or its XML text (``/robot_description``).
-    armature : array_like, optional
-        Motor inertia ``J`` per movable joint (kg m^2), or one value for all; 0 by default.
-    ee_frame : str, optional
-        The end-effector frame; by default the URDF's last frame.
-    name : str, optional
-        The robot's name; by default the URDF's.
+
+def load_model(source: str | Path, *, locked_joints: Sequence[str] = ()) -> tuple[Any, str, str]:
+    """``(model, label, urdf_text)`` of a URDF file or text, with ``locked_joints`` fixed at 0
+    (a gripper's fingers, say).
 
     Raises
     ------
     InvalidInputError
-        One line naming the file and the problem: it does not parse, has no movable joint, a
-        joint other than revolute or prismatic, an unknown end-effector frame, a moving link
-        without mass.
+        One line naming the file and the problem: no such file, it does not parse, no movable
+        joint, a closed chain or a tree, a joint other than revolute or prismatic, an unknown
+        locked joint, a moving link without mass.
     """
     pin = _pinocchio()
     text = str(source)
     is_xml = text.lstrip().startswith("<")
     label = "URDF text" if is_xml else f"URDF {text!r}"
-    try:
-        if not is_xml and not Path(text).is_file():
+    if not is_xml:
+        path = Path(text)
+        if not path.is_file():
             raise InvalidInputError(f"{label}: no such file")
-        model = pin.buildModelFromXML(text) if is_xml else pin.buildModelFromUrdf(text)
-    except InvalidInputError:
-        raise
-    except (ValueError, RuntimeError) as exc:
-        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        raise InvalidInputError(f"{label} does not parse: {first}") from None
+        try:
+            xml = path.read_text()
+        except (OSError, UnicodeDecodeError) as exc:
+            raise InvalidInputError(f"{label}: cannot read it ({exc})") from None
+    else:
+        xml = text
+    try:
+        ElementTree.fromstring(xml)
+    except ElementTree.ParseError as exc:
+        raise InvalidInputError(f"{label} does not parse: {exc}") from None
+    with captured_stderr() as messages:
+        try:
+            model = pin.buildModelFromXML(xml)
+        except (ValueError, RuntimeError) as exc:
+            model, error = None, str(exc).strip()
+    if model is None:
+        said = [line.strip() for line in messages() if line.strip()]
+        reason = said[0] if said else (error.splitlines()[0] if error else "not a URDF model")
+        raise InvalidInputError(f"{label} does not parse: {reason}")
+    if locked_joints:
+        unknown = [j for j in locked_joints if not model.existJointName(j)]
+        if unknown:
+            raise InvalidInputError(f"{label}: no joint {unknown[0]!r} to lock")
+        ids = [model.getJointId(j) for j in locked_joints]
+        model = pin.buildReducedModel(model, ids, pin.neutral(model))
     if model.nv == 0:
         raise InvalidInputError(f"{label}: no movable joint")
     kinds = {model.joints[i].shortname() for i in range(1, model.njoints)}
-    unsupported = sorted(k for k in kinds if not k.startswith(("JointModelR", "JointModelP")))
+    unsupported = sorted(k for k in kinds if not k.startswith(("JointModelR", "JointModelP")) or "UB" in k)
     if unsupported or model.nq != model.nv:
-        raise InvalidInputError(f"{label}: only revolute and prismatic joints are supported, found {unsupported}")
-    masses = [model.inertias[i].mass for i in range(1, model.njoints)]
-    massless = [model.names[i] for i, m in enumerate(masses, 1) if m <= 0.0]
+        raise InvalidInputError(f"{label}: only revolute and prismatic joints are supported, found "
+                                f"{unsupported or sorted(kinds)} (continuous joints: give them limits)")
+    branching = [model.names[i] for i in range(2, model.njoints) if model.parents[i] != i - 1]
+    if branching:
+        raise InvalidInputError(f"{label}: not a serial chain: joint {branching[0]!r} branches off "
+                                f"(lock the joints of other branches, e.g. a gripper's fingers)")
+    massless = [model.names[i] for i in range(1, model.njoints) if model.inertias[i].mass <= 0.0]
     if massless:
         raise InvalidInputError(f"{label}: the links moved by {massless} have no mass (an <inertial> is needed)")
-    frame = ee_frame or model.frames[model.nframes - 1].name
-    if not model.existFrame(frame):
-        raise InvalidInputError(f"{label}: no frame {frame!r} (frames: {[f.name for f in model.frames][1:]})")
-    n = model.nv
-    j = np.broadcast_to(np.asarray(0.0 if armature is None else armature, dtype=float), (n,)).copy()
-    if not np.all(np.isfinite(j)) or np.any(j < 0.0):
-        raise InvalidInputError(f"armature must be {n} finite values >= 0, got {j.tolist()}")
-    return UrdfRobot(model, frame, j, name=name or model.name)
+    return model, label, xml
 
 
 class UrdfRobot(Manipulator):
-    """A serial arm backed by a Pinocchio model (see :func:`from_urdf`).
+    """A serial arm backed by a Pinocchio model (made by :func:`urdf_robot_class`).
 
-    The task point is the end-effector frame's position (metres, base frame).
+    The class carries the model and the task set-up; each instance its own Pinocchio
+    data. ``payload`` must be 0: a load is a fixed link of the URDF.
     """
 
     task_dim: ClassVar[int] = 3
-    kernel: ClassVar[int | None] = None
+    kernel: ClassVar[int | None] = spatial_kernels.SERIAL_CHAIN
+    model: ClassVar[Any]
+    urdf: ClassVar[str]
+    source: ClassVar[str]
+    ee_frame: ClassVar[str]
+    armature: ClassVar[FloatArray]
+    damping: ClassVar[FloatArray]
+    torque_limit: ClassVar[FloatArray]
+    velocity_limit: ClassVar[FloatArray]
+    lower_limit: ClassVar[FloatArray]
+    upper_limit: ClassVar[FloatArray]
+    home: ClassVar[FloatArray]
+    plane: ClassVar[TaskPlane]
+    orientation: ClassVar[str]
+    reference_rotation: ClassVar[FloatArray]
+    rows: ClassVar[NDArray[np.intp]]
+    settings: ClassVar[Mapping[str, Any]]
 
-    def __init__(self, model: Any, ee_frame: str, armature: FloatArray, *, name: str = "urdf") -> None:
-        pin = _pinocchio()
-        self.model = model
-        self.data = model.createData()
-        self.ee_frame = ee_frame
-        self.ee_id = model.getFrameId(ee_frame)
-        n = model.nv
-        self.n_joints = n
-        self.robot_name = name
-        self.joint_names_ = tuple(model.names[i] for i in range(1, model.njoints))
+    def __init__(self, payload: float = 0.0, *, params: RobotParams | None = None) -> None:  # noqa: ARG002
+        if payload:
+            raise InvalidInputError(f"robot {self.name!r}: a payload on a URDF arm is a fixed link of its URDF "
+                                    f"(got payload {payload!r} kg)")
         self.payload = 0.0
-        self.J = np.asarray(armature, dtype=float)
-        self.B = np.asarray(model.damping, dtype=float).copy()
-        self.torque_limit = np.asarray(model.effortLimit, dtype=float).copy()
-        self.velocity_limit = np.asarray(model.velocityLimit, dtype=float).copy()
-        self._pin = pin
-        model.armature[:] = 0.0  # J is added here, as for the built-in robots (Mbar = M + J)
+        self.J = self.armature.copy()
+        self.B = self.damping.copy()
+        self._pin = _pinocchio()
+        self.data = self.model.createData()
+        self.ee_id = self.model.getFrameId(self.ee_frame)
+        self._basis = self.plane.basis
+        self._basis6 = np.zeros((6, 6))
+        self._basis6[:3, :3] = self._basis6[3:, 3:] = self._basis
+        self._packed: FloatArray | None = None
 
-    @property
-    def n(self) -> int:  # type: ignore[override]
-        return self.n_joints
+    def pack(self) -> FloatArray:
+        """Flat parameters of the compiled form (:func:`.spatial_kernels.pack`)."""
+        return spatial_kernels.pack(self.model, self.J, self.B, self.ee_id, self.plane.origin, self.plane.u,
+                                    self.plane.v)
 
-    @property
-    def name(self) -> str:  # type: ignore[override]
-        return self.robot_name
-
-    @property
-    def joint_names(self) -> tuple[str, ...]:  # type: ignore[override]
-        return self.joint_names_
+    @classmethod
+    def create(cls, payload: float = 0.0, *, params: RobotParams | None = None) -> UrdfRobot:
+        return cls(payload, params=params)
 
     def with_payload(self, payload: float) -> UrdfRobot:
-        raise InvalidInputError("a payload on a URDF robot: add it to the URDF as a fixed link")
+        return type(self)(payload)
 
     # -- per configuration, over any leading batch axes --------------------- #
     def _each(self, fn: Any, *arrays: FloatArray) -> FloatArray:
         batch = arrays[0].shape[:-1]
-        flat = [np.reshape(a, (-1, self.n)) for a in arrays]
+        flat = [np.reshape(a, (-1, a.shape[-1])) for a in arrays]
         out = [np.asarray(fn(*(a[i] for a in flat))) for i in range(flat[0].shape[0])]
         return np.reshape(np.stack(out), batch + out[0].shape)
 
+    # -- dynamics (Eq. 4.1) --------------------------------------------------- #
     def _mass_matrix(self, q: FloatArray) -> FloatArray:
         def one(qi: FloatArray) -> FloatArray:
             m = self._pin.crba(self.model, self.data, qi)
@@ -143,8 +215,28 @@ class UrdfRobot(Manipulator):
             return m + np.diag(self.J)
         return self._each(one, q)
 
+    def _velocity_product(self, q: FloatArray, qd: FloatArray) -> FloatArray:
+        """``C(q, qd) qd`` (Pinocchio's bias without gravity)."""
+        pin = self._pin
+        return pin.nonLinearEffects(self.model, self.data, q, qd) - pin.computeGeneralizedGravity(
+            self.model, self.data, q)
+
     def _coriolis_matrix(self, q: FloatArray, qd: FloatArray) -> FloatArray:
-        return self._each(lambda qi, vi: self._pin.computeCoriolisMatrix(self.model, self.data, qi, vi).copy(), q, qd)
+        """The Christoffel-symbol ``C``: ``C_ij = sum_k Gamma_ijk qd_k``, as the thesis derives it.
+
+        ``c(x) = C(q, x) x`` is a quadratic form with ``Gamma`` symmetric in its last two indices,
+        so column ``j`` is ``C(q, qd) e_j = (c(qd + e_j) - c(qd - e_j)) / 4`` (Pinocchio's own
+        ``computeCoriolisMatrix`` is another factorisation with the same ``C qd``).
+        """
+        eye = np.eye(self.n)
+
+        def one(qi: FloatArray, vi: FloatArray) -> FloatArray:
+            return np.stack([0.25 * (self._velocity_product(qi, vi + e) - self._velocity_product(qi, vi - e))
+                             for e in eye], axis=-1)
+        return self._each(one, q, qd)
+
+    def _coriolis_vector(self, q: FloatArray, qd: FloatArray) -> FloatArray:
+        return self._each(self._velocity_product, q, qd)
 
     def _gravity(self, q: FloatArray) -> FloatArray:
         return self._each(lambda qi: self._pin.computeGeneralizedGravity(self.model, self.data, qi).copy(), q)
@@ -156,22 +248,262 @@ class UrdfRobot(Manipulator):
     def _potential(self, q: FloatArray) -> FloatArray:
         return self._each(lambda qi: np.array(self._pin.computePotentialEnergy(self.model, self.data, qi)), q)
 
+    # -- kinematics of the end-effector frame ------------------------------- #
+    def ee_pose(self, q: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Position (m) and rotation of the end-effector frame in the base, one configuration."""
+        pin = self._pin
+        pin.forwardKinematics(self.model, self.data, q)
+        placement = pin.updateFramePlacement(self.model, self.data, self.ee_id)
+        return placement.translation.copy(), placement.rotation.copy()
+
+    def ee_jacobian(self, q: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """Position, rotation and the 6 x n frame Jacobian (base-aligned: linear, angular)."""
+        pin = self._pin
+        pin.computeJointJacobians(self.model, self.data, q)
+        placement = pin.updateFramePlacement(self.model, self.data, self.ee_id)
+        jac = pin.getFrameJacobian(self.model, self.data, self.ee_id, pin.LOCAL_WORLD_ALIGNED)
+        return placement.translation.copy(), placement.rotation.copy(), jac
+
     def _fk(self, q: FloatArray) -> FloatArray:
         def one(qi: FloatArray) -> FloatArray:
-            self._pin.framesForwardKinematics(self.model, self.data, qi)
-            return self.data.oMf[self.ee_id].translation.copy()
+            x, r = self.ee_pose(qi)
+            uv = self.plane.coordinates(x)
+            pose = float(self.plane.normal @ rotation_log(r @ self.reference_rotation.T))
+            return np.array([uv[0], uv[1], pose])
         return self._each(one, q)
 
     def position(self, q: FloatArray) -> FloatArray:
-        return self._fk(q)
+        return self._each(lambda qi: self.plane.coordinates(self.ee_pose(qi)[0]), q)
 
     def _jacobian(self, q: FloatArray) -> FloatArray:
-        pin = self._pin
+        """Rows ``d(u, v, pose) / dq``."""
+        return self._each(lambda qi: (self._basis6 @ self.ee_jacobian(qi)[2])[[0, 1, 5]], q)
 
-        def one(qi: FloatArray) -> FloatArray:
-            jac = pin.computeFrameJacobian(self.model, self.data, qi, self.ee_id, pin.LOCAL_WORLD_ALIGNED)
-            return jac[:3].copy()
-        return self._each(one, q)
+    # -- inverse kinematics (compiled: .ik_kernels) --------------------------- #
+    def targets(self, p: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """World positions ``(k, 3)`` and rotations ``(k, 3, 3)`` of task points ``p = (u, v[, pose])``."""
+        p = np.atleast_2d(p)
+        x = self.plane.world(p[:, :2])
+        if self.orientation == "contour" and p.shape[-1] > 2:
+            return x, axis_rotation(self.plane.normal, p[:, 2]) @ self.reference_rotation
+        return x, np.broadcast_to(self.reference_rotation, (p.shape[0], 3, 3)).copy()
+
+    def _solve(self, x_d: FloatArray, r_d: FloatArray, seeds: FloatArray, *, chained: bool
+               ) -> tuple[FloatArray, NDArray[np.bool_]]:
+        count = x_d.shape[0]
+        out = np.zeros((count, self.n))
+        ok = np.zeros(count, dtype=np.bool_)
+        if count:
+            if self._packed is None:
+                self._packed = self.pack()
+            ik_kernels.solve_points(
+                self._packed, np.ascontiguousarray(x_d), np.ascontiguousarray(r_d), np.ascontiguousarray(seeds),
+                chained, self.rows, np.ascontiguousarray(self._basis), self.lower_limit, self.upper_limit,
+                IK_TOLERANCE, IK_MAX_ITERATIONS, IK_DAMPING, IK_UNDAMPED_BELOW, IK_MAX_STEP, out, ok,
+                np.empty(ik_kernels.scratch_size(self.n)))
+        return out, ok
+
+    def ik_path(self, p: FloatArray) -> tuple[FloatArray, NDArray[np.bool_]]:
+        """Along the path: from the home configuration to the first point in
+        :data:`APPROACH_STEPS` straight-line steps (rotation about one axis), then each
+        point seeded with the solution of the one before."""
+        x_d, r_d = self.targets(p)
+        x_home, r_home = self.ee_pose(self.home)
+        turn = rotation_log(r_d[0] @ r_home.T)
+        s = np.linspace(0.0, 1.0, APPROACH_STEPS + 1)[1:-1]
+        approach_x = x_home + s[:, None] * (x_d[0] - x_home)
+        angle = float(np.linalg.norm(turn))
+        approach_r = axis_rotation(turn / angle if angle else turn, s * angle) @ r_home
+        seeds = np.broadcast_to(self.home, (1, self.n))
+        q, ok = self._solve(np.concatenate([approach_x, x_d]), np.concatenate([approach_r, r_d]), seeds,
+                            chained=True)
+        return q[len(s):], ok[len(s):]
+
+    def ik_near(self, p: FloatArray, guide: FloatArray) -> FloatArray:
+        """Each point solved from its guide (the path's solution interpolated at its time).
+
+        Raises
+        ------
+        UnreachableError
+            If a point does not converge (within the joint limits) from its guide.
+        """
+        x_d, r_d = self.targets(p.reshape(-1, p.shape[-1]))
+        q, ok = self._solve(x_d, r_d, guide.reshape(-1, self.n), chained=False)
+        if not np.all(ok):
+            bad = int(np.argmin(ok))
+            raise UnreachableError(f"{self.name}: inverse kinematics does not reach task point "
+                                   f"{np.array2string(p.reshape(-1, p.shape[-1])[bad], precision=6)} from its guide")
+        return q.reshape(p.shape[:-1] + (self.n,))
+
+    def reachable(self, p: ArrayLike) -> NDArray[np.bool_]:
+        """Whether each point of the path ``p`` is reached, following it from the home configuration."""
+        return self.ik_path(np.asarray(p, dtype=float))[1]
 
     def _ik(self, p: FloatArray) -> FloatArray:
-        raise InvalidInputError(f"{self.name}: inverse kinematics of URDF robots is not built yet (issue 16)")
+        q, ok = self.ik_path(np.atleast_2d(p))
+        if not np.all(ok):
+            raise UnreachableError(f"{self.name}: task point {np.array2string(np.atleast_2d(p)[int(np.argmin(ok))])}"
+                                   " is out of reach")
+        return q.reshape(p.shape[:-1] + (self.n,))
+
+    def task_motion(self, pd: FloatArray) -> FloatArray:
+        """The followed rows of the task velocity (or acceleration) of ``pd = (u', v'[, pose'])``."""
+        out = np.zeros(6)
+        out[0:2] = pd[:2]
+        if self.orientation == "contour" and pd.shape[-1] > 2:
+            out[5] = pd[2]  # the pose turns about the plane's normal: omega = pose' e_n
+        return out[self.rows]
+
+    def joint_rates(self, q: FloatArray, pd: FloatArray, pdd: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """``J qd = pd`` and ``J qdd = pdd - Jdot qd`` over the followed rows (minimum norm when the
+        arm is redundant); ``Jdot qd`` is the frame's classical acceleration at ``qdd = 0``."""
+        pin = self._pin
+        qd_out = np.empty_like(q)
+        qdd_out = np.empty_like(q)
+        flat = (q.reshape(-1, self.n), pd.reshape(-1, pd.shape[-1]), pdd.reshape(-1, pdd.shape[-1]),
+                qd_out.reshape(-1, self.n), qdd_out.reshape(-1, self.n))
+        for qi, pdi, pddi, qdo, qddo in zip(*flat, strict=True):
+            _, _, jac = self.ee_jacobian(qi)
+            jac = (self._basis6 @ jac)[self.rows]
+            qdo[:] = task_solve(jac, self.task_motion(pdi), 0.0)
+            pin.forwardKinematics(self.model, self.data, qi, qdo, np.zeros(self.n))
+            acc = pin.getFrameClassicalAcceleration(self.model, self.data, self.ee_id, pin.LOCAL_WORLD_ALIGNED)
+            drift = (self._basis6 @ np.concatenate([acc.linear, acc.angular]))[self.rows]
+            qddo[:] = task_solve(jac, self.task_motion(pddi) - drift, 0.0)
+        return qd_out, qdd_out
+
+
+def task_solve(jac: FloatArray, b: FloatArray, damping: float) -> FloatArray:
+    """``dq`` with ``jac dq = b``: square -> exact; more joints than rows -> the least-norm
+    (damped) solution ``J^T (J J^T + damping I)^-1 b``; fewer -> least squares."""
+    m, n = jac.shape
+    if m == n and damping == 0.0:
+        return np.linalg.solve(jac, b)
+    if m <= n:
+        return jac.T @ np.linalg.solve(jac @ jac.T + damping * np.eye(m), b)
+    return np.linalg.solve(jac.T @ jac + damping * np.eye(n), jac.T @ b)
+
+
+def _structural_rows(model: Any, data: Any, ee_id: int, basis6: FloatArray) -> NDArray[np.bool_]:
+    """Task rows the arm cannot move in any configuration (a planar arm's out-of-plane rows)."""
+    pin = _pinocchio()
+    rng = np.random.default_rng(0)
+    lo = np.where(np.isfinite(model.lowerPositionLimit), model.lowerPositionLimit, -np.pi)
+    hi = np.where(np.isfinite(model.upperPositionLimit), model.upperPositionLimit, np.pi)
+    lo, hi = np.maximum(lo, -np.pi), np.minimum(hi, np.pi)
+    largest = np.zeros(6)
+    for _ in range(8):
+        q = rng.uniform(lo, hi)
+        pin.computeJointJacobians(model, data, q)
+        pin.updateFramePlacement(model, data, ee_id)
+        jac = basis6 @ pin.getFrameJacobian(model, data, ee_id, pin.LOCAL_WORLD_ALIGNED)
+        largest = np.maximum(largest, np.max(np.abs(jac), axis=1))
+    return largest < 1e-10
+
+
+def urdf_robot_class(
+    source: str | Path,
+    *,
+    name: str | None = None,
+    armature: ArrayLike | None = None,
+    ee_frame: str | None = None,
+    locked_joints: Sequence[str] = (),
+    home: ArrayLike | None = None,
+    plane: TaskPlane | None = None,
+    orientation: str | None = None,
+    settings: Mapping[str, Any] | None = None,
+) -> type[UrdfRobot]:
+    """A robot class for the arm of a URDF file or text.
+
+    Parameters
+    ----------
+    source : str or Path
+        The URDF file, or its XML text (``/robot_description``).
+    name : str, optional
+        The robot's name; by default the URDF's.
+    armature : array_like, optional
+        Motor inertia ``J`` per movable joint (kg m^2), or one value for all; 0 by default.
+    ee_frame : str, optional
+        The end-effector frame; by default the URDF's last frame.
+    locked_joints : sequence of str
+        Joints held at 0 (a gripper's fingers): not part of the arm.
+    home : array_like, optional
+        The configuration a run's inverse kinematics starts from; all zeros by default.
+    plane : TaskPlane, optional
+        Where the contours run; by default the vertical plane through the end effector at
+        ``home``, facing the base (:meth:`TaskPlane.facing_base`).
+    orientation : str, optional
+        ``contour``, ``held`` or ``free`` (module docstring); chosen from the arm by default.
+    settings : mapping, optional
+        Run settings and presets (``control_rate``, ``sample_rate``, ``contour_bound``,
+        ``contour_size``, ``contours``, ``gains``), as a robot's entry of a catalog.
+
+    Raises
+    ------
+    InvalidInputError
+        One line naming the file and the problem (:func:`load_model`), an unknown
+        end-effector frame, a wrong armature or home.
+    """
+    pin = _pinocchio()
+    model, label, xml = load_model(source, locked_joints=locked_joints)
+    frame = ee_frame or model.frames[model.nframes - 1].name
+    if not model.existFrame(frame):
+        raise InvalidInputError(f"{label}: no frame {frame!r} (frames: {[f.name for f in model.frames][1:]})")
+    n = model.nv
+    j = np.broadcast_to(np.asarray(0.0 if armature is None else armature, dtype=float), (n,)).copy()
+    if not np.all(np.isfinite(j)) or np.any(j < 0.0):
+        raise InvalidInputError(f"{label}: armature must be {n} finite values >= 0, got {j.tolist()}")
+    q_home = np.zeros(n) if home is None else np.asarray(home, dtype=float)
+    if q_home.shape != (n,) or not np.all(np.isfinite(q_home)):
+        raise InvalidInputError(f"{label}: home must be {n} finite joint values, got {np.asarray(home).tolist()}")
+    damping = np.asarray(model.damping, dtype=float).copy()
+    model.armature[:] = 0.0  # J is added by the robot, as for the built-in ones (Mbar = M + J)
+    data = model.createData()
+    ee_id = model.getFrameId(frame)
+    pin.framesForwardKinematics(model, data, q_home)
+    x_home = data.oMf[ee_id].translation.copy()
+    r_home = data.oMf[ee_id].rotation.copy()
+    placed = plane or TaskPlane.facing_base(x_home)
+    basis6 = np.zeros((6, 6))
+    basis6[:3, :3] = basis6[3:, 3:] = placed.basis
+    fixed = _structural_rows(model, data, ee_id, basis6)
+    planar = bool(fixed[2] and fixed[3] and fixed[4])
+    mode = orientation or ("contour" if planar else "held" if n >= 6 else "free")
+    if mode not in ORIENTATIONS:
+        raise InvalidInputError(f"orientation must be one of {', '.join(ORIENTATIONS)}, got {mode!r}")
+    wanted = {"contour": range(6), "held": range(6), "free": range(3)}[mode]
+    rows = np.array([r for r in wanted if not fixed[r]], dtype=np.intp)
+    if mode == "contour":
+        pin.framesForwardKinematics(model, data, np.zeros(n))
+        reference = data.oMf[ee_id].rotation.copy()  # pose 0: the zero configuration's orientation
+    else:
+        reference = r_home
+    robot_name = name or model.name
+    attrs = {
+        "name": robot_name,
+        "n": n,
+        "joint_names": tuple(model.names[i] for i in range(1, model.njoints)),
+        "model": model,
+        "urdf": xml,
+        "source": str(source) if not str(source).lstrip().startswith("<") else "",
+        "ee_frame": frame,
+        "armature": j,
+        "damping": damping,
+        "torque_limit": np.asarray(model.effortLimit, dtype=float).copy(),
+        "velocity_limit": np.asarray(model.velocityLimit, dtype=float).copy(),
+        "lower_limit": np.asarray(model.lowerPositionLimit, dtype=float).copy(),
+        "upper_limit": np.asarray(model.upperPositionLimit, dtype=float).copy(),
+        "home": q_home,
+        "plane": placed,
+        "orientation": mode,
+        "reference_rotation": reference,
+        "rows": rows,
+        "settings": dict(settings or {}),
+    }
+    return type(f"UrdfRobot[{robot_name}]", (UrdfRobot,), attrs)
+
+
+def from_urdf(source: str | Path, *, armature: ArrayLike | None = None, ee_frame: str | None = None,
+              name: str | None = None, **options: Any) -> UrdfRobot:
+    """A robot from a URDF file (or the URDF text itself); see :func:`urdf_robot_class`."""
+    return urdf_robot_class(source, armature=armature, ee_frame=ee_frame, name=name, **options)()

@@ -1,0 +1,119 @@
+"""Robots by name or path: the built-in ones, example-robot-data's arms, any URDF file.
+
+:func:`resolve_robot` is what ``--robot`` / ``robot:=`` go through. A name of
+``config/urdf_arms.yaml`` loads that arm from the example-robot-data wheel; a path
+to a ``.urdf`` file loads it, with the options of a YAML file of the same name
+beside it (``arm.urdf`` -> ``arm.yaml``: ``armature``, ``ee_frame``,
+``locked_joints``, ``home``, ``plane``, ``orientation``, the run settings of
+``config/robots.yaml`` and ``contour_size``, ``contours``, ``gains``). Either is
+registered once, under the name it was asked by.
+"""
+
+from __future__ import annotations
+
+import importlib.metadata
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from ..config import load_config
+from ..errors import ConfigError, InvalidInputError
+from .registry import ROBOTS, register_robot, robot_names
+from .task import TaskPlane
+from .urdf_robot import UrdfRobot, urdf_robot_class
+
+ROBOTS_DIR = "cmeel.prefix/share/example-robot-data/robots"
+"""Where the example-robot-data wheel keeps its robots (relative to site-packages)."""
+
+DEFAULT_SETTINGS = {"control_rate": 1000.0, "sample_rate": 500.0, "contour_bound": 1.0e-3, "contour_size": 0.3}
+"""Run settings of a URDF arm that does not give its own."""
+
+OPTION_KEYS = ("armature", "ee_frame", "locked_joints", "home", "plane", "orientation")
+SETTING_KEYS = ("control_rate", "sample_rate", "contour_bound", "contour_size", "contours", "gains")
+
+
+def catalog() -> Mapping[str, Any]:
+    """The named URDF arms (``config/urdf_arms.yaml``)."""
+    return load_config("urdf_arms")
+
+
+def example_robot_data_dir() -> Path:
+    """The example-robot-data wheel's ``robots`` directory.
+
+    Raises
+    ------
+    ConfigError
+        If the wheel is not installed.
+    """
+    try:
+        found = Path(str(importlib.metadata.distribution("example-robot-data").locate_file(ROBOTS_DIR)))
+    except importlib.metadata.PackageNotFoundError:
+        found = None
+    if found is None or not found.is_dir():
+        raise ConfigError("the named URDF arms need the example-robot-data wheel: run make setup "
+                          "(or pip install example-robot-data)")
+    return found
+
+
+def allowed_robots() -> str:
+    """What ``--robot`` accepts, for error messages."""
+    return ", ".join([*robot_names(), *(n for n in catalog() if n not in ROBOTS)]) + ", or a path to a .urdf file"
+
+
+def resolve_robot(name: str) -> str:
+    """Register the robot ``name`` names if it is not yet, and return ``name``.
+
+    Raises
+    ------
+    ConfigError
+        One line naming ``name`` and what is allowed; or the URDF's problem.
+    """
+    if not isinstance(name, str) or not name:
+        raise ConfigError(f"robot must be a name or a .urdf path, got {name!r}; allowed: {allowed_robots()}")
+    if name in ROBOTS:
+        return name
+    arms = catalog()
+    if name in arms:
+        entry = dict(arms[name])
+        source = example_robot_data_dir() / str(entry.pop("urdf"))
+        _register(name, source, entry, f"urdf_arms.yaml:{name}")
+        return name
+    path = Path(name)
+    if path.suffix.lower() == ".urdf":
+        if not path.is_file():
+            raise ConfigError(f"robot {name!r}: no such URDF file")
+        options: dict[str, Any] = {}
+        beside = path.with_suffix(".yaml")
+        if beside.is_file():
+            try:
+                options = yaml.safe_load(beside.read_text()) or {}
+            except (OSError, yaml.YAMLError) as exc:
+                raise ConfigError(f"{beside}: not readable YAML ({str(exc).splitlines()[0]})") from None
+            if not isinstance(options, dict):
+                raise ConfigError(f"{beside}: must be a mapping of options, got {type(options).__name__}")
+        _register(name, path, options, str(beside))
+        return name
+    raise ConfigError(f"unknown robot {name!r}; allowed: {allowed_robots()}")
+
+
+def _register(name: str, source: Path, entry: Mapping[str, Any], where: str) -> type[UrdfRobot]:
+    unknown = sorted(set(entry) - set(OPTION_KEYS) - set(SETTING_KEYS))
+    if unknown:
+        raise ConfigError(f"{where}: unknown key(s) {unknown}; allowed: {', '.join(OPTION_KEYS + SETTING_KEYS)}")
+    options = {k: entry[k] for k in OPTION_KEYS if k in entry}
+    if "plane" in options:
+        plane = options["plane"]
+        if not isinstance(plane, dict) or set(plane) != {"origin", "u", "v"}:
+            raise ConfigError(f"{where}: plane must give origin, u and v (3 numbers each)")
+        options["plane"] = TaskPlane(**plane)
+    if "locked_joints" in options:
+        options["locked_joints"] = tuple(options["locked_joints"])
+    settings = {**DEFAULT_SETTINGS, **{k: entry[k] for k in SETTING_KEYS if k in entry}}
+    try:
+        cls = urdf_robot_class(source, name=name, settings=settings, **options)
+    except InvalidInputError as exc:
+        raise ConfigError(f"robot {name!r}: {exc}") from None
+    register_robot(cls, config=settings)
+    return cls
