@@ -185,7 +185,7 @@ class RunSpec:
     @classmethod
     def from_description(cls, data: Mapping[str, Any]) -> RunSpec:
         """Inverse of :meth:`describe` (used to rebuild a run from a bag)."""
-        robot = data["robot"]
+        robot = resolve_robot(data["robot"])
         return cls(
             robot=robot,
             contour=data["contour"],

@@ -4,7 +4,7 @@
 # usage: run_experiment.sh --robot R --contour C --controller K --out bags/NAME
 #                          [--scenario S] [--mode lockstep|realtime] [--rate HZ]
 #                          [--duration-factor F] [--smc-reading NAME] [--timeout SECONDS]
-#                          [--param NAME:=VALUE ...] [--composed | --compose NODES] [--keep-going]
+#                          [--param NAME:=VALUE ...] [--params-file FILE] [--composed | --compose NODES] [--keep-going]
 #                          [--respawn controller] [--nice N] [--intra-process]
 #
 # Starts the four nodes (each with `ros2 run pdsmc_ros ...`; with --composed, all four in one
@@ -27,6 +27,7 @@ die() { echo "run_experiment.sh: error: $*" >&2; exit 2; }
 ROBOT="" CONTOUR="" CONTROLLER="" OUT="" SCENARIO="nominal" MODE="lockstep" RATE=""
 FACTOR="" SMC_READING="" TIMEOUT="600" COMPOSE="" KEEP_GOING=0 NICE="" INTRA=0
 EXTRA=()
+FILES=()  # ROS 2 params files: each node reads its own section (e.g. `pdsmc tune`'s controller gains)
 declare -A RESPAWN=()
 RESPAWN_MAX=3
 RESPAWN_DELAY=1
@@ -43,6 +44,9 @@ while [[ $# -gt 0 ]]; do
     --smc-reading) SMC_READING="${2:-}"; shift 2 ;;
     --timeout) TIMEOUT="${2:-}"; shift 2 ;;
     --param) EXTRA+=(-p "${2:-}"); shift 2 ;;
+    --params-file)
+      [[ -f "${2:-}" ]] || die "--params-file: no such file '${2:-}'"
+      FILES+=(--params-file "$2"); shift 2 ;;
     --composed) COMPOSE="recorder,controller,trajectory,plant"; shift ;;
     --compose) COMPOSE="${2:-}"; shift 2 ;;
     --keep-going) KEEP_GOING=1; shift ;;
@@ -114,7 +118,7 @@ PARAMS=(-p "robot:=$ROBOT" -p "contour:=$CONTOUR" -p "type:=$CONTROLLER" -p "sce
 [[ -n "$FACTOR" ]] && PARAMS+=(-p "duration_factor:=$FACTOR")
 [[ -n "$SMC_READING" ]] && PARAMS+=(-p "smc_reading:=$SMC_READING")
 if [[ "$MODE" == lockstep ]]; then PARAMS+=(-p "use_sim_time:=true"); fi
-PARAMS+=("${EXTRA[@]}")
+PARAMS=("${FILES[@]}" "${PARAMS[@]}" "${EXTRA[@]}")
 
 LOGS="$OUT.logs"
 mkdir -p "$LOGS" || die "cannot create log directory '$LOGS'"

@@ -295,3 +295,40 @@ def test_busy_wait_is_checked(ros_env: dict, value: str, message: str) -> None:
                           env=ros_env, capture_output=True, text=True, timeout=100)
     assert proc.returncode == 2, proc.stderr
     assert len(proc.stderr.strip().splitlines()) == 1 and message in proc.stderr
+
+
+@pytest.mark.timeout(400)
+def test_a_ur5_with_tuned_gains_over_dds_equals_in_process(ros_env: dict, tmp_path: Path) -> None:
+    """Issue 16 end to end: `pdsmc tune` writes a params file, the four nodes run the UR5 of
+    example-robot-data with it, and the bag is the in-process run with those gains."""
+    import sys
+
+    from pdsmc_ros.tuning import read_params_file
+
+    params = tmp_path / "ur5_pd.yaml"
+    tuned = subprocess.run([sys.executable, "-m", "pdsmc_ros.cli", "tune", "--robot", "ur5", "--contour", "circle",
+                            "--controller", "pd", "--rounds", "1", "--out", str(params), "--quiet"],
+                           env=ros_env, capture_output=True, text=True, timeout=300)
+    assert tuned.returncode == 0, tuned.stderr
+    assert re.search(r"ur5/circle/pd at 1000 Hz: contour error mean \S+ m \(start \S+ m\) after 9 runs", tuned.stdout)
+    gains = read_params_file(params, 6, "pd")
+    out = tmp_path / "ur5"
+    proc = run_experiment(ros_env, out, "--robot", "ur5", "--contour", "circle", "--controller", "pd",
+                          "--duration-factor", "0.4", "--params-file", str(params))
+    assert proc.returncode == 0, proc.stderr
+    run = read_run(out)
+    assert run.complete and run.steps == 2000  # 2 s at 1 kHz
+    assert run.spec.gains == gains  # the controller ran the tuned gains
+    sim = simulate(run.spec)
+    every = run.spec.sample_every
+    assert np.max(np.abs(run.q[::every] - sim.samples.q)) <= 1e-9
+    assert np.max(np.abs(run.tau[::every] - sim.samples.tau)) <= 1e-9
+    assert run_metrics(run).contour_mean == pytest.approx(sim.metrics.contour_mean, rel=1e-9)
+    assert len(run_metrics(run).axial_mean) == 6
+    from mcap.reader import make_reader
+
+    from pdsmc_ros.bag.cdr import decode_string
+
+    with (out / f"{out.name}.mcap").open("rb") as handle:
+        urdf = [decode_string(m.data) for _, _, m in make_reader(handle).iter_messages(topics=["/robot_description"])]
+    assert len(urdf) == 1 and 'name="shoulder_pan_joint"' in urdf[0]  # the UR5's own URDF

@@ -42,10 +42,8 @@ from ..bag.stamps import step_stamp
 from ..control.safety import Watchdog
 from ..errors import CdrError
 from ..presets import control_steps
-from ..robots import robot_params
 from ..sim.plant import PlantStepper
 from ..sim.supervised import SupervisedPlant
-from ..urdf import robot_urdf
 from .diagnostics import Diagnostics
 from .executor import run_node
 from .io import GuardedPublisher, Inputs
@@ -99,7 +97,7 @@ class PlantNode:
         self.pub_ee = GuardedPublisher(node.create_publisher(PointStamped, TOPIC_EE_ACTUAL, STREAM_QOS), node)
         self.pub_clock = GuardedPublisher(node.create_publisher(Clock, "/clock", STREAM_QOS), node)
         self.pub_urdf = node.create_publisher(String, TOPIC_ROBOT_DESCRIPTION, LATCHED_QOS)
-        self.pub_urdf.publish(String(data=robot_urdf(spec.robot, robot_params(spec.robot), spec.payload)))
+        self.pub_urdf.publish(String(data=spec.robot_description()))
         self.diagnostics = Diagnostics(node, "pdsmc_ros/plant", spec.robot, values=self.status,
                                        stamp=lambda: Time(sec=self.stamp()[0], nanosec=self.stamp()[1]))
         self.plant = SupervisedPlant(

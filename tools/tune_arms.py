@@ -1,0 +1,42 @@
+"""Gains of the named URDF arms in config/gains.yaml: `pdsmc tune` for each contour group and law.
+
+Run from the repository (after `make setup`): `.venv/bin/python tools/tune_arms.py ur5 panda`. Prints
+the YAML block of each arm for config/gains.yaml and, on stderr, the contour error before and after.
+"""
+
+from __future__ import annotations
+
+import sys
+
+import yaml
+
+from pdsmc_ros.tuning import tune
+
+GROUPS = {"linear": "zigzag", "circle": "circle", "ellipse": "ellipse"}  # a contour of each gain group
+LAWS = ("pd", "smc", "pdsmc")
+
+
+def main(arms: list[str]) -> int:
+    for arm in arms:
+        block: dict[str, dict[str, dict[str, list[float]]]] = {}
+        for group, contour in GROUPS.items():
+            for controller in LAWS:
+                result = tune(arm, contour, controller)
+                gains = result.best.gains.as_dict()
+                block.setdefault(group, {})[controller] = {
+                    k: [float(f"{x:.4g}") for x in gains[k]] for k in ("kp", "kd", "ks", "lam", "phi")
+                    if k in result.spec.gains.as_dict() and k in _needed(controller)}
+                print(f"{arm}/{contour}/{controller}: contour mean {result.tried[0].contour_mean:.4e} -> "
+                      f"{result.best.contour_mean:.4e} m ({len(result.tried)} runs)", file=sys.stderr, flush=True)
+        print(yaml.safe_dump({arm: block}, sort_keys=False, default_flow_style=None, width=120))
+    return 0
+
+
+def _needed(controller: str) -> tuple[str, ...]:
+    from pdsmc_ros.control import law
+
+    return law(controller).gains
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:] or ["ur5", "panda"]))
