@@ -91,18 +91,20 @@ def roundtrips_per_s(seconds: float = 4.0) -> float:
         echo.wait(timeout=10)
 
 
-def lockstep_steps_per_s(steps: int, composition: Sequence[str] = ()) -> tuple[float, int]:
+def lockstep_steps_per_s(steps: int, composition: Sequence[str] = (), *, robot: str = "serial_3r",
+                         circle_steps: int = 50000) -> tuple[float, int]:
     """Steps per second of one lockstep run; returns (rate, messages lost).
 
-    ``composition``: run_experiment.sh options (``--composed`` or ``--compose LIST``).
+    ``composition``: run_experiment.sh options (``--composed`` or ``--compose LIST``);
+    ``circle_steps``: the robot's circle at its default rate (the serial arm's: 5 s at 10 kHz).
     """
     from rosbags.highlevel import AnyReader
     from rosbags.typesys import Stores, get_typestore
 
-    factor = steps / 50000.0  # the serial circle is 5 s = 50,000 steps at 10 kHz
+    factor = steps / circle_steps
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "bench"
-        cmd = ["bash", str(ROOT / "scripts" / "run_experiment.sh"), "--robot", "serial_3r",
+        cmd = ["bash", str(ROOT / "scripts" / "run_experiment.sh"), "--robot", robot,
                "--contour", "circle", "--controller", "pdsmc", "--duration-factor", f"{factor:g}",
                "--out", str(out), "--timeout", "900"]
         cmd += list(composition)

@@ -6,13 +6,18 @@ if it has a compiled form -- one dispatch line per function in :mod:`.compiled`.
 A robot without a compiled form runs on the numpy path.
 """
 
+# before any kernel runs: drop cached kernels built from other sources (see kernel_cache)
+from ..kernel_cache import refresh as _refresh_kernel_cache  # noqa: I001
+
+_refresh_kernel_cache()
+
 # the thesis's robots register in its order (serial first): the order of every robot listing
-from .serial_3r import Serial3R  # noqa: I001
-from .parallel_5r import FiveBarState, Parallel5R
-from .base import GRAVITY, FloatArray, LinkParams, Manipulator, RobotParams, as_vector
-from .chain import PlanarChain
-from .urdf_robot import UrdfRobot, from_urdf
-from .registry import (
+from .serial_3r import Serial3R  # noqa: E402, I001
+from .parallel_5r import FiveBarState, Parallel5R  # noqa: E402
+from .base import GRAVITY, FloatArray, LinkParams, Manipulator, RobotParams, as_vector  # noqa: E402
+from .chain import PlanarChain  # noqa: E402
+from .urdf_robot import UrdfRobot, from_urdf  # noqa: E402
+from .registry import (  # noqa: E402
     ROBOTS,
     RobotSettings,
     make_robot,

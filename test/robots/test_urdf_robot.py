@@ -156,3 +156,28 @@ def test_the_cli_takes_a_urdf_file_and_refuses_a_broken_one_in_one_line(tmp_path
                            "circle", "--controller", "pd"], capture_output=True, text=True, timeout=120)
     assert proc.returncode == 2
     assert proc.stderr.count("\n") == 1 and "does not parse" in proc.stderr and "Traceback" not in proc.stderr
+
+
+def test_cached_kernels_built_from_other_sources_are_dropped(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """numba checks a cached kernel against its own file only: after a change to another kernel
+    module (the robot dispatch, say) the package's cache must not survive."""
+    from pdsmc_ros import kernel_cache
+
+    sources = kernel_cache.kernel_sources()
+    assert {p.name for p in sources} >= {"compiled.py", "loop.py", "spatial_kernels.py", "ik_kernels.py"}
+    cache = tmp_path / "cache"
+    cache.mkdir()
+    stale = cache / "loop._closed_loop_compiled-22.py311.nbi"
+    stale.write_text("x")
+    other = cache / "someone_elses.f-1.py311.nbi"
+    other.write_text("x")
+    monkeypatch.setattr(kernel_cache, "cache_dirs", lambda _sources: {cache})
+    monkeypatch.setattr(kernel_cache, "_done", False)
+    kernel_cache.refresh()
+    assert not stale.exists() and other.exists()
+    marker = cache / (kernel_cache.MARKER_PREFIX + kernel_cache.digest(sources))
+    assert marker.exists()
+    stale.write_text("x")  # written by this version: kept
+    monkeypatch.setattr(kernel_cache, "_done", False)
+    kernel_cache.refresh()
+    assert stale.exists()
