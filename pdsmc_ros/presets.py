@@ -21,7 +21,16 @@ from .control.registry import GAIN_NAMES, SMC_MODEL_KEYS, law, smc_model_vector
 from .errors import ConfigError, MissingGainsError
 from .robots import ROBOTS, Manipulator, RobotParams, UrdfRobot, make_robot, robot_params, robot_settings
 from .robots.catalog import resolve_robot
-from .trajectories import Contour, EllipseContour, JointReference, SegmentContour, load_waypoints_csv
+from .trajectories import (
+    Contour,
+    EllipseContour,
+    JointPath,
+    JointPathContour,
+    JointReference,
+    SegmentContour,
+    load_joint_waypoints,
+    load_waypoints_csv,
+)
 from .urdf import robot_urdf
 
 MAX_CONTROL_STEPS = 10_000_000
@@ -237,7 +246,7 @@ def loaded_params(robot: str, payload: float) -> RobotParams:
 
 def contour_names(robot: str) -> tuple[str, ...]:
     """The robot's contour presets (``config/contours.yaml``) and ``csv``."""
-    return tuple(load_config("contours").get(contour_set(robot)) or ()) + ("csv",)
+    return tuple(load_config("contours").get(contour_set(robot)) or ()) + ("csv", "joints")
 
 
 def contour_set(robot: str) -> str:
@@ -269,6 +278,12 @@ def build_contour(
     """
     cls = ROBOTS[resolve_robot(robot)]
     dim = cls.task_dim
+    if name == "joints":
+        if not waypoints_file:
+            raise ConfigError("contour 'joints' needs a file of joint via points (--waypoints FILE: CSV "
+                              "t, q1..qn or YAML points: [{t, q}])")
+        times, points = load_joint_waypoints(waypoints_file, cls.n)
+        return JointPathContour("joints", make_robot(robot), JointPath(times, points))
     if name == "csv":
         if not waypoints_file:
             raise ConfigError("contour 'csv' needs a waypoints file (--waypoints FILE)")
@@ -305,7 +320,8 @@ def preset_gains(robot: str, contour: str, controller: str) -> Gains:
     """Gains of Table 4.16 / 4.33 for this robot, contour and controller."""
     law(controller)
     cls = ROBOTS[resolve_robot(robot)]
-    group = "linear" if contour == "csv" else load_config("contours")[contour_set(robot)][contour]["gain_group"]
+    presets = load_config("contours")[contour_set(robot)]
+    group = "linear" if contour in ("csv", "joints") else presets[contour]["gain_group"]
     source = cls.settings.get("gains", robot) if issubclass(cls, UrdfRobot) else robot
     tables = source if isinstance(source, dict) else load_config("gains").get(source, {})
     table = tables.get(group, {}).get(controller)
