@@ -157,7 +157,7 @@ class RunSpec:
         """The URDF of the simulated robot (the plant's ``/robot_description``)."""
         cls = ROBOTS[self.robot]
         if issubclass(cls, UrdfRobot):
-            return cls.urdf
+            return cls.description()
         return robot_urdf(self.robot, robot_params(self.robot), self.payload)
 
     def reference(self) -> JointReference:

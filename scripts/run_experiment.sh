@@ -5,7 +5,7 @@
 #                          [--scenario S] [--mode lockstep|realtime] [--rate HZ]
 #                          [--duration-factor F] [--smc-reading NAME] [--timeout SECONDS]
 #                          [--param NAME:=VALUE ...] [--params-file FILE] [--composed | --compose NODES] [--keep-going]
-#                          [--respawn controller] [--nice N] [--intra-process]
+#                          [--respawn controller] [--nice N] [--intra-process] [--from-description]
 #
 # Starts the four nodes (each with `ros2 run pdsmc_ros ...`; with --composed, all four in one
 # process; with --compose plant,controller, those in one process and the others apart), waits
@@ -17,6 +17,8 @@
 # supervises the arm meanwhile and the run resumes when the new controller answers.
 # --nice N starts the plant and the controller (the loop's critical path) at niceness N, e.g.
 # -10 (negative values need root; without it they run at normal priority, with a warning).
+# --from-description: only the plant is given --robot; the other nodes take the arm from the
+# plant's /robot_description (robot:=/robot_description; separate processes only).
 # --intra-process (with --composed or --compose) hands messages between the composed nodes
 # without DDS, like rclcpp's intra-process comms; nodes in other processes still get them.
 set -uo pipefail
@@ -25,7 +27,7 @@ usage() { awk 'NR > 1 && /^#/ { sub(/^# ?/, ""); print; next } NR > 1 { exit }' 
 die() { echo "run_experiment.sh: error: $*" >&2; exit 2; }
 
 ROBOT="" CONTOUR="" CONTROLLER="" OUT="" SCENARIO="nominal" MODE="lockstep" RATE=""
-FACTOR="" SMC_READING="" TIMEOUT="600" COMPOSE="" KEEP_GOING=0 NICE="" INTRA=0
+FACTOR="" SMC_READING="" TIMEOUT="600" COMPOSE="" KEEP_GOING=0 NICE="" INTRA=0 FROM_DESCRIPTION=0
 EXTRA=()
 FILES=()  # ROS 2 params files: each node reads its own section (e.g. `pdsmc tune`'s controller gains)
 declare -A RESPAWN=()
@@ -52,6 +54,7 @@ while [[ $# -gt 0 ]]; do
     --keep-going) KEEP_GOING=1; shift ;;
     --nice) NICE="${2:-}"; shift 2 ;;
     --intra-process) INTRA=1; shift ;;
+    --from-description) FROM_DESCRIPTION=1; shift ;;
     --respawn)
       case "${2:-}" in
         controller) RESPAWN[$2]=0 ;;
@@ -72,6 +75,7 @@ if [[ -n "$NICE" ]]; then
   [[ "$NICE" =~ ^-?[0-9]+$ && "$NICE" -ge -20 && "$NICE" -le 19 ]] || die "--nice must be a whole number in [-20, 19], got '$NICE'"
 fi
 [[ -e "$OUT" ]] && die "--out '$OUT' already exists; choose a new bag directory"
+[[ "$FROM_DESCRIPTION" == 1 && -n "$COMPOSE" ]] && die "--from-description needs the nodes in their own processes (a composed node would wait for a plant composed after it)"
 # the nodes run in one process (composed), each in the canonical start order
 NODE_NAMES=(recorder controller trajectory plant)
 declare -A IN_GROUP=()
@@ -135,7 +139,10 @@ start_node() {
         ( "$name" == composed && ( -n "${IN_GROUP[plant]:-}" || -n "${IN_GROUP[controller]:-}" ) ) ) ]]; then
     launcher=(nice -n "$NICE")
   fi
-  "${launcher[@]}" "${ROS2[@]}" run pdsmc_ros "$name" "${pre[@]}" --ros-args "${PARAMS[@]}" "$@" >>"$LOGS/$name.log" 2>&1 &
+  local own=()
+  [[ "$FROM_DESCRIPTION" == 1 && "$name" != plant ]] && own=(-p "robot:=/robot_description")
+  "${launcher[@]}" "${ROS2[@]}" run pdsmc_ros "$name" "${pre[@]}" --ros-args "${PARAMS[@]}" "${own[@]}" "$@" \
+    >>"$LOGS/$name.log" 2>&1 &
   PIDS[$name]=$!
 }
 

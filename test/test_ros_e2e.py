@@ -13,6 +13,7 @@ import pytest
 from conftest import node_log_tails
 
 from pdsmc_ros.bag.reader import read_run, run_metrics
+from pdsmc_ros.presets import make_run
 from pdsmc_ros.sim import simulate
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -332,3 +333,28 @@ def test_a_ur5_with_tuned_gains_over_dds_equals_in_process(ros_env: dict, tmp_pa
     with (out / f"{out.name}.mcap").open("rb") as handle:
         urdf = [decode_string(m.data) for _, _, m in make_reader(handle).iter_messages(topics=["/robot_description"])]
     assert len(urdf) == 1 and 'name="shoulder_pan_joint"' in urdf[0]  # the UR5's own URDF
+
+
+@pytest.mark.timeout(300)
+def test_nodes_take_the_arm_from_robot_description(ros_env: dict, tmp_path: Path) -> None:
+    """Only the plant is told the arm (ur5); the others read /robot_description, and so does the
+    analysis of the bag."""
+    out = tmp_path / "described"
+    proc = run_experiment(ros_env, out, "--robot", "ur5", "--contour", "circle", "--controller", "pdsmc",
+                          "--duration-factor", "0.2", "--from-description")
+    assert proc.returncode == 0, proc.stderr
+    assert "waiting for the arm on /robot_description" in (Path(f"{out}.logs") / "controller.log").read_text()
+    run = read_run(out)
+    assert run.description["robot"] == "/robot_description" and run.complete
+    assert len(run.spec.gains.kp) == 6
+    sim = simulate(run.spec)
+    every = run.spec.sample_every
+    assert np.max(np.abs(run.q[::every] - sim.samples.q)) <= 1e-9
+    # the very run robot:=ur5 makes: same arm, same task plane, same gains
+    import dataclasses
+
+    named = simulate(dataclasses.replace(make_run("ur5", "circle", "pdsmc"), duration_factor=0.2))
+    assert np.array_equal(named.samples.q, sim.samples.q)
+    bad = run_experiment(ros_env, tmp_path / "bad", "--robot", "ur5", "--contour", "circle", "--controller", "pd",
+                         "--composed", "--from-description", timeout=60)
+    assert bad.returncode == 2 and "--from-description needs the nodes in their own processes" in bad.stderr

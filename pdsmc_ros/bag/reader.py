@@ -24,6 +24,7 @@ from ..errors import BagError, CdrError
 from ..metrics import Metrics, Samples, compute_metrics
 from ..presets import RunSpec, control_steps
 from ..robots.base import FloatArray
+from ..robots.catalog import ROBOT_DESCRIPTION, register_description
 from . import cdr
 from .stamps import effort_step
 
@@ -115,7 +116,7 @@ def read_run(path: str | Path) -> RecordedRun:
     if not files:
         raise BagError(f"cannot read bag {str(path)!r}: no .mcap file in it")
     topics = ("/pdsmc/run_description", "/joint_states", "/reference", "/effort_controller/commands",
-              RECORDER_DESCRIPTION_TOPIC)
+              RECORDER_DESCRIPTION_TOPIC, "/robot_description")
     raw_by_topic: dict[str, list[bytes]] = {t: [] for t in topics}
     truncated = False
     for file in files:
@@ -129,6 +130,13 @@ def read_run(path: str | Path) -> RecordedRun:
         raise BagError(f"bag {str(path)!r} holds no /pdsmc/run_description: not a pdsmc_ros run")
     described = raw_by_topic.pop("/pdsmc/run_description") or own
     description: dict[str, Any] = json.loads(cdr.decode_string(described[0]))
+    urdfs = raw_by_topic.pop("/robot_description")
+    if description.get("robot") == ROBOT_DESCRIPTION:
+        # the nodes took their arm from /robot_description: so does the analysis, from the bag
+        if not urdfs:
+            raise BagError(f"bag {str(path)!r}: its run took the arm from /robot_description, which the bag "
+                           "does not hold")
+        register_description(cdr.decode_string(urdfs[-1]))
     spec = RunSpec.from_description(description)
     n = len(spec.gains.kp)
     rate = spec.rate

@@ -30,7 +30,7 @@ from ..errors import ConfigError, InvalidInputError, MissingGainsError
 from ..joints import check_joint_names
 from ..presets import RunSpec, make_run, smc_reading
 from ..robots import ROBOTS, Manipulator
-from ..robots.catalog import allowed_robots, resolve_robot
+from ..robots.catalog import ROBOT_DESCRIPTION, allowed_robots, register_description, resolve_robot
 from .topics import MODES
 
 BUSY_WAIT_S = 0.0002  # real time: default busy-wait before a tick (parameter busy_wait)
@@ -205,8 +205,49 @@ def declare_node_run(node: Node, *, gains: bool = False) -> NodeRun:
     cannot change adds :func:`refuse_run_changes` once all its parameters are declared."""
     declare_run_parameters(node, gains=gains)
     busy_wait = declare_busy_wait(node)  # used in real time
+    if node.get_parameter("robot").value == ROBOT_DESCRIPTION:
+        try:
+            register_description(receive_robot_description(node))
+        except ConfigError as exc:
+            raise ConfigError(f"parameter robot: {exc}") from None
     spec = run_spec_from_parameters(node)
     return NodeRun(spec, str(node.get_parameter("mode").value), busy_wait)
+
+
+ROBOT_DESCRIPTION_WAIT_S = 60.0
+"""How long a node given ``robot:=/robot_description`` waits for it (a node composed before the
+plant that publishes it would wait in vain: run such nodes in their own processes)."""
+
+
+def receive_robot_description(node: Node, timeout_s: float = ROBOT_DESCRIPTION_WAIT_S) -> str:
+    """The URDF on ``/robot_description`` (transient local, as robot_state_publisher offers it).
+
+    Raises
+    ------
+    ConfigError
+        If none arrives within ``timeout_s``.
+    """
+    import time
+
+    import rclpy
+    from std_msgs.msg import String
+
+    from .topics import LATCHED_QOS, TOPIC_ROBOT_DESCRIPTION
+
+    received: list[str] = []
+    subscription = node.create_subscription(String, TOPIC_ROBOT_DESCRIPTION, lambda msg: received.append(msg.data),
+                                            LATCHED_QOS)
+    node.get_logger().info(f"waiting for the arm on {ROBOT_DESCRIPTION}")
+    deadline = time.monotonic() + timeout_s
+    try:
+        while not received and time.monotonic() < deadline:
+            rclpy.spin_once(node, timeout_sec=0.1)
+    finally:
+        node.destroy_subscription(subscription)
+    if not received:
+        raise ConfigError(f"{ROBOT_DESCRIPTION}: nothing received within {timeout_s:g} s (is a "
+                          "robot_state_publisher or a pdsmc_ros plant running?)")
+    return received[-1]
 
 
 def _range_of(name: str) -> tuple[float, float]:

@@ -12,6 +12,7 @@ registered once, under the name it was asked by.
 from __future__ import annotations
 
 import importlib.metadata
+import json
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -20,12 +21,16 @@ import yaml
 
 from ..config import load_config
 from ..errors import ConfigError, InvalidInputError
-from .registry import ROBOTS, register_robot, robot_names
+from .registry import ROBOTS, register_robot, robot_names, unregister_robot
 from .task import TaskPlane
 from .urdf_robot import UrdfRobot, urdf_robot_class
 
 ROBOTS_DIR = "cmeel.prefix/share/example-robot-data/robots"
 """Where the example-robot-data wheel keeps its robots (relative to site-packages)."""
+
+ROBOT_DESCRIPTION = "/robot_description"
+"""The robot name that means: the arm of the URDF on ``/robot_description`` (its ``<pdsmc_ros>``
+element, when a pdsmc_ros plant published it, carries the arm's task options and settings)."""
 
 DEFAULT_SETTINGS = {"control_rate": 1000.0, "sample_rate": 500.0, "contour_bound": 1.0e-3, "contour_size": 0.3}
 """Run settings of a URDF arm that does not give its own."""
@@ -74,6 +79,9 @@ def resolve_robot(name: str) -> str:
         raise ConfigError(f"robot must be a name or a .urdf path, got {name!r}; allowed: {allowed_robots()}")
     if name in ROBOTS:
         return name
+    if name == ROBOT_DESCRIPTION:
+        raise ConfigError(f"robot {name!r}: no URDF received on /robot_description yet (a node waits for it; "
+                          "offline, the bag's /robot_description is used)")
     arms = catalog()
     if name in arms:
         entry = dict(arms[name])
@@ -98,7 +106,35 @@ def resolve_robot(name: str) -> str:
     raise ConfigError(f"unknown robot {name!r}; allowed: {allowed_robots()}")
 
 
-def _register(name: str, source: Path, entry: Mapping[str, Any], where: str) -> type[UrdfRobot]:
+def register_description(xml: str, *, name: str = ROBOT_DESCRIPTION) -> str:
+    """Register the arm of a ``/robot_description`` URDF under ``name`` (replacing an earlier one).
+
+    Raises
+    ------
+    ConfigError
+        One line: the URDF's problem, or a malformed ``<pdsmc_ros>`` element.
+    """
+    from xml.etree import ElementTree
+
+    options: dict[str, Any] = {}
+    try:
+        root = ElementTree.fromstring(xml)
+    except ElementTree.ParseError as exc:
+        raise ConfigError(f"robot {name!r}: the URDF does not parse: {exc}") from None
+    element = root.find("pdsmc_ros")
+    if element is not None and (element.text or "").strip():
+        try:
+            options = json.loads(element.text or "")
+        except json.JSONDecodeError as exc:
+            raise ConfigError(f"robot {name!r}: its <pdsmc_ros> element is not JSON ({exc})") from None
+        if not isinstance(options, dict):
+            raise ConfigError(f"robot {name!r}: its <pdsmc_ros> element must hold a JSON object")
+    unregister_robot(name)
+    _register(name, xml, options, f"{name} <pdsmc_ros>")
+    return name
+
+
+def _register(name: str, source: Path | str, entry: Mapping[str, Any], where: str) -> type[UrdfRobot]:
     unknown = sorted(set(entry) - set(OPTION_KEYS) - set(SETTING_KEYS))
     if unknown:
         raise ConfigError(f"{where}: unknown key(s) {unknown}; allowed: {', '.join(OPTION_KEYS + SETTING_KEYS)}")

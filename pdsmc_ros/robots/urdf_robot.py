@@ -31,6 +31,7 @@ path (:meth:`UrdfRobot.ik_path`) and converged to :data:`IK_TOLERANCE`.
 from __future__ import annotations
 
 import contextlib
+import json
 import os
 import sys
 import tempfile
@@ -38,6 +39,7 @@ from collections.abc import Callable, Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any, ClassVar
 from xml.etree import ElementTree
+from xml.sax.saxutils import escape
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -172,6 +174,8 @@ class UrdfRobot(Manipulator):
     reference_rotation: ClassVar[FloatArray]
     rows: ClassVar[NDArray[np.intp]]
     settings: ClassVar[Mapping[str, Any]]
+    options: ClassVar[Mapping[str, Any]]
+    """The task options the class was made with, as plain data (its ``<pdsmc_ros>`` element)."""
 
     def __init__(self, payload: float = 0.0, *, params: RobotParams | None = None) -> None:  # noqa: ARG002
         if payload:
@@ -187,6 +191,17 @@ class UrdfRobot(Manipulator):
         self._basis6 = np.zeros((6, 6))
         self._basis6[:3, :3] = self._basis6[3:, 3:] = self._basis
         self._packed: FloatArray | None = None
+
+    @classmethod
+    def description(cls) -> str:
+        """The URDF with this arm's task options and run settings in a ``<pdsmc_ros>`` element
+        (URDF parsers ignore unknown elements, as ros2_control's), so a node given
+        ``robot:=/robot_description`` rebuilds the very same arm."""
+        # preset gains are looked up by the arm's name unless its settings name another table
+        block = json.dumps({**cls.options, "gains": cls.name, **cls.settings}, sort_keys=True)
+        element = f"\n  <pdsmc_ros>{escape(block)}</pdsmc_ros>\n"
+        head, closing, tail = cls.urdf.rpartition("</robot>")
+        return head + element + closing + tail if closing else cls.urdf
 
     def pack(self) -> FloatArray:
         """Flat parameters of the compiled form (:func:`.spatial_kernels.pack`)."""
@@ -499,6 +514,10 @@ def urdf_robot_class(
         "reference_rotation": reference,
         "rows": rows,
         "settings": dict(settings or {}),
+        "options": {
+            "armature": j.tolist(), "ee_frame": frame, "locked_joints": list(locked_joints),
+            "home": q_home.tolist(), "plane": placed.describe(), "orientation": mode,
+        },
     }
     return type(f"UrdfRobot[{robot_name}]", (UrdfRobot,), attrs)
 

@@ -19,6 +19,7 @@ from ..control.law import ControlLaw
 from ..control.stability import check_rate
 from ..metrics import Metrics, Samples, compute_metrics
 from ..presets import RunSpec, control_steps
+from ..robots import ROBOTS
 from ..robots.base import FloatArray, Manipulator
 from ..trajectories import JointReference
 from .loop import closed_loop
@@ -70,8 +71,9 @@ def _reference_key(spec: RunSpec) -> tuple[object, ...]:
     """What the sampled joint reference depends on (not gains, controller or payload)."""
     waypoints = spec.waypoints_file
     stamp = os.stat(waypoints).st_mtime_ns if waypoints and os.path.exists(waypoints) else None
-    return (spec.robot, spec.contour, spec.ellipse_error, waypoints, stamp, spec.segment_duration,
-            spec.duration_factor, spec.rate)
+    # the class, not only the name: /robot_description may name another arm later in a process
+    return (spec.robot, ROBOTS[spec.robot], spec.contour, spec.ellipse_error, waypoints, stamp,
+            spec.segment_duration, spec.duration_factor, spec.rate)
 
 
 _REFERENCES: dict[tuple[object, ...], tuple[JointReference, FloatArray]] = {}

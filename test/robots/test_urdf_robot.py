@@ -181,3 +181,28 @@ def test_cached_kernels_built_from_other_sources_are_dropped(tmp_path: Path, mon
     monkeypatch.setattr(kernel_cache, "_done", False)
     kernel_cache.refresh()
     assert stale.exists()
+
+
+def test_the_published_description_rebuilds_the_same_arm() -> None:
+    """A pdsmc_ros plant's /robot_description carries the arm's task options (<pdsmc_ros>), so a
+    node given robot:=/robot_description follows the same references as one given robot:=ur5."""
+    from pdsmc_ros.robots import ROBOTS
+    from pdsmc_ros.robots.catalog import ROBOT_DESCRIPTION, register_description
+
+    ur5 = ROBOTS[resolve_robot("ur5")]
+    xml = ur5.description()
+    assert "<pdsmc_ros>" in xml and xml.rstrip().endswith("</robot>")
+    assert register_description(xml) == ROBOT_DESCRIPTION
+    again = ROBOTS[ROBOT_DESCRIPTION]
+    assert again.joint_names == ur5.joint_names and again.orientation == ur5.orientation
+    np.testing.assert_array_equal(again.home, ur5.home)
+    np.testing.assert_array_equal(again.plane.origin, ur5.plane.origin)
+    assert again.settings == {**ur5.settings, "gains": "ur5"}  # its presets by name
+    a = make_run("ur5", "circle", "pdsmc").reference().sample(np.linspace(0, 5, 11))
+    b = make_run(ROBOT_DESCRIPTION, "circle", "pdsmc").reference().sample(np.linspace(0, 5, 11))
+    np.testing.assert_array_equal(a.q, b.q)
+    # an arm's URDF from another publisher (no <pdsmc_ros>): the defaults
+    plain = register_description(ur5.urdf)
+    assert ROBOTS[plain].orientation == "held" and np.all(ROBOTS[plain].home == 0.0)
+    with pytest.raises(ConfigError, match="does not parse"):
+        register_description("<robot")
