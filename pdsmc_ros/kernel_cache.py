@@ -14,16 +14,18 @@ is called.
 from __future__ import annotations
 
 import hashlib
+import re
 from pathlib import Path
 
 PACKAGE_DIR = Path(__file__).resolve().parent
 MARKER_PREFIX = "pdsmc_ros-kernels-"
+KERNEL = re.compile(r"^@njit\b", re.MULTILINE)
 _done = False
 
 
 def kernel_sources() -> list[Path]:
     """The package's source files that define numba kernels."""
-    return sorted(path for path in PACKAGE_DIR.rglob("*.py") if "@njit" in path.read_text(errors="replace"))
+    return sorted(path for path in PACKAGE_DIR.rglob("*.py") if KERNEL.search(path.read_text(errors="replace")))
 
 
 def digest(sources: list[Path]) -> str:
@@ -38,15 +40,13 @@ def cache_dirs(sources: list[Path]) -> set[Path]:
     """Where numba keeps these files' kernels: ``__pycache__`` beside them, or under
     ``NUMBA_CACHE_DIR`` in numba's per-directory subfolders."""
     dirs = {path.parent / "__pycache__" for path in sources}
-    from numba.core import config
+    from numba.core import caching, config
 
-    if config.CACHE_DIR:
-        try:
-            from numba.core.caching import _UserProvidedCacheLocator
-        except ImportError:  # pragma: no cover - another numba layout: leave its cache alone
-            return dirs
-        dirs |= {Path(config.CACHE_DIR) / _UserProvidedCacheLocator.get_suitable_cache_subpath(str(path))
-                 for path in sources}
+    cache_dir = getattr(config, "CACHE_DIR", "")
+    # numba names the class UserProvidedCacheLocator (older releases: with a leading underscore)
+    locator = getattr(caching, "UserProvidedCacheLocator", None) or getattr(caching, "_UserProvidedCacheLocator", None)
+    if cache_dir and locator is not None:
+        dirs |= {Path(cache_dir) / locator.get_suitable_cache_subpath(str(path)) for path in sources}
     return dirs
 
 

@@ -140,7 +140,7 @@ def test_a_toy_robot_and_law_registered_here_run_in_the_simulator(toys: None, tm
 
 
 def test_unknown_and_duplicate_names_are_refused(toys: None) -> None:  # noqa: ARG001
-    with pytest.raises(ConfigError, match="unknown robot 'nope'; choose one of: serial_3r, parallel_5r, toy_2r"):
+    with pytest.raises(ConfigError, match="unknown robot 'nope'; choose one of: serial_3r, parallel_5r, .*toy_2r"):
         make_robot("nope")
     with pytest.raises(ConfigError, match="unknown controller 'nope'"):
         law("nope")
