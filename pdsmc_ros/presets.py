@@ -320,8 +320,10 @@ def preset_gains(robot: str, contour: str, controller: str) -> Gains:
     """Gains of Table 4.16 / 4.33 for this robot, contour and controller."""
     law(controller)
     cls = ROBOTS[resolve_robot(robot)]
-    presets = load_config("contours")[contour_set(robot)]
-    group = "linear" if contour in ("csv", "joints") else presets[contour]["gain_group"]
+    if contour in ("csv", "joints"):
+        group = "linear"
+    else:
+        group = load_config("contours")[contour_set(robot)][contour]["gain_group"]
     source = cls.settings.get("gains", robot) if issubclass(cls, UrdfRobot) else robot
     tables = source if isinstance(source, dict) else load_config("gains").get(source, {})
     table = tables.get(group, {}).get(controller)
