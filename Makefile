@@ -7,7 +7,7 @@ PYTHON ?= python3
 VENV ?= .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.pdsmc-installed
-EXECUTABLES := plant trajectory controller recorder composed analyze
+EXECUTABLES := plant trajectory controller recorder composed viewer analyze
 
 # The ROS wheels set no AMENT_PREFIX_PATH; the venv is the install prefix.
 export AMENT_PREFIX_PATH := $(abspath $(VENV))

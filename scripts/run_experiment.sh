@@ -6,6 +6,7 @@
 #                          [--duration-factor F] [--smc-reading NAME] [--timeout SECONDS]
 #                          [--param NAME:=VALUE ...] [--params-file FILE] [--composed | --compose NODES] [--keep-going]
 #                          [--respawn controller] [--nice N] [--intra-process] [--from-description]
+#                          [--viewer [--viewer-port PORT]]
 #
 # Starts the four nodes (each with `ros2 run pdsmc_ros ...`; with --composed, all four in one
 # process; with --compose plant,controller, those in one process and the others apart), waits
@@ -17,6 +18,8 @@
 # supervises the arm meanwhile and the run resumes when the new controller answers.
 # --nice N starts the plant and the controller (the loop's critical path) at niceness N, e.g.
 # -10 (negative values need root; without it they run at normal priority, with a warning).
+# --viewer also starts the live viewer (its own process, an observer the loop never waits for):
+# open ws://localhost:8765 (or --viewer-port) in Foxglove with "Open connection".
 # --from-description: only the plant is given --robot; the other nodes take the arm from the
 # plant's /robot_description (robot:=/robot_description; separate processes only).
 # --intra-process (with --composed or --compose) hands messages between the composed nodes
@@ -28,6 +31,7 @@ die() { echo "run_experiment.sh: error: $*" >&2; exit 2; }
 
 ROBOT="" CONTOUR="" CONTROLLER="" OUT="" SCENARIO="nominal" MODE="lockstep" RATE=""
 FACTOR="" SMC_READING="" TIMEOUT="600" COMPOSE="" KEEP_GOING=0 NICE="" INTRA=0 FROM_DESCRIPTION=0
+VIEWER=0 VIEWER_PORT=8765
 EXTRA=()
 FILES=()  # ROS 2 params files: each node reads its own section (e.g. `pdsmc tune`'s controller gains)
 declare -A RESPAWN=()
@@ -55,6 +59,10 @@ while [[ $# -gt 0 ]]; do
     --nice) NICE="${2:-}"; shift 2 ;;
     --intra-process) INTRA=1; shift ;;
     --from-description) FROM_DESCRIPTION=1; shift ;;
+    --viewer) VIEWER=1; shift ;;
+    --viewer-port)
+      [[ "${2:-}" =~ ^[0-9]+$ && "${2:-}" -le 65535 ]] || die "--viewer-port must be a port number 0-65535, got '${2:-}'"
+      VIEWER_PORT="$2"; shift 2 ;;
     --respawn)
       case "${2:-}" in
         controller) RESPAWN[$2]=0 ;;
@@ -150,7 +158,7 @@ declare -A KILLED=()
 stop_all() {
   # stop what we started, by PID: the plant first, the recorder last so it loses nothing
   local name pid
-  for name in plant trajectory controller composed recorder; do
+  for name in plant trajectory controller composed viewer recorder; do
     pid="${PIDS[$name]:-}"
     [[ -n "$pid" ]] && kill -0 "$pid" 2>/dev/null || continue
     kill -INT "$pid" 2>/dev/null
@@ -194,6 +202,10 @@ for name in "${NODE_NAMES[@]}"; do
     start_node "$proc"
   fi
 done
+if [[ "$VIEWER" == 1 ]]; then
+  ORDER+=(viewer)
+  start_node viewer -p "port:=$VIEWER_PORT"
+fi
 
 START=$SECONDS
 declare -A CODES=()

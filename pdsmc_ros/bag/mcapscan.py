@@ -12,6 +12,7 @@ body`` records; a Chunk holds Schema/Channel/Message records).
 from __future__ import annotations
 
 import struct
+import zlib
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -83,12 +84,15 @@ def scan(path: str | Path, topics: Iterable[str]) -> ScanResult:
         elif opcode == OP_MESSAGE:
             _read_message(view, body, body + length, channels, result)
         elif opcode == OP_CHUNK:
-            (_start, _end, size) = struct.unpack_from("<QQQ", data, body)
-            p = body + 24 + 4  # skip uncompressed crc
+            (_start, _end, size, crc) = struct.unpack_from("<QQQI", data, body)
+            p = body + 24 + 4
             kind, p = _string(view, p)
             (rec_len,) = struct.unpack_from("<Q", data, p)
             p += 8
             inner = _decompress(kind, bytes(view[p : p + rec_len]), size)
+            if crc and zlib.crc32(inner) != crc:  # 0: the writer did not compute one (rosbags)
+                raise BagError(f"{str(path)!r}: the chunk at byte {off} is corrupted (CRC-32 "
+                               f"{zlib.crc32(inner):08x}, recorded {crc:08x}); its messages are not read")
             _walk(memoryview(inner), channels, result)
         elif opcode in (OP_DATA_END, OP_FOOTER):
             result.complete = True

@@ -14,6 +14,7 @@ output byte for byte (test/test_bagwrite.py); any other writer gets ``Writer.wri
 from __future__ import annotations
 
 import struct
+import zlib
 from collections import defaultdict
 from collections.abc import Sequence
 from io import BytesIO
@@ -106,12 +107,15 @@ class MessageAppender:
 
 
 def close_chunk(storage: McapWriter) -> None:
-    """``storage.close_chunk()`` with each message index packed at once: the same bytes.
+    """``storage.close_chunk()`` with each message index packed at once, and the chunk's CRC.
 
     rosbags writes a chunk's message index eight bytes per call, about 2 us a
     message: 3 ms for the half second of data the recorder flushes at a time,
     which made a real-time control period late. Here one ``struct`` call per
-    connection (tested byte-identical, test/test_bagwrite.py).
+    connection. rosbags leaves the chunk's ``uncompressed_crc`` 0 (not computed);
+    here it is the CRC-32 of the chunk's records, as rosbag2's MCAP writer and the
+    MCAP spec have it, so a reader detects a corrupted chunk (bag/mcapscan.py). Apart
+    from that field, the bytes are rosbags' (test/bag/test_writer.py).
     """
     pending = storage.chunk
     data = pending.bio.getvalue()
@@ -120,7 +124,8 @@ def close_chunk(storage: McapWriter) -> None:
     bio = storage.bio
     chunk_start = bio.tell()
     bio.write(_CHUNK_HEAD.pack(_OPCODE_CHUNK, 8 + 8 + 8 + 4 + 4 + len(compression) + 8 + len(compressed),
-                               pending.message_start_time, pending.message_end_time, len(data), 0))
+                               pending.message_start_time, pending.message_end_time, len(data),
+                               zlib.crc32(data)))
     bio.write(struct.pack(f"<I{len(compression)}sQ", len(compression), compression, len(compressed)))
     bio.write(compressed)
     chunk_end = bio.tell()

@@ -66,6 +66,15 @@ class GuardedPublisher:
             return self.publisher.get_subscription_count()
         return self._route.refresh() + len(self._route.queues)
 
+    def participants(self) -> int:
+        """Matched subscribers that take part in the run: observers (best-effort readers, the
+        live viewer) are not waited for, so one can never stand in for a recorder not yet matched."""
+        from rclpy.qos import ReliabilityPolicy
+
+        observers = sum(1 for info in self.node.get_subscriptions_info_by_topic(self.publisher.topic_name)
+                        if info.qos_profile.reliability == ReliabilityPolicy.BEST_EFFORT)
+        return self.get_subscription_count() - observers
+
 
 class Inputs:
     """The subscriptions of a node's control loop, taken as serialized CDR.

@@ -157,8 +157,8 @@ class PlantNode:
         self.pub_ee.publish(encode_point_stamped(sec, nanosec, outputs[0], outputs[1]))
 
     def listeners_ready(self) -> bool:
-        return (self.pub_state.get_subscription_count() >= self.expected
-                and self.pub_ee.get_subscription_count() >= 1 and self.node.count_publishers(TOPIC_EFFORT) >= 1)
+        return (self.pub_state.participants() >= self.expected
+                and self.pub_ee.participants() >= 1 and self.node.count_publishers(TOPIC_EFFORT) >= 1)
 
     def try_start(self) -> None:
         """Lockstep: publish state 0 once every participant is listening."""

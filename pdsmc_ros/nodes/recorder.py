@@ -33,6 +33,7 @@ from std_msgs.msg import Float64MultiArray, String
 from trajectory_msgs.msg import JointTrajectory
 
 from ..bag.reader import DESCRIPTION_KEY, RECORDER_DESCRIPTION_TOPIC
+from ..bag.tf import TF_TYPE, TfRecorder
 from ..bag.writer import MessageAppender, RunProgress, close_chunk
 from ..errors import BagError, ConfigError
 from ..presets import control_steps
@@ -121,6 +122,11 @@ class RecorderNode:
         # the run as this recorder's parameters describe it, on disk now with the MCAP header:
         # a bag from any moment on names its run, even before the controller's description
         # (with its gains) has been discovered and received
+        # the arm's link frames from the recorded states (bags that show the arm moving)
+        self.tf = TfRecorder(self.spec.robot_description())
+        self.tf_append = MessageAppender(self.writer, self.writer.add_connection("/tf", TF_TYPE, typestore=typestore))
+        static = self.writer.add_connection("/tf_static", TF_TYPE, typestore=typestore)
+        MessageAppender(self.writer, static).append_many(time.time_ns(), [self.tf.static_message()])
         own = self.writer.add_connection(RECORDER_DESCRIPTION_TOPIC, "std_msgs/msg/String", typestore=typestore)
         MessageAppender(self.writer, own).append_many(
             time.time_ns(), [serialize_message(String(data=description_json(self.spec, run.mode)))])
@@ -144,6 +150,8 @@ class RecorderNode:
                 self.exit_code = EXIT_FAILURE
                 self.done = True
                 return
+            if topic == TOPIC_JOINT_STATES:
+                self._transforms(batch)
             first = not self.counts[topic]
             self.counts[topic] += len(batch)
             if topic == TOPIC_DESCRIPTION:
@@ -157,6 +165,12 @@ class RecorderNode:
                 self.done = True
 
         return callback
+
+    def _transforms(self, batch: list[bytes]) -> None:
+        messages = self.tf.messages(batch)
+        if messages:
+            with self.lock:
+                self.tf_append.append_many(time.time_ns(), messages)
 
     def flush(self) -> None:
         """Write the pending chunk to disk (reaches the OS: survives SIGKILL)."""
@@ -179,6 +193,7 @@ class RecorderNode:
             return
         if self.description is not None:
             self.writer.set_custom_data(DESCRIPTION_KEY, self.description)
+        self.flush()  # the last chunk too with its CRC (rosbags' own close would write none)
         try:
             self.writer.close()
         except OSError as exc:

@@ -48,6 +48,16 @@ LATEST_QOS = QoSProfile(
 )
 
 
+# Observers (the live viewer): best effort, newest few; a reliable writer never waits for
+# them, and the plant and the trajectory do not count them among the subscribers they wait for.
+OBSERVER_QOS = QoSProfile(
+    reliability=ReliabilityPolicy.BEST_EFFORT,
+    history=HistoryPolicy.KEEP_LAST,
+    depth=10,
+    durability=DurabilityPolicy.VOLATILE,
+)
+
+
 # The run description is published once and must reach late joiners.
 LATCHED_QOS = QoSProfile(
     reliability=ReliabilityPolicy.RELIABLE,

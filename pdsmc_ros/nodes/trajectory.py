@@ -131,8 +131,8 @@ class TrajectoryNode:
 
     def try_start(self) -> None:
         if (
-            self.pub_ref.get_subscription_count() >= self.expected
-            and self.pub_ee.get_subscription_count() >= 1
+            self.pub_ref.participants() >= self.expected
+            and self.pub_ee.participants() >= 1
         ):
             self.timer.cancel()
             self.started = True
