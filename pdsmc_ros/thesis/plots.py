@@ -96,3 +96,69 @@ def _save(fig: Any, path: Path) -> Path:
 
     plt.close(fig)
     return path
+
+
+CONTROLLER_STYLE = {"pd": ("PD", "tab:blue", "-"), "smc": ("SMC", "tab:orange", "--"),
+                    "pdsmc": ("PD-SMC", "tab:green", "-")}
+"""Label, colour and line of each controller in the comparison figures."""
+
+
+def plot_controllers(runs: Sequence[tuple[str, Samples]], robot: str, name: str, bound: float,
+                     out: Path) -> list[Path]:
+    """The thesis's comparison figures (Figs. 4.37-4.91) for one robot and contour, every
+    controller on the same axes: contour error against time with the bound drawn; axial errors
+    and torques side by side, a row per joint; the contours with the error magnified.
+
+    ``runs``: ``(controller, samples)`` pairs; ``name`` prefixes the files.
+    """
+    plt = _pyplot()
+    out.mkdir(parents=True, exist_ok=True)
+    paths = []
+    order = list(CONTROLLER_STYLE)
+    runs = sorted(runs, key=lambda run: order.index(run[0]) if run[0] in order else len(order))
+
+    def style(controller: str) -> dict[str, Any]:
+        label, colour, line = CONTROLLER_STYLE.get(controller, (controller, None, "-"))
+        return {"label": label, "color": colour, "linestyle": line, "lw": 0.9}
+
+    fig, ax = plt.subplots(figsize=(7.5, 3.8))
+    for controller, samples in runs:
+        ax.plot(samples.t, samples.contour_error, **style(controller))
+    if bound > 0.0:
+        ax.axhline(bound, color="k", lw=0.8, linestyle=":", label=f"bound {bound:g} m")
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("contour error (m)")
+    ax.set_title(f"{name}: contour error")
+    ax.legend(fontsize=8)
+    paths.append(_save(fig, out / f"{name}_contour_error.png"))
+
+    n = runs[0][1].q.shape[1]
+    fig, axes = plt.subplots(n, 2, figsize=(10, 2.2 * n + 0.6), sharex=True, squeeze=False)
+    for controller, samples in runs:
+        for j in range(n):
+            axes[j, 0].plot(samples.t, samples.q_ref[:, j] - samples.q[:, j], **style(controller))
+            axes[j, 1].plot(samples.t, samples.tau[:, j], **style(controller))
+    for j in range(n):
+        axes[j, 0].set_ylabel(f"axis {j + 1} error (rad)")
+        axes[j, 1].set_ylabel(f"tau {j + 1} (N m)")
+    for column in (0, 1):
+        axes[-1, column].set_xlabel("time (s)")
+    axes[0, 0].set_title(f"{name}: axial errors")
+    axes[0, 1].set_title(f"{name}: torques")
+    axes[0, 1].legend(fontsize=8, loc="upper right")
+    paths.append(_save(fig, out / f"{name}_axial_torque.png"))
+
+    factor = MAGNIFY.get(robot, 1.0)
+    fig, ax = plt.subplots(figsize=(6.5, 6.5))
+    reference = runs[0][1].xy_ref
+    ax.plot(reference[:, 0], reference[:, 1], "k", lw=1.4, label="desired")
+    for controller, samples in runs:
+        shown = samples.xy_ref + factor * (samples.xy - samples.xy_ref)
+        ax.plot(shown[:, 0], shown[:, 1], **style(controller))
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_title(f"{name}: contours, error x{factor:g}")
+    ax.legend(fontsize=8)
+    paths.append(_save(fig, out / f"{name}_contours.png"))
+    return paths
