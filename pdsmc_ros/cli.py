@@ -75,6 +75,39 @@ def value_list(text: str) -> list[float]:
     return values
 
 
+MAX_RUNS = 1_000_000
+
+
+def run_count(text: str) -> int:
+    value = positive_int(text)
+    if value > MAX_RUNS:
+        raise argparse.ArgumentTypeError(f"expected at most {MAX_RUNS:,} runs, got {text!r}")
+    return value
+
+
+def seed_value(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 0, got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 0, got {text!r}")
+    return value
+
+
+def name_list(text: str) -> list[str]:
+    names = [n.strip() for n in text.split(",") if n.strip()]
+    if not names or len(set(names)) != len(names):
+        raise argparse.ArgumentTypeError(f"expected distinct comma-separated names, got {text!r}")
+    return names
+
+
+def _add_engine_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--scheduler", default=None,
+                   help="a Dask scheduler, tcp://HOST:PORT (default: a local cluster of --workers processes)")
+    p.add_argument("--workers", type=worker_count, default=None, help="local cluster processes (default: cores)")
+
+
 def _add_payload_reading(p: argparse.ArgumentParser) -> None:
     p.add_argument("--payload-reading", choices=("tip", "link_com"), default="tip",
                    help="where the payload scenario puts its load: tip (point mass at the end-effector, "
@@ -122,6 +155,7 @@ def build_parser() -> argparse.ArgumentParser:
     rep.add_argument("--out", required=True, help="output directory")
     rep.add_argument("--workers", type=worker_count, default=None,
                      help="processes (default: cores; with --ros 1, as a composed run takes a core)")
+    rep.add_argument("--scheduler", default=None, help="run the in-process matrix on a Dask cluster, tcp://HOST:PORT")
     rep.add_argument("--smc-reading", default="thesis_fit",
                      help="SMC model estimate for the SMC rows (default: thesis_fit)")
     _add_payload_reading(rep)
@@ -148,11 +182,24 @@ def build_parser() -> argparse.ArgumentParser:
     swp.add_argument("--contour", required=True)
     swp.add_argument("--out", default=None, help="write sweep_<param>.csv and .png here")
     swp.add_argument("--workers", type=worker_count, default=None)
+    swp.add_argument("--scheduler", default=None, help="run the sweep on a Dask cluster, tcp://HOST:PORT")
     swp.add_argument("--values", type=value_list, default=None,
                      help="comma-separated values instead of the thesis's (e.g. 1,10,100)")
 
     chk = sub.add_parser("check-gains", help="discrete-rate stability of a run's gains")
     _add_run_arguments(chk)
+
+    mc = sub.add_parser("montecarlo", help="robustness: the controllers against a spread of plants (Dask)")
+    mc.add_argument("--robot", required=True, help="serial_3r or parallel_5r (their link and motor parameters vary)")
+    mc.add_argument("--contour", required=True)
+    mc.add_argument("--controllers", type=name_list, default=["pd", "smc", "pdsmc"],
+                    help="comma-separated control laws (default pd,smc,pdsmc)")
+    mc.add_argument("--runs", type=run_count, required=True, help="plants drawn (each runs every controller)")
+    mc.add_argument("--seed", type=seed_value, default=0, help="run i draws from default_rng([seed, i]) (default 0)")
+    mc.add_argument("--uncertainty", default=None,
+                    help="YAML of parameter spreads (default: config/uncertainty.yaml)")
+    _add_engine_arguments(mc)
+    mc.add_argument("--out", required=True, help="directory for montecarlo.csv, .json and the plot")
 
     tun = sub.add_parser("tune", help="propose gains by the thesis's recipe (Section 4.2.3) and write a params file")
     tun.add_argument("--robot", required=True,
@@ -164,6 +211,7 @@ def build_parser() -> argparse.ArgumentParser:
     tun.add_argument("--out", default=None,
                      help="the params file to write (default: <robot>_<contour>_<controller>.yaml here)")
     tun.add_argument("--quiet", action="store_true", help="no line per candidate")
+    tun.add_argument("--scheduler", default=None, help="run each gain's candidates on a Dask cluster, tcp://HOST:PORT")
     return parser
 
 
@@ -242,6 +290,7 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
         only=args.only,
         ros_bags=Path(args.bags) if args.ros else None,
         payload_reading=args.payload_reading,
+        scheduler=args.scheduler,
     )
     paths = write_report(rep, Path(args.out))
     main = summarize(c for c in rep.cells if c.controller != "smc")
@@ -344,7 +393,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         print(f"[{done}/{total}]", end="\r", file=sys.stderr, flush=True)
 
     param, points = run_sweep(args.param, args.robot, args.contour, values=args.values,
-                              workers=args.workers, progress=progress)
+                              workers=args.workers, progress=progress, scheduler=args.scheduler)
     label = param
     print(f"PD-SMC, {args.robot} / {args.contour}: {label} varied, others at Kp=5000, Kd=1000, Ks=5, "
           "lambda=10, phi=0.5 (Section 4.2.3)")
@@ -385,7 +434,7 @@ def cmd_tune(args: argparse.Namespace) -> int:
         print(f"contour mean {error:>14s}  {candidate.verdict:.90s}  {gains}", file=sys.stderr, flush=True)
 
     result = tune(args.robot, args.contour, args.controller, rate=args.rate, rounds=args.rounds,
-                  progress=None if args.quiet else progress)
+                  progress=None if args.quiet else progress, scheduler=args.scheduler)
     spec = result.spec
     out = Path(args.out or f"{Path(args.robot).stem}_{args.contour}_{args.controller}.yaml")
     write_params_file(out, result.best.gains, controller=spec.controller, robot=spec.robot,
@@ -398,7 +447,56 @@ def cmd_tune(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_montecarlo(args: argparse.Namespace) -> int:
+    from .control import law
+    from .control.stability import check_rate
+    from .engine import Progress, dask_client, run_tasks
+    from .montecarlo import base_specs, load_uncertainty, plot_distribution, run_sample, summarize, write_outputs
+
+    for controller in args.controllers:
+        law(controller)
+    spreads = load_uncertainty(args.uncertainty)
+    specs = base_specs(args.robot, args.contour, args.controllers)
+    for spec in specs:  # the nominal gains must be stable at the rate; a drawn plant may still diverge
+        check_rate(spec, spec.reference())
+    out = Path(args.out)
+    bound = specs[0].bound
+    meta = {"robot": args.robot, "contour": args.contour, "controllers": list(args.controllers), "runs": args.runs,
+            "seed": args.seed, "uncertainty": {k: vars(v) for k, v in spreads.items()}, "contour_bound_m": bound}
+    rows: list = []
+    done = 0
+    progress = Progress(args.runs, "montecarlo")
+    interrupted = False
+    with dask_client(args.scheduler, args.workers) as client:
+        try:
+            for _, result in run_tasks(client, run_sample, [(i, args.seed, specs, spreads) for i in range(args.runs)]):
+                rows += result
+                done += 1
+                progress.step()
+        except KeyboardInterrupt:
+            interrupted = True
+    meta["runs_done"] = done
+    summary = summarize(rows, args.controllers, bound)
+    written = write_outputs(rows, summary, meta, out)
+    if rows:
+        written.append(plot_distribution(rows, args.controllers, bound, out / "montecarlo.png",
+                                         f"{args.robot}/{args.contour}: {done} plants"))
+    for controller in args.controllers:
+        entry = summary[controller]
+        if "contour_mean_mean" in entry:
+            print(f"{controller:6s} contour mean over {entry['runs']} runs: mean {entry['contour_mean_mean']:.4e}  "
+                  f"p5 {entry['contour_mean_p5']:.4e}  p50 {entry['contour_mean_p50']:.4e}  "
+                  f"p95 {entry['contour_mean_p95']:.4e}  worst {entry['contour_mean_worst']:.4e} m; "
+                  f"{100 * entry['share_within_bound']:.1f} % within {bound:g} m; {entry['failed']} failed")
+    print(f"wrote {', '.join(str(p) for p in written)}", file=sys.stderr)
+    if interrupted:
+        print(f"pdsmc montecarlo: interrupted: the table is partial ({done} of {args.runs} runs)", file=sys.stderr)
+        return 130
+    return 0
+
+
 COMMANDS = {
+    "montecarlo": cmd_montecarlo,
     "tune": cmd_tune,
     "sweep": cmd_sweep,
     "simulate": cmd_simulate,

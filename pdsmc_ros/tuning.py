@@ -11,8 +11,9 @@ ROS-free.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -114,6 +115,7 @@ def tune(
     factors: Sequence[float] = FACTORS,
     start: Gains | None = None,
     progress: Callable[[Candidate], None] | None = None,
+    scheduler: str | None = None,
 ) -> TuneResult:
     """Gains for ``robot`` on ``contour`` with ``controller`` by the recipe of Section 4.2.3.
 
@@ -131,6 +133,9 @@ def tune(
         Starting point; :func:`starting_gains` by default.
     progress : callable, optional
         Called with every evaluated candidate.
+    scheduler : str, optional
+        A Dask scheduler (``tcp://HOST:PORT``): each gain's candidates run there in parallel.
+        The result does not depend on it: every candidate of a gain starts from the same best.
 
     Raises
     ------
@@ -151,19 +156,40 @@ def tune(
     if not best.ok:
         raise ConfigError(f"tune {robot}/{contour}/{controller}: the starting gains are {best.verdict}")
     swept = [name for name in SWEPT if name in needed]
-    for _ in range(rounds):
-        kept = False
-        for name in swept:
-            for factor in factors:
-                candidate = evaluate(spec, best.gains.scaled({name: factor}), limit)
-                tried.append(candidate)
-                if progress:
-                    progress(candidate)
-                if candidate.ok and candidate.contour_mean < best.contour_mean:  # type: ignore[operator]
-                    best, kept = candidate, True
-        if not kept:
-            break
+    with _evaluator(spec, limit, scheduler) as evaluate_all:
+        for _ in range(rounds):
+            kept = False
+            for name in swept:
+                # one gain's factors together (in parallel on a cluster), all from the same best
+                candidates = evaluate_all([best.gains.scaled({name: factor}) for factor in factors])
+                tried += candidates
+                for candidate in candidates:
+                    if progress:
+                        progress(candidate)
+                better = [c for c in candidates if c.ok and c.contour_mean < best.contour_mean]  # type: ignore[operator]
+                if better:
+                    best, kept = min(better, key=lambda c: c.contour_mean), True  # type: ignore[arg-type,return-value]
+            if not kept:
+                break
     return TuneResult(dataclasses.replace(spec, gains=best.gains), best, tuple(tried))
+
+
+@contextlib.contextmanager
+def _evaluator(spec: RunSpec, limit: np.ndarray, scheduler: str | None
+               ) -> Iterator[Callable[[list[Gains]], list[Candidate]]]:
+    """Evaluate a batch of gains here, or as tasks on the Dask cluster of ``scheduler``."""
+    if scheduler is None:
+        yield lambda batch: [evaluate(spec, gains, limit) for gains in batch]
+        return
+    from .engine import dask_client, run_tasks
+
+    with dask_client(scheduler) as client:
+        def remote(batch: list[Gains]) -> list[Candidate]:
+            out: list[Candidate | None] = [None] * len(batch)
+            for i, candidate in run_tasks(client, evaluate, [(spec, gains, limit) for gains in batch]):
+                out[i] = candidate
+            return out  # type: ignore[return-value]
+        yield remote
 
 
 def _spec(robot: str, contour: str, controller: str, rate: float | None) -> RunSpec:

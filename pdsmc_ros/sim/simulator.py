@@ -14,6 +14,7 @@ from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..control.law import ControlLaw
 from ..control.stability import check_rate
@@ -43,8 +44,21 @@ class RunResult:
         return out
 
 
-def simulate(spec: RunSpec, *, check_stability: bool = True) -> RunResult:
+def simulate(spec: RunSpec, *, check_stability: bool = True, plant: Manipulator | None = None,
+             initial_error: ArrayLike | None = None) -> RunResult:
     """Run the discrete closed loop of ``spec`` and compute its statistics.
+
+    Parameters
+    ----------
+    spec : RunSpec
+        The run.
+    check_stability : bool
+        Refuse gains that cannot be stable at the rate (before anything runs).
+    plant : Manipulator, optional
+        The simulated robot instead of ``spec.robot_model()`` (a plant that is not the model:
+        :mod:`pdsmc_ros.montecarlo`); the controller keeps ``spec``'s nominal model.
+    initial_error : array_like, optional
+        Added to the joint angles the run starts from (the reference's first point), rad.
 
     Raises
     ------
@@ -54,13 +68,14 @@ def simulate(spec: RunSpec, *, check_stability: bool = True) -> RunResult:
         If the contour leaves the workspace (before anything runs).
     """
     start = time.perf_counter()
-    robot = spec.robot_model()
+    robot = plant or spec.robot_model()
     reference, refs = _reference_samples(spec)
     if check_stability:
         check_rate(spec, reference)
     steps = refs.shape[0] - 1
     every = spec.sample_every
-    out_q, _, out_tau = closed_loop(robot, ControlLaw.from_spec(spec), refs[0, 0], refs, 1.0 / spec.rate, every)
+    q0 = refs[0, 0] if initial_error is None else refs[0, 0] + np.asarray(initial_error, dtype=float)
+    out_q, _, out_tau = closed_loop(robot, ControlLaw.from_spec(spec), q0, refs, 1.0 / spec.rate, every)
     t = (np.arange(steps + 1) / spec.rate)[::every]
     samples = build_samples(robot, reference.contour, t, out_q, refs[::every, 0], out_tau)
     metrics = compute_metrics(samples, spec.bound)
@@ -122,11 +137,22 @@ def simulate_many(
     *,
     workers: int | None = None,
     progress: Callable[[int, int, RunResult], None] | None = None,
+    scheduler: str | None = None,
 ) -> list[RunResult]:
-    """Simulate several runs, on ``workers`` processes (default: all cores)."""
+    """Simulate several runs, on ``workers`` processes (default: all cores), or on the Dask
+    cluster of ``scheduler`` (``tcp://HOST:PORT``, :mod:`pdsmc_ros.engine`)."""
+    results: list[RunResult | None] = [None] * len(specs)
+    if scheduler is not None:
+        from ..engine import dask_client, run_tasks
+
+        with dask_client(scheduler) as client:
+            for done, (i, result) in enumerate(run_tasks(client, simulate, [(spec,) for spec in specs]), start=1):
+                results[i] = result
+                if progress:
+                    progress(done, len(specs), result)
+        return results  # type: ignore[return-value]
     # a process per run at the most: a pool forks all its workers up front
     workers = min(workers or os.cpu_count() or 1, max(len(specs), 1))
-    results: list[RunResult | None] = [None] * len(specs)
     if workers == 1 or len(specs) == 1:
         for i, spec in enumerate(specs):
             results[i] = simulate(spec)

@@ -53,6 +53,7 @@ def run_reproduction(
     only: str | None = None,
     ros_bags: Path | None = None,
     payload_reading: str = "tip",
+    scheduler: str | None = None,
 ) -> Reproduction:
     """Simulate the whole matrix (and, optionally, every SMC reading on the nominal rows,
     the other payload readings on the payload rows and, for the whole matrix, the
@@ -120,9 +121,10 @@ def run_reproduction(
         with ThreadPoolExecutor(max_workers=workers or 1) as pool:
             futures = {i: pool.submit(one, specs[i]) for i in order}
             results = [futures[i].result() for i in range(len(specs))]
-        results += simulate_many(everything[len(specs):], workers=workers) if len(everything) > len(specs) else []
+        results += (simulate_many(everything[len(specs):], workers=workers, scheduler=scheduler)
+                    if len(everything) > len(specs) else [])
     else:
-        results = simulate_many(everything, workers=workers, progress=report)
+        results = simulate_many(everything, workers=workers, progress=report, scheduler=scheduler)
     main = results[: len(specs)]
     printed = {run_key(r.spec): r for r in results[len(results) - len(printed_specs):]}
     cells = compare(main, printed)

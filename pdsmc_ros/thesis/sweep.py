@@ -81,9 +81,10 @@ def run_sweep(
     values: list[float] | None = None,
     workers: int | None = None,
     progress: Callable[[int, int, object], None] | None = None,
+    scheduler: str | None = None,
 ) -> tuple[str, list[SweepPoint]]:
     param, specs = sweep_specs(param, robot, contour, values)
-    results = simulate_many(specs, workers=workers, progress=progress)
+    results = simulate_many(specs, workers=workers, progress=progress, scheduler=scheduler)
     points = []
     for spec, res in zip(specs, results, strict=True):
         eps = np.abs(res.samples.contour_error)

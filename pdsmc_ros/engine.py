@@ -1,0 +1,111 @@
+"""Many independent runs on Dask distributed: an existing cluster or a local one (ROS-free).
+
+``--scheduler tcp://HOST:PORT`` uses a cluster the user runs (``dask scheduler`` and
+``dask worker ADDRESS``, on one machine or many); without it a local cluster of
+``--workers`` processes (one thread each: the runs are compiled numba loops that hold the
+GIL). Tasks are module-level functions of the package, so every worker needs pdsmc_ros
+installed. Dask reschedules the tasks of a worker that dies; results are handed back as
+they finish, with their task index, so callers order them and tables do not depend on the
+engine or the number of workers.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import os
+import re
+import sys
+import time
+from collections.abc import Callable, Iterator, Sequence
+from typing import Any, TextIO
+
+from .errors import ConfigError
+
+SCHEDULER_ADDRESS = re.compile(r"^(tcp|tls|inproc|ws|wss)://[^\s/]+(:\d+)?/?$")
+CONNECT_TIMEOUT_S = 10
+
+
+@contextlib.contextmanager
+def dask_client(scheduler: str | None = None, workers: int | None = None) -> Iterator[Any]:
+    """A ``distributed.Client``: connected to ``scheduler``, or to a local cluster of ``workers`` processes.
+
+    Raises
+    ------
+    ConfigError
+        One line: a malformed or unreachable scheduler address, or Dask not installed.
+    """
+    try:
+        from distributed import Client, LocalCluster
+    except ImportError as exc:  # pragma: no cover - a runtime dependency
+        raise ConfigError("Dask distributed is not installed: run make setup") from exc
+    if scheduler is not None:
+        if not SCHEDULER_ADDRESS.match(scheduler):
+            raise ConfigError(f"--scheduler {scheduler!r}: expected an address like tcp://HOST:PORT")
+        try:
+            client = Client(scheduler, timeout=f"{CONNECT_TIMEOUT_S}s")
+        except (OSError, TimeoutError) as exc:
+            raise ConfigError(f"--scheduler {scheduler!r}: cannot reach it within {CONNECT_TIMEOUT_S} s "
+                              f"({type(exc).__name__})") from None
+        try:
+            yield client
+        finally:
+            client.close()
+        return
+    count = workers or os.cpu_count() or 1
+    cluster = LocalCluster(n_workers=count, threads_per_worker=1, processes=True, dashboard_address=None,
+                           silence_logs=logging.ERROR)
+    client = Client(cluster)
+    try:
+        yield client
+    finally:
+        client.close()
+        cluster.close()
+
+
+def run_tasks(client: Any, fn: Callable[..., Any], arguments: Sequence[tuple[Any, ...]]) -> Iterator[tuple[int, Any]]:
+    """``(index, fn(*arguments[index]))`` as the tasks finish, on ``client``'s workers.
+
+    On KeyboardInterrupt the tasks not yet finished are cancelled and the interrupt re-raised.
+    """
+    from distributed import as_completed
+
+    futures = [client.submit(fn, *args, key=f"pdsmc-{fn.__name__}-{i}-{os.getpid()}-{time.time_ns()}", pure=False)
+               for i, args in enumerate(arguments)]
+    index = {future.key: i for i, future in enumerate(futures)}
+    try:
+        for future in as_completed(futures):
+            yield index[future.key], future.result()
+    except KeyboardInterrupt:
+        client.cancel(futures)
+        raise
+
+
+class Progress:
+    """Runs done of total, rate and time left: a live bar on a terminal, plain lines otherwise."""
+
+    def __init__(self, total: int, label: str, *, stream: TextIO | None = None, width: int = 30) -> None:
+        self.total = total
+        self.label = label
+        self.stream = stream or sys.stderr
+        self.tty = bool(getattr(self.stream, "isatty", lambda: False)())
+        self.width = width
+        self.start = time.monotonic()
+        self.done = 0
+        self.last_line = -1.0
+
+    def step(self, count: int = 1) -> None:
+        self.done += count
+        elapsed = time.monotonic() - self.start
+        rate = self.done / elapsed if elapsed > 0 else 0.0
+        left = (self.total - self.done) / rate if rate > 0 else float("nan")
+        text = f"{self.label}: {self.done}/{self.total} runs, {rate:.1f} runs/s, {left:.0f} s left"
+        if self.tty:
+            filled = int(self.width * self.done / max(self.total, 1))
+            self.stream.write(f"\r[{'#' * filled}{'.' * (self.width - filled)}] {text}")
+            if self.done >= self.total:
+                self.stream.write("\n")
+            self.stream.flush()
+        elif self.done >= self.total or elapsed - self.last_line >= 10.0 or self.done == 1:
+            self.last_line = elapsed
+            print(text, file=self.stream, flush=True)

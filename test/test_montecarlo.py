@@ -1,0 +1,139 @@
+"""Robustness Monte Carlo on Dask (issue 18): draws, determinism across engines, faults, bad input."""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import os
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from pdsmc_ros.errors import ConfigError
+from pdsmc_ros.montecarlo import base_specs, load_uncertainty, run_sample, sample_plant
+
+pytest.importorskip("distributed")
+
+BIN = Path(sys.executable).parent
+ARGS = ["--robot", "parallel_5r", "--contour", "circle", "--controllers", "pd,pdsmc", "--seed", "7"]
+
+
+def montecarlo(*args: str, timeout: float = 600, **env: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "pdsmc_ros.cli", "montecarlo", *args], capture_output=True,
+                          text=True, timeout=timeout, env={**os.environ, **env})
+
+
+def table(out: Path) -> list[dict[str, str]]:
+    with (out / "montecarlo.csv").open() as handle:
+        return list(csv.DictReader(handle))
+
+
+def test_draws_depend_on_the_seed_and_the_run_alone_and_every_controller_shares_them() -> None:
+    spreads = load_uncertainty()
+    a = sample_plant("serial_3r", spreads, np.random.default_rng([3, 11]))
+    b = sample_plant("serial_3r", spreads, np.random.default_rng([3, 11]))
+    c = sample_plant("serial_3r", spreads, np.random.default_rng([3, 12]))
+    assert a[3] == b[3] and a[3] != c[3]
+    assert 0.8 <= a[3]["link1_mass"] / 1.0 <= 1.2 and 0.0 <= a[3]["payload"] <= 1.5  # the default spreads
+    specs = base_specs("serial_3r", "circle", ["pd", "pdsmc"])
+    rows = run_sample(0, 3, [dataclasses.replace(s, duration_factor=0.05) for s in specs], spreads)
+    drawn = [{k: v for k, v in row.items() if k.startswith(("link", "motor", "payload", "initial"))} for row in rows]
+    assert drawn[0] == drawn[1] and [r["controller"] for r in rows] == ["pd", "pdsmc"]
+    assert all(r["status"] == "ok" and r["contour_mean"] > 0 for r in rows)
+
+
+def test_bad_uncertainty_files_are_one_line(tmp_path: Path) -> None:
+    cases = {
+        "link_mas: {distribution: uniform, relative: 0.1}\n": "unknown parameter 'link_mas'",
+        "link_mass: {distribution: uniform, relative: -0.1}\n": r"link_mass.relative must be >= 0 \(a spread\)",
+        "link_mass: {distribution: cauchy, relative: 0.1}\n": "distribution must be one of uniform, normal",
+        "payload: {distribution: uniform, low: 2, high: 1}\n": "low 2 > high 1",
+    }
+    path = tmp_path / "u.yaml"
+    for text, message in cases.items():
+        path.write_text(text)
+        with pytest.raises(ConfigError, match=message) as info:
+            load_uncertainty(path)
+        assert "\n" not in str(info.value)
+    path.write_text("link_mass: {distribution: uniform, relative: -0.1}\n")
+    proc = montecarlo(*ARGS, "--runs", "2", "--uncertainty", str(path), "--out", str(tmp_path / "x"))
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1 and "must be >= 0" in proc.stderr
+    proc = montecarlo(*ARGS, "--runs", "2", "--scheduler", "tcp://127.0.0.1:9", "--out", str(tmp_path / "y"))
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1, proc.stderr
+    assert "--scheduler 'tcp://127.0.0.1:9': cannot reach it" in proc.stderr
+    proc = montecarlo(*ARGS, "--runs", "2", "--scheduler", "localhost:8786", "--out", str(tmp_path / "z"))
+    assert proc.returncode == 2 and "expected an address like tcp://HOST:PORT" in proc.stderr
+
+
+def free_port() -> int:
+    import socket
+
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return int(sock.getsockname()[1])
+
+
+@pytest.mark.timeout(900)
+def test_the_table_is_the_same_on_a_local_cluster_and_on_a_scheduler_with_a_worker_killed(tmp_path: Path) -> None:
+    local = montecarlo(*ARGS, "--runs", "24", "--workers", "2", "--out", str(tmp_path / "local"))
+    assert local.returncode == 0, local.stderr
+    one = montecarlo(*ARGS, "--runs", "24", "--workers", "1", "--out", str(tmp_path / "one"))
+    assert one.returncode == 0, one.stderr
+    assert (tmp_path / "local" / "montecarlo.csv").read_bytes() == (tmp_path / "one" / "montecarlo.csv").read_bytes()
+    rows = table(tmp_path / "local")
+    assert len(rows) == 48 and {r["status"] for r in rows} == {"ok"}
+    assert [r["run"] for r in rows] == [str(i // 2) for i in range(48)]
+
+    port = free_port()
+    started: list[subprocess.Popen] = []
+    try:
+        started.append(subprocess.Popen([str(BIN / "dask"), "scheduler", "--host", "127.0.0.1", "--port", str(port),
+                                         "--no-dashboard"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                                        start_new_session=True))
+        for _ in range(2):
+            started.append(subprocess.Popen([str(BIN / "dask"), "worker", f"tcp://127.0.0.1:{port}", "--nthreads",
+                                             "1", "--no-dashboard"], stdout=subprocess.DEVNULL,
+                                            stderr=subprocess.DEVNULL, start_new_session=True))
+        out = tmp_path / "cluster"
+        run = subprocess.Popen([sys.executable, "-m", "pdsmc_ros.cli", "montecarlo", *ARGS, "--runs", "24",
+                                "--scheduler", f"tcp://127.0.0.1:{port}", "--out", str(out)],
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        # kill one worker once the first run is in (the rest still to do): its tasks are redone
+        first = run.stderr.readline()  # type: ignore[union-attr]
+        assert first.startswith("montecarlo: 1/24 runs"), first
+        os.killpg(started[1].pid, signal.SIGKILL)
+        _, err = run.communicate(timeout=600)
+        assert run.returncode == 0, first + err
+        assert "montecarlo: 24/24 runs" in err
+        assert (out / "montecarlo.csv").read_bytes() == (tmp_path / "local" / "montecarlo.csv").read_bytes()
+    finally:
+        for proc in started:
+            if proc.poll() is None:
+                os.killpg(proc.pid, signal.SIGTERM)
+        for proc in started:
+            try:
+                proc.wait(timeout=20)
+            except subprocess.TimeoutExpired:
+                os.killpg(proc.pid, signal.SIGKILL)
+
+
+@pytest.mark.timeout(600)
+def test_ctrl_c_writes_the_runs_finished_so_far(tmp_path: Path) -> None:
+    out = tmp_path / "partial"
+    run = subprocess.Popen([sys.executable, "-m", "pdsmc_ros.cli", "montecarlo", *ARGS, "--runs", "500", "--workers",
+                            "1", "--out", str(out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    first = run.stderr.readline()  # type: ignore[union-attr]
+    assert first.startswith("montecarlo: 1/500 runs"), first
+    run.send_signal(signal.SIGINT)
+    _, err = run.communicate(timeout=300)
+    assert run.returncode == 130, err
+    done = int(err.split("the table is partial (")[1].split(" of 500 runs")[0])
+    assert 1 <= done < 500 and "Traceback" not in err
+    rows = table(out)
+    runs = [int(r["run"]) for r in rows]
+    assert len(rows) == 2 * done and len(set(runs)) == done and runs == sorted(runs)  # whole runs, in order
+    assert {r["controller"] for r in rows} == {"pd", "pdsmc"}
