@@ -207,7 +207,7 @@ def build_parser() -> argparse.ArgumentParser:
     tun.add_argument("--contour", required=True)
     tun.add_argument("--controller", required=True, help="a registered control law: pd, smc, pdsmc, ...")
     tun.add_argument("--rate", type=positive_float, default=None, help="control rate in Hz (default: the robot's)")
-    tun.add_argument("--rounds", type=positive_int, default=3, help="sweeps over kp, kd, ks, lam (default 3)")
+    tun.add_argument("--rounds", type=positive_int, default=6, help="sweeps over kp, kd, ks, lam (default 6)")
     tun.add_argument("--out", default=None,
                      help="the params file to write (default: <robot>_<contour>_<controller>.yaml here)")
     tun.add_argument("--quiet", action="store_true", help="no line per candidate")

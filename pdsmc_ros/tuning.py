@@ -111,7 +111,7 @@ def tune(
     controller: str,
     *,
     rate: float | None = None,
-    rounds: int = 3,
+    rounds: int = 6,
     factors: Sequence[float] = FACTORS,
     start: Gains | None = None,
     progress: Callable[[Candidate], None] | None = None,
