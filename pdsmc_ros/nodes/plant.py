@@ -58,11 +58,14 @@ from .params import (
 )
 from .topics import (
     LATCHED_QOS,
+    LATEST_QOS,
     STEADY_CLOCK,
     STREAM_QOS,
+    THROTTLE_RATE,
     TOPIC_EE_ACTUAL,
     TOPIC_EFFORT,
     TOPIC_JOINT_STATES,
+    TOPIC_JOINT_STATES_THROTTLED,
     TOPIC_ROBOT_DESCRIPTION,
 )
 
@@ -91,10 +94,13 @@ class PlantNode:
         self.n_passive = len(robot.passive_joint_names)
         self.clock_every = decimation(spec.rate, node.get_parameter("clock_rate").value)
         self.ee_every = spec.sample_every
+        self.throttle_every = decimation(spec.rate, THROTTLE_RATE)
         self.exit_code = EXIT_OK
 
         self.pub_state = GuardedPublisher(node.create_publisher(JointState, TOPIC_JOINT_STATES, STREAM_QOS), node)
         self.pub_ee = GuardedPublisher(node.create_publisher(PointStamped, TOPIC_EE_ACTUAL, STREAM_QOS), node)
+        self.pub_throttled = GuardedPublisher(
+            node.create_publisher(JointState, TOPIC_JOINT_STATES_THROTTLED, LATEST_QOS), node)
         self.pub_clock = GuardedPublisher(node.create_publisher(Clock, "/clock", STREAM_QOS), node)
         self.pub_urdf = node.create_publisher(String, TOPIC_ROBOT_DESCRIPTION, LATCHED_QOS)
         self.pub_urdf.publish(String(data=spec.robot_description()))
@@ -149,7 +155,10 @@ class PlantNode:
             effort = applied.tolist() + [0.0] * passive
         else:
             position, velocity, effort = q.tolist(), qd.tolist(), applied.tolist()
-        self.pub_state.publish(encode_joint_state(sec, nanosec, self.names, position, velocity, effort))
+        encoded = encode_joint_state(sec, nanosec, self.names, position, velocity, effort)
+        self.pub_state.publish(encoded)
+        if step % self.throttle_every == 0:
+            self.pub_throttled.publish(encoded)
         if step % self.ee_every and step != self.plant.last_step:
             return  # the end-effector point goes out at the statistics rate
         if outputs is None:

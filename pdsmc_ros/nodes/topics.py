@@ -9,6 +9,10 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 # Topics (ros2_control conventions where they exist)
 # --------------------------------------------------------------------------- #
 TOPIC_JOINT_STATES = "joint_states"
+# every state of the loop, throttled to THROTTLE_RATE per second of sim time (topic_tools' name):
+# what an observer such as the live viewer takes, so the loop's own topic has no extra reader
+TOPIC_JOINT_STATES_THROTTLED = "joint_states_throttle"
+THROTTLE_RATE = 100.0
 TOPIC_EFFORT = "effort_controller/commands"
 TOPIC_REFERENCE = "reference"
 TOPIC_EE_DESIRED = "end_effector/desired"

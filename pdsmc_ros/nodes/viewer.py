@@ -1,12 +1,12 @@
 """Viewer node: the run live in Foxglove (``ws://localhost:8765``, "Open connection").
 
-Wiring around :class:`~pdsmc_ros.live_view.LiveView` and its Foxglove server: the
-node takes the loop's states and commands as an observer (best-effort subscriptions,
-never waited for: it cannot slow the loop) and, at ``display_rate`` frames per second
-of wall time, streams the newest state -- the arm's link transforms, its URDF, the
-desired path (the run's references, computed as the trajectory node does) and the
-actual one, the joint errors, contour error and torques (``live_view.CHANNELS``).
-Lockstep or real time alike. It ends when the plant leaves the graph, or on Ctrl-C.
+Wiring around :class:`~pdsmc_ros.live_view.LiveView` and its Foxglove server: the node
+takes the plant's states throttled to 100 per second of sim time (``/joint_states_throttle``,
+best effort: the loop's own topics get no extra reader) and, at ``display_rate`` frames per
+second of wall time, streams the newest state -- the arm's link transforms, its URDF, the
+desired path (the run's references, computed as the trajectory node does) and the actual
+one, the joint errors, contour error and torques (``live_view.CHANNELS``). Lockstep or real
+time alike. It ends when the plant leaves the graph, or on Ctrl-C.
 """
 
 from __future__ import annotations
@@ -17,15 +17,14 @@ from collections.abc import Sequence
 
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Float64MultiArray
 
-from ..bag.cdr import decode_float64_multi_array, decode_joint_state_named
+from ..bag.cdr import decode_joint_state_named
 from ..errors import CdrError, ConfigError
 from ..live_view import DEFAULT_DISPLAY_RATE, FoxgloveView, LiveView
 from .executor import run_node
 from .lifecycle import EXIT_OK, end_when_plant_leaves
 from .params import declare_int_parameter, declare_node_run, refuse_run_changes
-from .topics import OBSERVER_QOS, STEADY_CLOCK, TOPIC_EFFORT, TOPIC_JOINT_STATES
+from .topics import OBSERVER_QOS, STEADY_CLOCK, TOPIC_JOINT_STATES_THROTTLED
 
 MAX_DISPLAY_RATE = 240.0
 
@@ -54,29 +53,29 @@ class ViewerNode:
         self.done = False
         self.exit_code = EXIT_OK
         self.states_received = 0
-        node.create_subscription(JointState, TOPIC_JOINT_STATES, self.on_state, OBSERVER_QOS, raw=True)
-        node.create_subscription(Float64MultiArray, TOPIC_EFFORT, self.on_effort, OBSERVER_QOS, raw=True)
+        self.newest_state: bytes | None = None
+        # the plant's states throttled to 100 per second of sim time (their effort field is the
+        # applied torque): the loop's own /joint_states gets no extra reader
+        node.create_subscription(JointState, TOPIC_JOINT_STATES_THROTTLED, self.on_state, OBSERVER_QOS, raw=True)
         node.create_timer(1.0 / float(rate), self.show, clock=STEADY_CLOCK)
         self.plant_watch = end_when_plant_leaves(self, lambda: self.states_received)
         node.get_logger().info(f"serving the {self.spec.robot} run on ws://{host}:{self.server.port} "
                                f"at {float(rate):g} frames/s (Foxglove: Open connection)")
 
     def on_state(self, data: bytes) -> None:
-        try:
-            names, sec, nanosec, position, _, _ = decode_joint_state_named(data)
-        except CdrError:
-            return  # an observer: a malformed message is the plant's and the recorder's concern
+        # keep the bytes only; the newest is decoded when a frame is shown
+        self.newest_state = data
         self.states_received += 1
-        self.view.add_state(sec, nanosec, names, position)
-
-    def on_effort(self, data: bytes) -> None:
-        try:
-            _, values = decode_float64_multi_array(data)
-        except CdrError:
-            return
-        self.view.add_effort(values)
 
     def show(self) -> None:
+        state, self.newest_state = self.newest_state, None
+        try:
+            if state is not None:
+                names, sec, nanosec, position, _, effort = decode_joint_state_named(state)
+                self.view.add_state(sec, nanosec, names, position)
+                self.view.add_effort(effort)
+        except CdrError:
+            pass  # an observer: a malformed message is the plant's and the recorder's concern
         frame = self.view.frame()
         if frame is not None:
             self.server.publish(frame, time.time_ns())
