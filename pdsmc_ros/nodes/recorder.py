@@ -119,14 +119,14 @@ class RecorderNode:
             name = "/" + topic
             self.connections[topic] = self.writer.add_connection(name, type_name, typestore=typestore)
             self.inputs.subscribe(msg_type, topic, self._callback(topic), qos)
-        # the run as this recorder's parameters describe it, on disk now with the MCAP header:
-        # a bag from any moment on names its run, even before the controller's description
-        # (with its gains) has been discovered and received
         # the arm's link frames from the recorded states (bags that show the arm moving)
         self.tf = TfRecorder(self.spec.robot_description())
         self.tf_append = MessageAppender(self.writer, self.writer.add_connection("/tf", TF_TYPE, typestore=typestore))
         static = self.writer.add_connection("/tf_static", TF_TYPE, typestore=typestore)
         MessageAppender(self.writer, static).append_many(time.time_ns(), [self.tf.static_message()])
+        # the run as this recorder's parameters describe it, on disk now with the MCAP header:
+        # a bag from any moment on names its run, even before the controller's description
+        # (with its gains) has been discovered and received
         own = self.writer.add_connection(RECORDER_DESCRIPTION_TOPIC, "std_msgs/msg/String", typestore=typestore)
         MessageAppender(self.writer, own).append_many(
             time.time_ns(), [serialize_message(String(data=description_json(self.spec, run.mode)))])
@@ -145,13 +145,13 @@ class RecorderNode:
             try:
                 with self.lock:
                     append_many(time.time_ns(), batch)
+                    if topic == TOPIC_JOINT_STATES and (frames := self.tf.messages(batch)):
+                        self.tf_append.append_many(time.time_ns(), frames)
             except OSError as exc:
                 self.node.get_logger().error(f"write to {self.path} failed: {exc}")
                 self.exit_code = EXIT_FAILURE
                 self.done = True
                 return
-            if topic == TOPIC_JOINT_STATES:
-                self._transforms(batch)
             first = not self.counts[topic]
             self.counts[topic] += len(batch)
             if topic == TOPIC_DESCRIPTION:
@@ -165,12 +165,6 @@ class RecorderNode:
                 self.done = True
 
         return callback
-
-    def _transforms(self, batch: list[bytes]) -> None:
-        messages = self.tf.messages(batch)
-        if messages:
-            with self.lock:
-                self.tf_append.append_many(time.time_ns(), messages)
 
     def flush(self) -> None:
         """Write the pending chunk to disk (reaches the OS: survives SIGKILL)."""
