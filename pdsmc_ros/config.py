@@ -23,6 +23,18 @@ def _load_yaml(path: str) -> Any:
         raise ConfigError(f"{path} is not valid YAML: {exc}") from exc
 
 
+def read_yaml(path: str | Path, label: str) -> Any:
+    """A user's YAML file (uncached): its data, or one ConfigError line starting with ``label``."""
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"{label}: {getattr(exc, 'strerror', None) or exc}") from None
+    try:
+        return yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        raise ConfigError(f"{label}: not YAML ({str(exc).splitlines()[0]})") from None
+
+
 def load_config(name: str, directory: Path | None = None) -> Any:
     """Parsed ``config/<name>.yaml`` (cached; treat it as read-only)."""
     return _load_yaml(str((directory or config_dir()) / f"{name}.yaml"))

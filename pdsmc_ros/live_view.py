@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 
 from .bag.stamps import stamp_step, step_stamp
-from .presets import RunSpec, control_steps
+from .presets import RunSpec
 from .robots import UrdfRobot
 from .robots.base import FloatArray
 from .robots.frames import LinkFrames, Transform
@@ -79,7 +79,6 @@ class LiveView:
         # the run's references, computed as the trajectory node computes them (bit-identical):
         # the viewer need not take the stream of references sent ahead
         self.reference = spec.reference()
-        self.last_step = control_steps(self.reference.duration, spec.rate)
         self.torque: list[float] = [0.0] * self.n
         self.shown = -1
         self.actual_path: deque[FloatArray] = deque(maxlen=PATH_POINTS)
@@ -110,7 +109,7 @@ class LiveView:
         finite = bool(np.all(np.isfinite(q)))
         xy = self.robot.position(q) if finite else np.full(2, np.nan)
         actual = self.world(xy)
-        reference = self.reference.sample(np.array([min(max(step, 0), self.last_step) / self.spec.rate])).q[0]
+        reference = self.reference.sample(np.array([t])).q[0]  # held at its end after the duration
         desired = self.world(self.robot.position(reference))
         joint_error = (reference - q).tolist()
         contour_error = float(self.contour.contour_error(np.array([t]), xy[None, :])[0]) if finite else float("nan")
@@ -166,8 +165,8 @@ class FoxgloveView:
                                                    z=float(t.rotation[2]), w=float(t.rotation[3])))
             for t in frame.transforms]), log_time=log_time)
         self.description.log({"data": self.view.urdf}, log_time=log_time)
-        lines = [self._line(self.view.desired_path, (0.2, 0.4, 1.0, 1.0), "desired"),
-                 self._line(self.view.actual_path, (1.0, 0.3, 0.2, 1.0), "actual")]
+        lines = [self._line(self.view.desired_path, (0.2, 0.4, 1.0, 1.0)),
+                 self._line(self.view.actual_path, (1.0, 0.3, 0.2, 1.0))]
         self.paths.log(m.SceneUpdate(entities=[m.SceneEntity(timestamp=stamp, frame_id=self.root, id="end_effector",
                                                              lines=[line for line in lines if line is not None])]),
                        log_time=log_time)
@@ -176,7 +175,7 @@ class FoxgloveView:
         self.frames_sent += 1
 
     @staticmethod
-    def _line(points: deque[FloatArray], rgba: tuple[float, float, float, float], _label: str) -> Any:
+    def _line(points: deque[FloatArray], rgba: tuple[float, float, float, float]) -> Any:
         from foxglove import messages as m
 
         if len(points) < 2:

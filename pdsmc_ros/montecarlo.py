@@ -21,9 +21,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
-from .config import load_config
+from .config import load_config, read_yaml
 from .errors import ConfigError
 from .presets import RunSpec, make_run
 from .robots import ROBOTS, UrdfRobot, make_robot, robot_params
@@ -61,12 +60,7 @@ def load_uncertainty(path: str | Path | None = None) -> dict[str, Spread]:
         data = load_config("uncertainty")
     else:
         where = str(path)
-        try:
-            data = yaml.safe_load(Path(path).read_text())
-        except OSError as exc:
-            raise ConfigError(f"--uncertainty {where!r}: {exc.strerror}") from None
-        except yaml.YAMLError as exc:
-            raise ConfigError(f"--uncertainty {where!r}: not YAML ({str(exc).splitlines()[0]})") from None
+        data = read_yaml(path, f"--uncertainty {where!r}")
     if not isinstance(data, Mapping):
         raise ConfigError(f"{where}: expected a mapping of parameters ({', '.join(PARAMETERS)})")
     spreads = {}

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike
 
+from .config import read_yaml
 from .errors import ConfigError, InvalidInputError, UnreachableError
 from .robots.base import FloatArray, Manipulator, as_vector
 
@@ -449,18 +450,10 @@ def load_joint_waypoints(path: str | Path, n: int) -> tuple[FloatArray, FloatArr
         column count, a non-number, times not starting at 0 or not increasing, fewer than two points.
     """
     where = str(path)
-    try:
-        text = Path(path).read_text()
-    except OSError as exc:
-        raise ConfigError(f"joint waypoints {where!r}: {exc.strerror}") from None
+    label = f"joint waypoints {where!r}"
     rows: list[tuple[float, list[float]]] = []
     if Path(path).suffix.lower() in (".yaml", ".yml"):
-        import yaml
-
-        try:
-            data = yaml.safe_load(text)
-        except yaml.YAMLError as exc:
-            raise ConfigError(f"joint waypoints {where!r}: not YAML ({str(exc).splitlines()[0]})") from None
+        data = read_yaml(path, label)
         points = data.get("points") if isinstance(data, dict) else None
         if not isinstance(points, list):
             raise ConfigError(f"joint waypoints {where!r}: expected 'points: [{{t: ..., q: [...]}}, ...]'")
@@ -473,6 +466,10 @@ def load_joint_waypoints(path: str | Path, n: int) -> tuple[FloatArray, FloatArr
                 raise ConfigError(f"joint waypoints {where!r}: point {i} has {len(rows[-1][1])} joint values, "
                                   f"the robot has {n} joints")
     else:
+        try:
+            text = Path(path).read_text()
+        except OSError as exc:
+            raise ConfigError(f"{label}: {exc.strerror}") from None
         for lineno, line in enumerate(csv.reader(text.splitlines()), 1):
             if not line or not "".join(line).strip() or line[0].lstrip().startswith("#"):
                 continue

@@ -21,10 +21,13 @@ from typing import Any
 import numpy as np
 import yaml
 
+from .config import read_yaml
 from .control.gains import Gains
 from .control.registry import GAIN_NAMES, law
 from .errors import ConfigError, PdsmcError
 from .presets import RunSpec, make_run
+from .robots import ROBOTS
+from .robots.catalog import resolve_robot
 
 SWEPT = ("kp", "kd", "ks", "lam")
 """The gains the recipe sweeps, in its order (phi keeps its starting value)."""
@@ -195,9 +198,6 @@ def _evaluator(spec: RunSpec, limit: np.ndarray, scheduler: str | None
 def _spec(robot: str, contour: str, controller: str, rate: float | None) -> RunSpec:
     """The run to tune: the robot's settings with placeholder gains (replaced per candidate)."""
     needed = law(controller).gains
-    from .robots import ROBOTS
-    from .robots.catalog import resolve_robot
-
     n = ROBOTS[resolve_robot(robot)].n
     placeholder = Gains.from_mapping({k: [1.0] * n for k in needed}, n, controller)
     return make_run(robot, contour, controller, rate=rate, gains=placeholder)
@@ -228,12 +228,7 @@ def read_params_file(path: str | Path, n: int, controller: str, *, node: str = N
     ConfigError
         One line naming the file and what is wrong.
     """
-    try:
-        data = yaml.safe_load(Path(path).read_text())
-    except OSError as exc:
-        raise ConfigError(f"params file {str(path)!r}: {exc.strerror}") from None
-    except yaml.YAMLError as exc:
-        raise ConfigError(f"params file {str(path)!r}: not YAML ({str(exc).splitlines()[0]})") from None
+    data = read_yaml(path, f"params file {str(path)!r}")
     block = data.get(node, data.get("/**")) if isinstance(data, Mapping) else None
     params = block.get("ros__parameters") if isinstance(block, Mapping) else None
     if not isinstance(params, Mapping):

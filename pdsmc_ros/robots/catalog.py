@@ -17,9 +17,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-import yaml
-
-from ..config import load_config
+from ..config import load_config, read_yaml
 from ..errors import ConfigError, InvalidInputError
 from .registry import ROBOTS, register_robot, robot_names, unregister_robot
 from .task import TaskPlane
@@ -95,10 +93,7 @@ def resolve_robot(name: str) -> str:
         options: dict[str, Any] = {}
         beside = path.with_suffix(".yaml")
         if beside.is_file():
-            try:
-                options = yaml.safe_load(beside.read_text()) or {}
-            except (OSError, yaml.YAMLError) as exc:
-                raise ConfigError(f"{beside}: not readable YAML ({str(exc).splitlines()[0]})") from None
+            options = read_yaml(beside, str(beside)) or {}
             if not isinstance(options, dict):
                 raise ConfigError(f"{beside}: must be a mapping of options, got {type(options).__name__}")
         _register(name, path, options, str(beside))
