@@ -112,10 +112,10 @@ def smc_linear_gains(g: FloatArray, smc_model: FloatArray, mass: FloatArray) -> 
 # --------------------------------------------------------------------------- #
 # Compiled forms (one state; scratch from ``work``)
 # --------------------------------------------------------------------------- #
-@njit(cache=True)
-def _errors(g, q, qd, q_ref, qd_ref, e, ed, sat):  # noqa: ANN001, ANN202
+@njit(cache=True, inline="always")
+def _errors(g, q, qd, q_ref, qd_ref, e, ed, sat, n):  # noqa: ANN001, ANN202, PLR0913
     """``e``, ``edot`` (Eq. 3.2) and ``sat(s / phi)`` (Eq. 3.45)."""
-    for i in range(q.shape[0]):
+    for i in range(n):
         e[i] = q_ref[i] - q[i]
         ed[i] = qd_ref[i] - qd[i]
         s = (g[LAM, i] * e[i] + ed[i]) / g[PHI, i]
@@ -126,15 +126,15 @@ def _errors(g, q, qd, q_ref, qd_ref, e, ed, sat):  # noqa: ANN001, ANN202
         sat[i] = s
 
 
-@njit(cache=True)
-def _pd(g, e, ed, tau):  # noqa: ANN001, ANN202
-    for i in range(e.shape[0]):
+@njit(cache=True, inline="always")
+def _pd(g, e, ed, tau, n):  # noqa: ANN001, ANN202
+    for i in range(n):
         tau[i] = g[KP, i] * e[i] + g[KD, i] * ed[i]
 
 
-@njit(cache=True)
-def _pdsmc(g, e, ed, sat, tau):  # noqa: ANN001, ANN202
-    for i in range(e.shape[0]):
+@njit(cache=True, inline="always")
+def _pdsmc(g, e, ed, sat, tau, n):  # noqa: ANN001, ANN202
+    for i in range(n):
         tau[i] = g[KP, i] * e[i] + g[KD, i] * ed[i] + g[KS, i] * sat[i]
 
 
@@ -146,14 +146,13 @@ def _smc(g, m, kind, p, q, qd, q_ref, qd_ref, qdd_ref, e, ed, sat, tau, work):  
     if m[AT_DESIRED] != 0.0:
         qm = q_ref
         qdm = qd_ref
-    v, rest = robot.rows(work, 5, n)
-    bias = v[0]
-    grav = v[1]
-    qdd_r = v[2]
-    qd_r = v[3]
-    cor = v[4]
-    mass = rest[0 : n * n].reshape((n, n))
-    rest = rest[n * n :]
+    bias = work[0:n]
+    grav = work[n : 2 * n]
+    qdd_r = work[2 * n : 3 * n]
+    qd_r = work[3 * n : 4 * n]
+    cor = work[4 * n : 5 * n]
+    mass = work[5 * n : 5 * n + n * n].reshape((n, n))
+    rest = work[5 * n + n * n :]
     robot.terms(kind, p, qm, qdm, mass, bias, rest)
     if m[WITH_MOTOR_INERTIA] == 0.0:
         for i in range(n):
@@ -176,7 +175,7 @@ def _smc(g, m, kind, p, q, qd, q_ref, qd_ref, qdd_ref, e, ed, sat, tau, work):  
         )
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def compiled_torque(code, gains, smc_model, kind, p, x, tau, work):  # noqa: ANN001, ANN201
     """The law ``code`` (``PD``, ``SMC``, ``PDSMC``) for one state, into ``tau``.
 
@@ -188,20 +187,22 @@ def compiled_torque(code, gains, smc_model, kind, p, x, tau, work):  # noqa: ANN
     (:func:`pdsmc_ros.robots.compiled.pack`), ``work`` from
     :func:`pdsmc_ros.robots.compiled.workspace`.
     """
-    n = tau.shape[0]
+    n = robot.size(kind, tau.shape[0])
     q = x[0:n]
     qd = x[n : 2 * n]
     q_ref = x[2 * n : 3 * n]
     qd_ref = x[3 * n : 4 * n]
     qdd_ref = x[4 * n : 5 * n]
-    v, rest = robot.rows(work, 3, n)
-    _errors(gains, q, qd, q_ref, qd_ref, v[0], v[1], v[2])
+    e = work[0:n]
+    ed = work[n : 2 * n]
+    sat = work[2 * n : 3 * n]
+    _errors(gains, q, qd, q_ref, qd_ref, e, ed, sat, n)
     if code == PD:
-        _pd(gains, v[0], v[1], tau)
+        _pd(gains, e, ed, tau, n)
     elif code == PDSMC:
-        _pdsmc(gains, v[0], v[1], v[2], tau)
+        _pdsmc(gains, e, ed, sat, tau, n)
     elif code == SMC:
-        _smc(gains, smc_model, kind, p, q, qd, q_ref, qd_ref, qdd_ref, v[0], v[1], v[2], tau, rest)
+        _smc(gains, smc_model, kind, p, q, qd, q_ref, qd_ref, qdd_ref, e, ed, sat, tau, work[3 * n :])
 
 
 register_law(LawEntry("pd", "PD", ("kp", "kd"), pd_torque, "Eq. (3.4)", PD, pd_linear_gains))

@@ -7,9 +7,9 @@ The building block of both thesis robots. Written in absolute link angles
 along link ``a``), which makes mass matrix, Coriolis and gravity terms a few
 vectorised lines, exact for any number of links and any payload.
 
-The compiled functions (numba, scalar loops) compute the same terms for one
-state. They allocate nothing: each takes a scratch array ``work`` and carves
-its temporaries out of it (see :func:`pdsmc_ros.robots.compiled.workspace`).
+The thesis arms write the mass matrix and ``C qd + G`` out in scalars for their
+fixed link counts (``serial_3r._terms``, ``parallel_5r_kernels._chain``); the
+compiled ``C(q, qd) v`` below, a loop over the links, serves both.
 """
 
 from __future__ import annotations
@@ -142,53 +142,9 @@ class PlanarChain:
         return self.gravity * np.sum(self.w * np.sin(self.absolute(q)), axis=-1)
 
 
-@njit(cache=True)
-def chain_mass_bias(W, w, inertia, g, q, qd, mass, bias, work):  # noqa: ANN001, ANN202
-    """Link mass matrix and ``C qd + G`` of a planar chain (see PlanarChain).
-
-    ``cos(theta_a - theta_b)`` and ``sin(theta_a - theta_b)`` come from the
-    sines and cosines of the absolute angles (one pair per link).
-    """
-    n = q.shape[0]
-    c = work[0:n]
-    s = work[n : 2 * n]
-    thd = work[2 * n : 3 * n]
-    y = work[3 * n : 4 * n]
-    m_abs = work[4 * n : 4 * n + n * n]  # row-major n x n
-    acc = 0.0
-    accd = 0.0
-    for a in range(n):
-        acc += q[a]
-        accd += qd[a]
-        c[a] = math.cos(acc)
-        s[a] = math.sin(acc)
-        thd[a] = accd
-    for a in range(n):
-        ya = g * w[a] * c[a]
-        for b in range(n):
-            wab = W[a * n + b]
-            m_abs[a * n + b] = wab * (c[a] * c[b] + s[a] * s[b])
-            ya += wab * (s[a] * c[b] - c[a] * s[b]) * thd[b] * thd[b]
-        m_abs[a * n + a] += inertia[a]
-        y[a] = ya
-    for i in range(n):
-        total = 0.0
-        for a in range(i, n):
-            total += y[a]
-        bias[i] = total
-        for j in range(i, n):
-            total = 0.0
-            for a in range(i, n):
-                for b in range(j, n):
-                    total += m_abs[a * n + b]
-            mass[i, j] = total
-            mass[j, i] = total
-
-
-@njit(cache=True)
-def chain_coriolis_times(W, q, qd, v, out, work):  # noqa: ANN001, ANN202
-    """``C(q, qd) v`` of a planar chain: ``L^T C_theta L v``."""
-    n = q.shape[0]
+@njit(cache=True, inline="always")
+def chain_coriolis_times(W, q, qd, v, out, work, n):  # noqa: ANN001, ANN202, PLR0913
+    """``C(q, qd) v`` of a planar chain of ``n`` links: ``L^T C_theta L v``."""
     c = work[0:n]
     s = work[n : 2 * n]
     thd = work[2 * n : 3 * n]

@@ -9,6 +9,15 @@ Why compiled at all: a 10 kHz loop written with small numpy arrays spends most
 of its time in per-call overhead (docs/PERFORMANCE.md). The functions allocate
 nothing; temporaries live in a caller-owned scratch array (:func:`workspace`),
 carved into rows of ``n`` with :func:`rows`.
+
+The hot path -- the four forward-dynamics calls of an RK4 step -- is chosen at
+compile time instead: :func:`accelerations` and :func:`size` take the robot
+code as a constant (callers branch once on it and pass ``SERIAL_3R``,
+``PARALLEL_5R`` or ``SERIAL_CHAIN``), so each loop is compiled per robot with
+that robot's terms inlined, a thesis arm's joint count is a constant and every
+loop over the joints unrolls. Scratch is carved once per run, not per call.
+bench/kernel.py measures the result against the same arithmetic unrolled by
+hand (docs/PERFORMANCE.md).
 """
 
 from __future__ import annotations
@@ -17,6 +26,9 @@ import math
 
 import numpy as np
 from numba import njit
+from numba.core import types
+from numba.core.errors import TypingError
+from numba.extending import overload
 
 from . import parallel_5r_kernels as five_bar
 from . import serial_3r as serial
@@ -42,6 +54,25 @@ def pack(robot: Manipulator) -> tuple[int, FloatArray]:
     return robot.kernel, robot.pack()
 
 
+_FIXED_SIZE = {SERIAL_3R: serial.N, PARALLEL_5R: five_bar.N}
+
+
+def size(kind: int, n: int) -> int:
+    """Joints of robot ``kind``: the thesis arms' constant when ``kind`` is a compile-time constant, else ``n``.
+
+    Compiled code only (:func:`numba.extending.overload`).
+    """
+    raise NotImplementedError("size() is called from compiled code only")
+
+
+@overload(size, inline="always")
+def _size(kind, n):  # noqa: ANN001, ANN202
+    fixed = _FIXED_SIZE.get(kind.literal_value, 0) if isinstance(kind, types.IntegerLiteral) else 0
+    if fixed:
+        return lambda kind, n: fixed
+    return lambda kind, n: n
+
+
 @njit(cache=True)
 def rows(work, count, n):  # noqa: ANN001, ANN201
     """``count`` rows of ``n`` floats from the front of ``work``, and the rest of it."""
@@ -51,7 +82,7 @@ def rows(work, count, n):  # noqa: ANN001, ANN201
 # --------------------------------------------------------------------------- #
 # Dispatch: one line per robot
 # --------------------------------------------------------------------------- #
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def terms(kind, p, q, qd, mass, bias, work):  # noqa: ANN001, ANN201
     """``Mbar(q)`` (motor inertia included) and ``C(q, qd) qd + G(q)``."""
     if kind == SERIAL_3R:
@@ -84,7 +115,7 @@ def gravity(kind, p, q, out, work):  # noqa: ANN001, ANN201
         chain.gravity(p, q, out, work)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def damping(kind, p, i):  # noqa: ANN001, ANN201
     """Motor damping ``B_i``."""
     if kind == SERIAL_3R:
@@ -94,7 +125,7 @@ def damping(kind, p, i):  # noqa: ANN001, ANN201
     return five_bar.damping(p, i)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def motor_inertia(kind, p, i):  # noqa: ANN001, ANN201
     """Motor inertia ``J_i``."""
     if kind == SERIAL_3R:
@@ -123,10 +154,9 @@ def outputs(kind, p, q, qd, out, work):  # noqa: ANN001, ANN201
 # --------------------------------------------------------------------------- #
 # Any robot
 # --------------------------------------------------------------------------- #
-@njit(cache=True)
-def solve_spd(m, b, out, work):  # noqa: ANN001, ANN201
-    """Solve ``m x = b`` for a small symmetric positive definite ``m`` (Cholesky)."""
-    n = b.shape[0]
+@njit(cache=True, inline="always")
+def solve_spd(m, b, out, work, n):  # noqa: ANN001, ANN201
+    """Solve ``m x = b`` for a small symmetric positive definite ``m`` of size ``n`` (Cholesky)."""
     lower = work[0 : n * n]  # row-major; only the lower triangle is used
     y = work[n * n : n * n + n]
     for i in range(n):
@@ -150,16 +180,51 @@ def solve_spd(m, b, out, work):  # noqa: ANN001, ANN201
         out[i] = s / lower[i * n + i]
 
 
+def accelerations(kind: int, p: FloatArray, q: FloatArray, qd: FloatArray, tau: FloatArray, out: FloatArray,
+                  work: FloatArray) -> None:
+    """Eq. (4.1) of robot ``kind`` -- a compile-time constant -- into ``out``.
+
+    Compiled code only (:func:`numba.extending.overload`): the call is resolved to the
+    robot's own ``accelerations`` when the caller is compiled, so a loop of many steps
+    pays no dispatch. The thesis arms' are written out in scalars.
+    """
+    raise NotImplementedError("accelerations() is called from compiled code only")
+
+
+@njit(cache=True)
+def _serial_chain_accelerations(p, q, qd, tau, out, work):  # noqa: ANN001, ANN202
+    n = q.shape[0]
+    rhs = work[0:n]
+    mass = work[n : n + n * n].reshape((n, n))
+    rest = work[n + n * n :]
+    chain.terms(p, q, qd, mass, rhs, rest)
+    for i in range(n):
+        rhs[i] = tau[i] - rhs[i] - chain.damping(p, i) * qd[i]
+    solve_spd(mass, rhs, out, rest, n)
+
+
+_ACCELERATIONS = {SERIAL_3R: serial.accelerations, PARALLEL_5R: five_bar.accelerations,
+                  SERIAL_CHAIN: _serial_chain_accelerations}
+
+
+@overload(accelerations, inline="always")
+def _accelerations(kind, p, q, qd, tau, out, work):  # noqa: ANN001, ANN202, PLR0913
+    if not isinstance(kind, types.IntegerLiteral) or kind.literal_value not in _ACCELERATIONS:
+        raise TypingError(f"accelerations: the robot code must be a constant of {sorted(_ACCELERATIONS)}, got {kind}")
+    robot_accelerations = _ACCELERATIONS[kind.literal_value]
+
+    def impl(kind, p, q, qd, tau, out, work):  # noqa: ANN001, ANN202, PLR0913, ARG001
+        robot_accelerations(p, q, qd, tau, out, work)
+
+    return impl
+
+
 @njit(cache=True)
 def forward_dynamics(kind, p, q, qd, tau, out, work):  # noqa: ANN001, ANN201
     """Eq. (4.1): ``qdd = Mbar^{-1} (tau - C qd - B qd - G)`` into ``out``."""
-    n = q.shape[0]
-    vectors, rest = rows(work, 2, n)
-    bias = vectors[0]
-    rhs = vectors[1]
-    mass = rest[0 : n * n].reshape((n, n))
-    rest = rest[n * n :]
-    terms(kind, p, q, qd, mass, bias, rest)
-    for i in range(n):
-        rhs[i] = tau[i] - bias[i] - damping(kind, p, i) * qd[i]
-    solve_spd(mass, rhs, out, rest)
+    if kind == SERIAL_3R:
+        accelerations(SERIAL_3R, p, q, qd, tau, out, work)
+    elif kind == PARALLEL_5R:
+        accelerations(PARALLEL_5R, p, q, qd, tau, out, work)
+    elif kind == SERIAL_CHAIN:
+        accelerations(SERIAL_CHAIN, p, q, qd, tau, out, work)

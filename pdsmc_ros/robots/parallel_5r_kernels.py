@@ -11,10 +11,12 @@ import math
 
 from numba import njit
 
-from .chain import chain_coriolis_times, chain_mass_bias
+from .chain import chain_coriolis_times
 
 PARALLEL_5R = 1
 """Code of the compiled form (:mod:`pdsmc_ros.robots.compiled`)."""
+N = 2
+"""Actuated joints: a constant, so the compiled loops have known lengths."""
 
 # The flat parameter array of :meth:`Parallel5R.pack`, by name: each chain is
 # ``W(4) w(2) I(2) lengths(2)``
@@ -34,7 +36,7 @@ GEOMETRY_SIZE = 16
 
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _geometry(p, q, qd, geo):  # noqa: ANN001, ANN202
     """Open-tree angles/rates and ``R = d(q3, q4)/d(q1, q2)`` into ``geo``.
 
@@ -109,7 +111,7 @@ def _geometry(p, q, qd, geo):  # noqa: ANN001, ANN202
     geo[7] = r10 * qd[0] + r11 * qd[1]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _jdot_times(p, geo, vl0, vl1, vr0, vr1):  # noqa: ANN001, ANN202
     """``Jdot_left vl - Jdot_right vr`` (rates of the constraint), as two floats."""
     l1 = p[_L1]
@@ -140,17 +142,41 @@ def _jdot_times(p, geo, vl0, vl1, vr0, vr1):  # noqa: ANN001, ANN202
     return lx - rx, ly - ry
 
 
-@njit(cache=True)
-def _chain_terms(p, geo, g, ml, mr, bl, br, work):  # noqa: ANN001, ANN202
-    """Mass matrices and ``C' qd' + G'`` of both open chains at ``geo``."""
-    left, right = _LEFT, _RIGHT
-    chain_mass_bias(p[left : left + 4], p[left + 4 : left + 6], p[left + 6 : left + 8], g, geo[0:2], geo[4:6],
-                    ml, bl, work)
-    chain_mass_bias(p[right : right + 4], p[right + 4 : right + 6], p[right + 6 : right + 8], g, geo[2:4],
-                    geo[6:8], mr, br, work)
+@njit(cache=True, inline="always")
+def _chain(p, base, g, th0, th1, d0, d1):  # noqa: ANN001, ANN202, PLR0913
+    """One open 2-link chain (parameters from ``p[base]``, layout ``W(4) w(2) I(2)``) at
+    relative angles ``th`` and rates ``d``: its mass matrix ``(k00, k01, k11)`` and
+    ``C' qd' + G'`` ``(b0, b1)``.
+
+    :class:`pdsmc_ros.robots.chain.PlanarChain`'s terms written out for two links,
+    in scalars so a closed loop keeps them in registers.
+    """
+    a0 = th0
+    a1 = a0 + th1
+    e0 = d0
+    e1 = e0 + d1
+    c0 = math.cos(a0)
+    s0 = math.sin(a0)
+    c1 = math.cos(a1)
+    s1 = math.sin(a1)
+    w00 = p[base]
+    w01 = p[base + 1]
+    w10 = p[base + 2]
+    w11 = p[base + 3]
+    m00 = w00 * (c0 * c0 + s0 * s0) + p[base + 6]
+    m01 = w01 * (c0 * c1 + s0 * s1)
+    m10 = w10 * (c1 * c0 + s1 * s0)
+    m11 = w11 * (c1 * c1 + s1 * s1) + p[base + 7]
+    y0 = g * p[base + 4] * c0
+    y0 += w00 * (s0 * c0 - c0 * s0) * e0 * e0
+    y0 += w01 * (s0 * c1 - c0 * s1) * e1 * e1
+    y1 = g * p[base + 5] * c1
+    y1 += w10 * (s1 * c0 - c1 * s0) * e0 * e0
+    y1 += w11 * (s1 * c1 - c1 * s1) * e1 * e1
+    return 0.0 + m00 + m01 + m10 + m11, 0.0 + m01 + m11, 0.0 + m11, 0.0 + y0 + y1, 0.0 + y1
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _passive_rates(geo, cdot0, cdot1):  # noqa: ANN001, ANN202
     """``rhodot qd`` for (q3, q4) from the constraint rates: ``-A_pas^{-1} cdot``."""
     pas0 = -(geo[12] * cdot0 + geo[13] * cdot1)
@@ -158,41 +184,64 @@ def _passive_rates(geo, cdot0, cdot1):  # noqa: ANN001, ANN202
     return pas0, pas1
 
 
-@njit(cache=True)
-def terms(p, q, qd, mass, bias, work):  # noqa: ANN001, ANN202
-    """Reduced ``Mbar`` and ``C qd + G`` of the five-bar."""
-    geo = work[0:GEOMETRY_SIZE]
-    _geometry(p, q, qd, geo)
-    ml = work[16:20].reshape((2, 2))
-    mr = work[20:24].reshape((2, 2))
-    bl = work[24:26]
-    br = work[26:28]
-    _chain_terms(p, geo, p[_G], ml, mr, bl, br, work[28:])
+@njit(cache=True, inline="always")
+def _terms(p, geo):  # noqa: ANN001, ANN202
+    """Reduced ``Mbar`` ``(m00, m01, m11)`` and ``C qd + G`` ``(b0, b1)`` at ``geo`` (:func:`_geometry`)."""
+    l00, l01, l11, lb0, lb1 = _chain(p, _LEFT, p[_G], geo[0], geo[1], geo[4], geo[5])
+    q00, q01, q11, qb0, qb1 = _chain(p, _RIGHT, p[_G], geo[2], geo[3], geo[6], geo[7])
     cdot0, cdot1 = _jdot_times(p, geo, geo[4], geo[5], geo[6], geo[7])
     pas0, pas1 = _passive_rates(geo, cdot0, cdot1)
     # f = C' qd' + M' rhodot qd + G' per chain
-    fl0 = bl[0] + ml[0, 1] * pas0
-    fl1 = bl[1] + ml[1, 1] * pas0
-    fr0 = br[0] + mr[0, 1] * pas1
-    fr1 = br[1] + mr[1, 1] * pas1
+    fl0 = lb0 + l01 * pas0
+    fl1 = lb1 + l11 * pas0
+    fr0 = qb0 + q01 * pas1
+    fr1 = qb1 + q11 * pas1
     # rho_left = [[1, 0], [r00, r01]], rho_right = [[0, 1], [r10, r11]]
     r00 = geo[8]
     r01 = geo[9]
     r10 = geo[10]
     r11 = geo[11]
-    bias[0] = fl0 + r00 * fl1 + r10 * fr1
-    bias[1] = r01 * fl1 + fr0 + r11 * fr1
+    b0 = fl0 + r00 * fl1 + r10 * fr1
+    b1 = r01 * fl1 + fr0 + r11 * fr1
     # rho^T M rho for each chain
-    m00 = ml[0, 0] + 2.0 * r00 * ml[0, 1] + r00 * r00 * ml[1, 1]
-    m01 = r01 * ml[0, 1] + r00 * r01 * ml[1, 1]
-    m11 = r01 * r01 * ml[1, 1]
-    m00 += r10 * r10 * mr[1, 1]
-    m01 += r10 * mr[0, 1] + r10 * r11 * mr[1, 1]
-    m11 += mr[0, 0] + 2.0 * r11 * mr[0, 1] + r11 * r11 * mr[1, 1]
-    mass[0, 0] = m00 + p[_J]
+    m00 = l00 + 2.0 * r00 * l01 + r00 * r00 * l11
+    m01 = r01 * l01 + r00 * r01 * l11
+    m11 = r01 * r01 * l11
+    m00 += r10 * r10 * q11
+    m01 += r10 * q01 + r10 * r11 * q11
+    m11 += q00 + 2.0 * r11 * q01 + r11 * r11 * q11
+    return m00 + p[_J], m01, m11 + p[_J + 1], b0, b1
+
+
+@njit(cache=True)
+def terms(p, q, qd, mass, bias, work):  # noqa: ANN001, ANN202
+    """Reduced ``Mbar`` and ``C qd + G`` of the five-bar."""
+    geo = work[0:GEOMETRY_SIZE]
+    _geometry(p, q, qd, geo)
+    m00, m01, m11, b0, b1 = _terms(p, geo)
+    mass[0, 0] = m00
     mass[0, 1] = m01
     mass[1, 0] = m01
-    mass[1, 1] = m11 + p[_J + 1]
+    mass[1, 1] = m11
+    bias[0] = b0
+    bias[1] = b1
+
+
+@njit(cache=True, inline="always")
+def accelerations(p, q, qd, tau, out, work):  # noqa: ANN001, ANN202
+    """Eq. (4.1) for the reduced model, ``qdd = Mbar^{-1} (tau - C qd - B qd - G)``, into ``out``."""
+    geo = work[0:GEOMETRY_SIZE]
+    _geometry(p, q, qd, geo)
+    m00, m01, m11, b0, b1 = _terms(p, geo)
+    x0 = tau[0] - b0 - p[_B] * qd[0]
+    x1 = tau[1] - b1 - p[_B + 1] * qd[1]
+    c00 = math.sqrt(m00)
+    c10 = m01 / c00
+    c11 = math.sqrt(m11 - c10 * c10)
+    z0 = x0 / c00
+    z1 = (x1 - c10 * z0) / c11
+    out[1] = z1 / c11
+    out[0] = (z0 - c10 * out[1]) / c00
 
 
 @njit(cache=True)
@@ -209,17 +258,16 @@ def coriolis_times(p, q, qd, v, out, work):  # noqa: ANN001, ANN202
     vr[1] = rho[2] * v[0] + rho[3] * v[1]
     cl = work[20:22]
     cr = work[22:24]
-    chain_coriolis_times(p[_LEFT:_LEFT + 4], geo[0:2], geo[4:6], vl, cl, work[40:])
-    chain_coriolis_times(p[_RIGHT:_RIGHT + 4], geo[2:4], geo[6:8], vr, cr, work[40:])
+    chain_coriolis_times(p[_LEFT:_LEFT + 4], geo[0:2], geo[4:6], vl, cl, work[40:], N)
+    chain_coriolis_times(p[_RIGHT:_RIGHT + 4], geo[2:4], geo[6:8], vr, cr, work[40:], N)
     cdot0, cdot1 = _jdot_times(p, geo, vl[0], vl[1], vr[0], vr[1])
     pas0, pas1 = _passive_rates(geo, cdot0, cdot1)
-    ml = work[24:28].reshape((2, 2))
-    mr = work[28:32].reshape((2, 2))
-    _chain_terms(p, geo, 0.0, ml, mr, work[32:34], work[34:36], work[40:])
-    fl0 = cl[0] + ml[0, 1] * pas0
-    fl1 = cl[1] + ml[1, 1] * pas0
-    fr0 = cr[0] + mr[0, 1] * pas1
-    fr1 = cr[1] + mr[1, 1] * pas1
+    _, l01, l11, _, _ = _chain(p, _LEFT, 0.0, geo[0], geo[1], geo[4], geo[5])
+    _, q01, q11, _, _ = _chain(p, _RIGHT, 0.0, geo[2], geo[3], geo[6], geo[7])
+    fl0 = cl[0] + l01 * pas0
+    fl1 = cl[1] + l11 * pas0
+    fr0 = cr[0] + q01 * pas1
+    fr1 = cr[1] + q11 * pas1
     out[0] = fl0 + rho[0] * fl1 + rho[2] * fr1
     out[1] = rho[1] * fl1 + fr0 + rho[3] * fr1
 
@@ -233,12 +281,12 @@ def gravity(p, q, out, work):  # noqa: ANN001, ANN202
     terms(p, q, qd, mass, out, work[6:])
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def motor_inertia(p, i):  # noqa: ANN001, ANN201
     return p[_J + i]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def damping(p, i):  # noqa: ANN001, ANN201
     return p[_B + i]
 

@@ -14,11 +14,13 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..errors import InvalidInputError, UnreachableError
 from .base import FloatArray, Manipulator, RobotParams, as_vector, diag
-from .chain import PlanarChain, chain_coriolis_times, chain_mass_bias
+from .chain import PlanarChain, chain_coriolis_times
 from .registry import register_robot, robot_params
 
 SERIAL_3R = 0
 """Code of the compiled form (:mod:`pdsmc_ros.robots.compiled`)."""
+N = 3
+"""Joints: a constant, so the compiled loops below have known lengths."""
 
 # The flat parameter array of :meth:`Serial3R.pack`, by name
 _W = 0  # W of the chain, row-major 3 x 3
@@ -141,18 +143,102 @@ class Serial3R(Manipulator):
 # --------------------------------------------------------------------------- #
 # Compiled form (one state; scratch from ``work``)
 # --------------------------------------------------------------------------- #
+@njit(cache=True, inline="always")
+def _terms(p, q0, q1, q2, w0, w1, w2):  # noqa: ANN001, ANN202, PLR0913, PLR0915
+    """``Mbar = M + J`` (upper triangle, row by row) and ``C qd + G``: nine floats.
+
+    :class:`PlanarChain`'s terms written out for three links, in scalars so a
+    closed loop keeps them in registers: absolute angles ``theta = L q``, then
+    ``W o cos(theta_a - theta_b) + diag(I)`` and ``C_theta thetad + G_theta``,
+    then the suffix sums of ``L^T (.) L``.
+    """
+    g = p[_G]
+    a0 = q0
+    a1 = a0 + q1
+    a2 = a1 + q2
+    d0 = w0
+    d1 = d0 + w1
+    d2 = d1 + w2
+    c0 = math.cos(a0)
+    s0 = math.sin(a0)
+    c1 = math.cos(a1)
+    s1 = math.sin(a1)
+    c2 = math.cos(a2)
+    s2 = math.sin(a2)
+    m00 = p[_W] * (c0 * c0 + s0 * s0) + p[_INERTIA]
+    m01 = p[_W + 1] * (c0 * c1 + s0 * s1)
+    m02 = p[_W + 2] * (c0 * c2 + s0 * s2)
+    m10 = p[_W + 3] * (c1 * c0 + s1 * s0)
+    m11 = p[_W + 4] * (c1 * c1 + s1 * s1) + p[_INERTIA + 1]
+    m12 = p[_W + 5] * (c1 * c2 + s1 * s2)
+    m20 = p[_W + 6] * (c2 * c0 + s2 * s0)
+    m21 = p[_W + 7] * (c2 * c1 + s2 * s1)
+    m22 = p[_W + 8] * (c2 * c2 + s2 * s2) + p[_INERTIA + 2]
+    y0 = g * p[_WG] * c0
+    y0 += p[_W] * (s0 * c0 - c0 * s0) * d0 * d0
+    y0 += p[_W + 1] * (s0 * c1 - c0 * s1) * d1 * d1
+    y0 += p[_W + 2] * (s0 * c2 - c0 * s2) * d2 * d2
+    y1 = g * p[_WG + 1] * c1
+    y1 += p[_W + 3] * (s1 * c0 - c1 * s0) * d0 * d0
+    y1 += p[_W + 4] * (s1 * c1 - c1 * s1) * d1 * d1
+    y1 += p[_W + 5] * (s1 * c2 - c1 * s2) * d2 * d2
+    y2 = g * p[_WG + 2] * c2
+    y2 += p[_W + 6] * (s2 * c0 - c2 * s0) * d0 * d0
+    y2 += p[_W + 7] * (s2 * c1 - c2 * s1) * d1 * d1
+    y2 += p[_W + 8] * (s2 * c2 - c2 * s2) * d2 * d2
+    return (
+        0.0 + m00 + m01 + m02 + m10 + m11 + m12 + m20 + m21 + m22 + p[_J],
+        0.0 + m01 + m02 + m11 + m12 + m21 + m22,
+        0.0 + m02 + m12 + m22,
+        0.0 + m11 + m12 + m21 + m22 + p[_J + 1],
+        0.0 + m12 + m22,
+        0.0 + m22 + p[_J + 2],
+        0.0 + y0 + y1 + y2,
+        0.0 + y1 + y2,
+        0.0 + y2,
+    )
+
+
 @njit(cache=True)
-def terms(p, q, qd, mass, bias, work):  # noqa: ANN001, ANN201
+def terms(p, q, qd, mass, bias, work):  # noqa: ANN001, ANN201, ARG001
     """``Mbar = M + J`` and ``C qd + G``."""
-    chain_mass_bias(p[_W:_W + 9], p[_WG:_WG + 3], p[_INERTIA:_INERTIA + 3], p[_G], q, qd, mass, bias, work)
-    for i in range(3):
-        mass[i, i] += p[_J + i]
+    k00, k01, k02, k11, k12, k22, b0, b1, b2 = _terms(p, q[0], q[1], q[2], qd[0], qd[1], qd[2])
+    mass[0, 0] = k00
+    mass[0, 1] = mass[1, 0] = k01
+    mass[0, 2] = mass[2, 0] = k02
+    mass[1, 1] = k11
+    mass[1, 2] = mass[2, 1] = k12
+    mass[2, 2] = k22
+    bias[0] = b0
+    bias[1] = b1
+    bias[2] = b2
+
+
+@njit(cache=True, inline="always")
+def accelerations(p, q, qd, tau, out, work):  # noqa: ANN001, ANN201, ARG001
+    """Eq. (4.1), ``qdd = Mbar^{-1} (tau - C qd - B qd - G)``, into ``out``: Cholesky in scalars."""
+    k00, k01, k02, k11, k12, k22, b0, b1, b2 = _terms(p, q[0], q[1], q[2], qd[0], qd[1], qd[2])
+    r0 = tau[0] - b0 - p[_B] * qd[0]
+    r1 = tau[1] - b1 - p[_B + 1] * qd[1]
+    r2 = tau[2] - b2 - p[_B + 2] * qd[2]
+    l00 = math.sqrt(k00)
+    l10 = k01 / l00
+    l11 = math.sqrt(k11 - l10 * l10)
+    l20 = k02 / l00
+    l21 = (k12 - l20 * l10) / l11
+    l22 = math.sqrt(k22 - l20 * l20 - l21 * l21)
+    z0 = r0 / l00
+    z1 = (r1 - l10 * z0) / l11
+    z2 = (r2 - l20 * z0 - l21 * z1) / l22
+    out[2] = z2 / l22
+    out[1] = (z1 - l21 * out[2]) / l11
+    out[0] = (z0 - l10 * out[1] - l20 * out[2]) / l00
 
 
 @njit(cache=True)
 def coriolis_times(p, q, qd, v, out, work):  # noqa: ANN001, ANN201
     """``C(q, qd) v``."""
-    chain_coriolis_times(p[_W:_W + 9], q, qd, v, out, work)
+    chain_coriolis_times(p[_W:_W + 9], q, qd, v, out, work, N)
 
 
 @njit(cache=True)
@@ -168,12 +254,12 @@ def gravity(p, q, out):  # noqa: ANN001, ANN201
             out[i] += ya
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def motor_inertia(p, i):  # noqa: ANN001, ANN201
     return p[_J + i]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def damping(p, i):  # noqa: ANN001, ANN201
     return p[_B + i]
 

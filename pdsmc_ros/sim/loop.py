@@ -16,7 +16,10 @@ from ..control.law import ControlLaw
 from ..control.laws import compiled_torque
 from ..robots import compiled as robot_compiled
 from ..robots.base import FloatArray, Manipulator
-from .rk4 import rk4_step, rk4_step_compiled
+from ..robots.parallel_5r_kernels import PARALLEL_5R
+from ..robots.serial_3r import SERIAL_3R
+from ..robots.spatial_kernels import SERIAL_CHAIN
+from .rk4 import carve, rk4_advance, rk4_step
 
 
 @njit(cache=True)
@@ -24,8 +27,26 @@ def _closed_loop_compiled(  # noqa: ANN202, PLR0913
     kind, p, code, gains, smc_model, model_kind, model_p, q0, qd0, refs, h, sample_every,
     out_q, out_qd, out_tau, work,
 ):  # noqa: ANN001
-    n = q0.shape[0]
+    # a constant robot code: the loop is compiled once per robot with its dynamics inlined
+    if kind == SERIAL_3R:
+        _loop(SERIAL_3R, p, code, gains, smc_model, model_kind, model_p, q0, qd0, refs, h, sample_every,
+              out_q, out_qd, out_tau, work)
+    elif kind == PARALLEL_5R:
+        _loop(PARALLEL_5R, p, code, gains, smc_model, model_kind, model_p, q0, qd0, refs, h, sample_every,
+              out_q, out_qd, out_tau, work)
+    elif kind == SERIAL_CHAIN:
+        _loop(SERIAL_CHAIN, p, code, gains, smc_model, model_kind, model_p, q0, qd0, refs, h, sample_every,
+              out_q, out_qd, out_tau, work)
+
+
+@njit(cache=True, inline="always")
+def _loop(  # noqa: ANN202, PLR0913
+    kind, p, code, gains, smc_model, model_kind, model_p, q0, qd0, refs, h, sample_every,
+    out_q, out_qd, out_tau, work,
+):  # noqa: ANN001
+    n = robot_compiled.size(kind, q0.shape[0])
     steps = refs.shape[0] - 1
+    stages, rest = carve(work, n)
     x = np.empty(5 * n)  # the law's inputs: q, qd, then the reference's three rows
     q = x[0:n]
     qd = x[n : 2 * n]
@@ -44,7 +65,7 @@ def _closed_loop_compiled(  # noqa: ANN202, PLR0913
                 out_qd[j, i] = qd[i]
                 out_tau[j, i] = tau[i]
         if k < steps:
-            rk4_step_compiled(kind, p, x, tau, h, work)  # q, qd at the front of x
+            rk4_advance(kind, p, q, qd, tau, h, stages, rest)
 
 
 def closed_loop(

@@ -12,6 +12,9 @@ from numba import njit
 
 from ..robots import compiled as robot
 from ..robots.base import FloatArray, Manipulator
+from ..robots.parallel_5r_kernels import PARALLEL_5R
+from ..robots.serial_3r import SERIAL_3R
+from ..robots.spatial_kernels import SERIAL_CHAIN
 
 
 def rk4_step(
@@ -45,6 +48,58 @@ def rk4_step(
     return q_next, qd_next
 
 
+@njit(cache=True, inline="always")
+def rk4_advance(kind, p, q, qd, tau, h, stages, work):  # noqa: ANN001, ANN201, PLR0913
+    """:func:`rk4_step_compiled` on ``q``, ``qd`` in place, with its scratch carved by the caller.
+
+    ``kind`` is a compile-time constant (see :func:`pdsmc_ros.robots.compiled.accelerations`);
+    ``stages`` is ``(STAGE_ROWS, n)``, ``work`` the rest: a loop of many steps carves
+    them once (:func:`pdsmc_ros.sim.loop.closed_loop`).
+    """
+    n = robot.size(kind, tau.shape[0])
+    half = 0.5 * h
+    a1 = stages[0]
+    a2 = stages[1]
+    a3 = stages[2]
+    a4 = stages[3]
+    v2 = stages[4]
+    v3 = stages[5]
+    v4 = stages[6]
+    x = stages[7]
+    q_out = stages[8]
+    qd_out = stages[9]
+    robot.accelerations(kind, p, q, qd, tau, a1, work)
+    for i in range(n):
+        v2[i] = qd[i] + half * a1[i]
+        x[i] = q[i] + half * qd[i]
+    robot.accelerations(kind, p, x, v2, tau, a2, work)
+    for i in range(n):
+        v3[i] = qd[i] + half * a2[i]
+        x[i] = q[i] + half * v2[i]
+    robot.accelerations(kind, p, x, v3, tau, a3, work)
+    for i in range(n):
+        v4[i] = qd[i] + h * a3[i]
+        x[i] = q[i] + h * v3[i]
+    robot.accelerations(kind, p, x, v4, tau, a4, work)
+    sixth = h / 6.0
+    for i in range(n):
+        q_out[i] = q[i] + sixth * (qd[i] + 2.0 * v2[i] + 2.0 * v3[i] + v4[i])
+        qd_out[i] = qd[i] + sixth * (a1[i] + 2.0 * a2[i] + 2.0 * a3[i] + a4[i])
+    for i in range(n):
+        q[i] = q_out[i]
+        qd[i] = qd_out[i]
+
+
+STAGE_ROWS = 10
+"""Rows of ``n`` floats :func:`rk4_advance` needs (stages, trial state, result)."""
+
+
+@njit(cache=True, inline="always")
+def carve(work, n):  # noqa: ANN001, ANN201
+    """``stages`` and the rest of :func:`rk4_advance`'s scratch, from ``work``."""
+    return work[0 : STAGE_ROWS * n].reshape((STAGE_ROWS, n)), work[STAGE_ROWS * n :]
+
+
 @njit(cache=True)
 def rk4_step_compiled(kind, p, state, tau, h, work):  # noqa: ANN001, ANN201
     """:func:`rk4_step` of a compiled robot ``(kind, p)``: advances ``state`` in place.
@@ -53,37 +108,12 @@ def rk4_step_compiled(kind, p, state, tau, h, work):  # noqa: ANN001, ANN201
     argument of a compiled call costs about 0.1 us).
     """
     n = tau.shape[0]
+    stages, rest = carve(work, n)
     q = state[0:n]
     qd = state[n : 2 * n]
-    half = 0.5 * h
-    v, rest = robot.rows(work, 10, n)
-    q_out = v[8]
-    qd_out = v[9]
-    a1 = v[0]
-    a2 = v[1]
-    a3 = v[2]
-    a4 = v[3]
-    v2 = v[4]
-    v3 = v[5]
-    v4 = v[6]
-    x = v[7]
-    robot.forward_dynamics(kind, p, q, qd, tau, a1, rest)
-    for i in range(n):
-        v2[i] = qd[i] + half * a1[i]
-        x[i] = q[i] + half * qd[i]
-    robot.forward_dynamics(kind, p, x, v2, tau, a2, rest)
-    for i in range(n):
-        v3[i] = qd[i] + half * a2[i]
-        x[i] = q[i] + half * v2[i]
-    robot.forward_dynamics(kind, p, x, v3, tau, a3, rest)
-    for i in range(n):
-        v4[i] = qd[i] + h * a3[i]
-        x[i] = q[i] + h * v3[i]
-    robot.forward_dynamics(kind, p, x, v4, tau, a4, rest)
-    sixth = h / 6.0
-    for i in range(n):
-        q_out[i] = q[i] + sixth * (qd[i] + 2.0 * v2[i] + 2.0 * v3[i] + v4[i])
-        qd_out[i] = qd[i] + sixth * (a1[i] + 2.0 * a2[i] + 2.0 * a3[i] + a4[i])
-    for i in range(n):
-        q[i] = q_out[i]
-        qd[i] = qd_out[i]
+    if kind == SERIAL_3R:
+        rk4_advance(SERIAL_3R, p, q, qd, tau, h, stages, rest)
+    elif kind == PARALLEL_5R:
+        rk4_advance(PARALLEL_5R, p, q, qd, tau, h, stages, rest)
+    elif kind == SERIAL_CHAIN:
+        rk4_advance(SERIAL_CHAIN, p, q, qd, tau, h, stages, rest)

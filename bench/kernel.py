@@ -1,0 +1,317 @@
+"""Benchmark: the compiled closed loop against the same maths unrolled by hand (issue 18).
+
+For each thesis arm (the serial 3R and the five-bar, circle, PD-SMC at 10 kHz) it runs
+
+- the production loop, :func:`pdsmc_ros.sim.loop.closed_loop` (what ``simulate`` runs), and
+- a reference written here for that one arm: the same arithmetic in the same order, every
+  loop unrolled into scalar locals, no dispatch, no scratch array -- the fastest form this
+  maths takes in numba,
+
+checks that both give the same samples bit for bit, and prints steps per second and their
+ratio. Target: production within 1.5x of the unrolled loop for both arms.
+
+Last line: ``serial_3r_ratio=X parallel_5r_ratio=Y``.
+
+Usage: python bench/kernel.py [--repeats 7]   (inside the venv, after make setup)
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import time
+
+import numpy as np
+from numba import njit
+
+from pdsmc_ros.control import ControlLaw
+from pdsmc_ros.control.registry import KD, KP, KS, LAM, PHI
+from pdsmc_ros.presets import make_run
+from pdsmc_ros.robots import parallel_5r_kernels as five_bar
+from pdsmc_ros.sim.loop import closed_loop
+from pdsmc_ros.sim.simulator import _reference_samples
+
+
+# --------------------------------------------------------------------------- #
+# The serial 3R, unrolled (serial_3r.terms + chain_mass_bias + compiled.solve_spd)
+# --------------------------------------------------------------------------- #
+@njit(cache=True)
+def _serial_accel(p, q0, q1, q2, w0, w1, w2, t0, t1, t2):  # noqa: ANN001, ANN202, PLR0913, PLR0915
+    """Eq. (4.1) for the 3R arm: ``qdd`` as three floats (layout of Serial3R.pack)."""
+    g = p[24]
+    a0 = q0
+    a1 = a0 + q1
+    a2 = a1 + q2
+    d0 = w0
+    d1 = d0 + w1
+    d2 = d1 + w2
+    c0 = math.cos(a0)
+    s0 = math.sin(a0)
+    c1 = math.cos(a1)
+    s1 = math.sin(a1)
+    c2 = math.cos(a2)
+    s2 = math.sin(a2)
+    # absolute-angle inertia W o cos(th_a - th_b) + diag(I), and y = C_th thd + G_th
+    m00 = p[0] * (c0 * c0 + s0 * s0) + p[12]
+    m01 = p[1] * (c0 * c1 + s0 * s1)
+    m02 = p[2] * (c0 * c2 + s0 * s2)
+    m10 = p[3] * (c1 * c0 + s1 * s0)
+    m11 = p[4] * (c1 * c1 + s1 * s1) + p[13]
+    m12 = p[5] * (c1 * c2 + s1 * s2)
+    m20 = p[6] * (c2 * c0 + s2 * s0)
+    m21 = p[7] * (c2 * c1 + s2 * s1)
+    m22 = p[8] * (c2 * c2 + s2 * s2) + p[14]
+    y0 = g * p[9] * c0
+    y0 += p[0] * (s0 * c0 - c0 * s0) * d0 * d0
+    y0 += p[1] * (s0 * c1 - c0 * s1) * d1 * d1
+    y0 += p[2] * (s0 * c2 - c0 * s2) * d2 * d2
+    y1 = g * p[10] * c1
+    y1 += p[3] * (s1 * c0 - c1 * s0) * d0 * d0
+    y1 += p[4] * (s1 * c1 - c1 * s1) * d1 * d1
+    y1 += p[5] * (s1 * c2 - c1 * s2) * d2 * d2
+    y2 = g * p[11] * c2
+    y2 += p[6] * (s2 * c0 - c2 * s0) * d0 * d0
+    y2 += p[7] * (s2 * c1 - c2 * s1) * d1 * d1
+    y2 += p[8] * (s2 * c2 - c2 * s2) * d2 * d2
+    # joint space: suffix sums, then the motor inertia J on the diagonal
+    b0 = 0.0 + y0 + y1 + y2
+    b1 = 0.0 + y1 + y2
+    b2 = 0.0 + y2
+    k00 = 0.0 + m00 + m01 + m02 + m10 + m11 + m12 + m20 + m21 + m22 + p[18]
+    k01 = 0.0 + m01 + m02 + m11 + m12 + m21 + m22
+    k02 = 0.0 + m02 + m12 + m22
+    k11 = 0.0 + m11 + m12 + m21 + m22 + p[19]
+    k12 = 0.0 + m12 + m22
+    k22 = 0.0 + m22 + p[20]
+    r0 = t0 - b0 - p[21] * w0
+    r1 = t1 - b1 - p[22] * w1
+    r2 = t2 - b2 - p[23] * w2
+    # Cholesky of the symmetric 3 x 3, then the two triangular solves
+    l00 = math.sqrt(k00)
+    l10 = k01 / l00
+    l11 = math.sqrt(k11 - l10 * l10)
+    l20 = k02 / l00
+    l21 = (k12 - l20 * l10) / l11
+    l22 = math.sqrt(k22 - l20 * l20 - l21 * l21)
+    z0 = r0 / l00
+    z1 = (r1 - l10 * z0) / l11
+    z2 = (r2 - l20 * z0 - l21 * z1) / l22
+    x2 = z2 / l22
+    x1 = (z1 - l21 * x2) / l11
+    x0 = (z0 - l10 * x1 - l20 * x2) / l00
+    return x0, x1, x2
+
+
+@njit(cache=True)
+def _sat(s):  # noqa: ANN001, ANN202
+    if s > 1.0:
+        return 1.0
+    if s < -1.0:
+        return -1.0
+    return s
+
+
+@njit(cache=True)
+def serial_pdsmc_loop(p, g, q_start, refs, h, every, out_q, out_qd, out_tau):  # noqa: ANN001, ANN201, PLR0913, PLR0915
+    """PD-SMC (Eq. 3.44) on the 3R arm with RK4 (sim.rk4), all in scalars."""
+    q0, q1, q2 = q_start[0], q_start[1], q_start[2]
+    v0 = v1 = v2 = 0.0
+    steps = refs.shape[0] - 1
+    half = 0.5 * h
+    sixth = h / 6.0
+    for k in range(steps + 1):
+        e0 = refs[k, 0, 0] - q0
+        e1 = refs[k, 0, 1] - q1
+        e2 = refs[k, 0, 2] - q2
+        f0 = refs[k, 1, 0] - v0
+        f1 = refs[k, 1, 1] - v1
+        f2 = refs[k, 1, 2] - v2
+        t0 = g[KP, 0] * e0 + g[KD, 0] * f0 + g[KS, 0] * _sat((g[LAM, 0] * e0 + f0) / g[PHI, 0])
+        t1 = g[KP, 1] * e1 + g[KD, 1] * f1 + g[KS, 1] * _sat((g[LAM, 1] * e1 + f1) / g[PHI, 1])
+        t2 = g[KP, 2] * e2 + g[KD, 2] * f2 + g[KS, 2] * _sat((g[LAM, 2] * e2 + f2) / g[PHI, 2])
+        if k % every == 0:
+            j = k // every
+            out_q[j, 0], out_q[j, 1], out_q[j, 2] = q0, q1, q2
+            out_qd[j, 0], out_qd[j, 1], out_qd[j, 2] = v0, v1, v2
+            out_tau[j, 0], out_tau[j, 1], out_tau[j, 2] = t0, t1, t2
+        if k == steps:
+            break
+        a10, a11, a12 = _serial_accel(p, q0, q1, q2, v0, v1, v2, t0, t1, t2)
+        u0, u1, u2 = v0 + half * a10, v1 + half * a11, v2 + half * a12
+        a20, a21, a22 = _serial_accel(p, q0 + half * v0, q1 + half * v1, q2 + half * v2, u0, u1, u2, t0, t1, t2)
+        r0, r1, r2 = v0 + half * a20, v1 + half * a21, v2 + half * a22
+        a30, a31, a32 = _serial_accel(p, q0 + half * u0, q1 + half * u1, q2 + half * u2, r0, r1, r2, t0, t1, t2)
+        z0, z1, z2 = v0 + h * a30, v1 + h * a31, v2 + h * a32
+        a40, a41, a42 = _serial_accel(p, q0 + h * r0, q1 + h * r1, q2 + h * r2, z0, z1, z2, t0, t1, t2)
+        q0 = q0 + sixth * (v0 + 2.0 * u0 + 2.0 * r0 + z0)
+        q1 = q1 + sixth * (v1 + 2.0 * u1 + 2.0 * r1 + z1)
+        q2 = q2 + sixth * (v2 + 2.0 * u2 + 2.0 * r2 + z2)
+        v0, v1, v2 = (v0 + sixth * (a10 + 2.0 * a20 + 2.0 * a30 + a40),
+                      v1 + sixth * (a11 + 2.0 * a21 + 2.0 * a31 + a41),
+                      v2 + sixth * (a12 + 2.0 * a22 + 2.0 * a32 + a42))
+
+
+# --------------------------------------------------------------------------- #
+# The five-bar, unrolled (parallel_5r_kernels.terms with its two 2-link chains
+# and the 2 x 2 solve in scalars; the closed-form geometry is the kernels' own)
+# --------------------------------------------------------------------------- #
+@njit(cache=True)
+def _chain2(p, base, g, th0, th1, d0, d1):  # noqa: ANN001, ANN202, PLR0913
+    """Joint-space mass matrix and ``C qd + G`` of a 2-link chain: ``k00, k01, k11, b0, b1``."""
+    a0 = th0
+    a1 = a0 + th1
+    e0 = d0
+    e1 = e0 + d1
+    c0 = math.cos(a0)
+    s0 = math.sin(a0)
+    c1 = math.cos(a1)
+    s1 = math.sin(a1)
+    w00, w01, w10, w11 = p[base], p[base + 1], p[base + 2], p[base + 3]
+    m00 = w00 * (c0 * c0 + s0 * s0) + p[base + 6]
+    m01 = w01 * (c0 * c1 + s0 * s1)
+    m10 = w10 * (c1 * c0 + s1 * s0)
+    m11 = w11 * (c1 * c1 + s1 * s1) + p[base + 7]
+    y0 = g * p[base + 4] * c0
+    y0 += w00 * (s0 * c0 - c0 * s0) * e0 * e0
+    y0 += w01 * (s0 * c1 - c0 * s1) * e1 * e1
+    y1 = g * p[base + 5] * c1
+    y1 += w10 * (s1 * c0 - c1 * s0) * e0 * e0
+    y1 += w11 * (s1 * c1 - c1 * s1) * e1 * e1
+    return 0.0 + m00 + m01 + m10 + m11, 0.0 + m01 + m11, 0.0 + m11, 0.0 + y0 + y1, 0.0 + y1
+
+
+@njit(cache=True)
+def _five_bar_accel(p, geo, q0, q1, w0, w1, t0, t1):  # noqa: ANN001, ANN202, PLR0913
+    """Eq. (4.1) for the five-bar's reduced model: ``qdd`` as two floats."""
+    five_bar._geometry(p, (q0, q1), (w0, w1), geo)
+    g = p[25]
+    l00, l01, l11, lb0, lb1 = _chain2(p, 0, g, geo[0], geo[1], geo[4], geo[5])
+    r00_, r01_, r11_, rb0, rb1 = _chain2(p, 10, g, geo[2], geo[3], geo[6], geo[7])
+    cdot0, cdot1 = five_bar._jdot_times(p, geo, geo[4], geo[5], geo[6], geo[7])
+    pas0, pas1 = five_bar._passive_rates(geo, cdot0, cdot1)
+    fl0 = lb0 + l01 * pas0
+    fl1 = lb1 + l11 * pas0
+    fr0 = rb0 + r01_ * pas1
+    fr1 = rb1 + r11_ * pas1
+    r00 = geo[8]
+    r01 = geo[9]
+    r10 = geo[10]
+    r11 = geo[11]
+    b0 = fl0 + r00 * fl1 + r10 * fr1
+    b1 = r01 * fl1 + fr0 + r11 * fr1
+    m00 = l00 + 2.0 * r00 * l01 + r00 * r00 * l11
+    m01 = r01 * l01 + r00 * r01 * l11
+    m11 = r01 * r01 * l11
+    m00 += r10 * r10 * r11_
+    m01 += r10 * r01_ + r10 * r11 * r11_
+    m11 += r00_ + 2.0 * r11 * r01_ + r11 * r11 * r11_
+    k00 = m00 + p[21]
+    k11 = m11 + p[22]
+    x0 = t0 - b0 - p[23] * w0
+    x1 = t1 - b1 - p[24] * w1
+    c00 = math.sqrt(k00)
+    c10 = m01 / c00
+    c11 = math.sqrt(k11 - c10 * c10)
+    z0 = x0 / c00
+    z1 = (x1 - c10 * z0) / c11
+    u1 = z1 / c11
+    u0 = (z0 - c10 * u1) / c00
+    return u0, u1
+
+
+@njit(cache=True)
+def five_bar_pdsmc_loop(p, g, q_start, refs, h, every, out_q, out_qd, out_tau):  # noqa: ANN001, ANN201, PLR0913
+    """PD-SMC (Eq. 3.44) on the five-bar with RK4 (sim.rk4), in scalars."""
+    geo = np.empty(five_bar.GEOMETRY_SIZE)
+    q0, q1 = q_start[0], q_start[1]
+    v0 = v1 = 0.0
+    steps = refs.shape[0] - 1
+    half = 0.5 * h
+    sixth = h / 6.0
+    for k in range(steps + 1):
+        e0 = refs[k, 0, 0] - q0
+        e1 = refs[k, 0, 1] - q1
+        f0 = refs[k, 1, 0] - v0
+        f1 = refs[k, 1, 1] - v1
+        t0 = g[KP, 0] * e0 + g[KD, 0] * f0 + g[KS, 0] * _sat((g[LAM, 0] * e0 + f0) / g[PHI, 0])
+        t1 = g[KP, 1] * e1 + g[KD, 1] * f1 + g[KS, 1] * _sat((g[LAM, 1] * e1 + f1) / g[PHI, 1])
+        if k % every == 0:
+            j = k // every
+            out_q[j, 0], out_q[j, 1] = q0, q1
+            out_qd[j, 0], out_qd[j, 1] = v0, v1
+            out_tau[j, 0], out_tau[j, 1] = t0, t1
+        if k == steps:
+            break
+        a10, a11 = _five_bar_accel(p, geo, q0, q1, v0, v1, t0, t1)
+        u0, u1 = v0 + half * a10, v1 + half * a11
+        a20, a21 = _five_bar_accel(p, geo, q0 + half * v0, q1 + half * v1, u0, u1, t0, t1)
+        r0, r1 = v0 + half * a20, v1 + half * a21
+        a30, a31 = _five_bar_accel(p, geo, q0 + half * u0, q1 + half * u1, r0, r1, t0, t1)
+        z0, z1 = v0 + h * a30, v1 + h * a31
+        a40, a41 = _five_bar_accel(p, geo, q0 + h * r0, q1 + h * r1, z0, z1, t0, t1)
+        q0 = q0 + sixth * (v0 + 2.0 * u0 + 2.0 * r0 + z0)
+        q1 = q1 + sixth * (v1 + 2.0 * u1 + 2.0 * r1 + z1)
+        v0, v1 = (v0 + sixth * (a10 + 2.0 * a20 + 2.0 * a30 + a40),
+                  v1 + sixth * (a11 + 2.0 * a21 + 2.0 * a31 + a41))
+
+
+UNROLLED = {"serial_3r": serial_pdsmc_loop, "parallel_5r": five_bar_pdsmc_loop}
+
+
+def best_rate(run, steps: int, repeats: int) -> float:  # noqa: ANN001
+    """Steps per second of ``run()``, best of ``repeats``."""
+    best = math.inf
+    for _ in range(repeats):
+        start = time.perf_counter()
+        run()
+        best = min(best, time.perf_counter() - start)
+    return steps / best
+
+
+def measure(robot: str, repeats: int) -> tuple[float, float, bool]:
+    """Production and unrolled steps/s of ``robot``'s circle under PD-SMC; identical samples?"""
+    spec = make_run(robot, "circle", "pdsmc")
+    _, refs = _reference_samples(spec)
+    plant = spec.robot_model()
+    law = ControlLaw.from_spec(spec)
+    h = 1.0 / spec.rate
+    every = spec.sample_every
+    steps = refs.shape[0] - 1
+    q_start = np.array(refs[0, 0])
+    count = steps // every + 1
+    outs = tuple(np.empty((count, plant.n)) for _ in range(3))
+    p = plant.pack()
+
+    def unrolled() -> None:
+        UNROLLED[robot](p, law.gains, q_start, refs, h, every, *outs)
+
+    def production() -> tuple[np.ndarray, ...]:
+        return closed_loop(plant, law, q_start, refs, h, every)
+
+    unrolled()
+    same = all(np.array_equal(a, b) for a, b in zip(production(), outs, strict=True))
+    fast = best_rate(unrolled, steps, repeats)
+    slow = best_rate(production, steps, repeats)
+    return slow, fast, same
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repeats", type=int, default=7)
+    args = parser.parse_args()
+    ratios = {}
+    for robot in UNROLLED:
+        slow, fast, same = measure(robot, args.repeats)
+        ratios[robot] = fast / slow
+        print(f"{robot} circle PD-SMC, 10 kHz: production {slow:,.0f} steps/s, unrolled {fast:,.0f} steps/s, "
+              f"ratio x{fast / slow:.2f}; samples identical: {'yes' if same else 'NO'}", flush=True)
+        if not same:
+            print(f"error: {robot}: the unrolled loop's samples differ from the production loop's", file=sys.stderr)
+            return 1
+    print(" ".join(f"{robot}_ratio={ratio:.2f}" for robot, ratio in ratios.items()))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
