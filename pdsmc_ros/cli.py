@@ -16,7 +16,7 @@ from typing import NoReturn
 import numpy as np
 
 from . import __version__
-from .errors import InvalidInputError, PdsmcError
+from .errors import ConfigError, InvalidInputError, PdsmcError
 
 EXIT_USAGE = 2
 EXIT_FAILURE = 1
@@ -431,12 +431,22 @@ def cmd_tune(args: argparse.Namespace) -> int:
                           if k in ("kp", "kd", "ks", "lam"))
         print(f"contour mean {error:>14s}  {candidate.verdict:.90s}  {gains}", file=sys.stderr, flush=True)
 
+    out = Path(args.out or f"{Path(args.robot).stem}_{args.contour}_{args.controller}.yaml")
+    if out.is_dir():
+        raise ConfigError(f"--out {str(out)!r} is a directory: give the params file's path")
+    try:  # before the search, not after it
+        out.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ConfigError(f"--out {str(out)!r}: cannot create {str(out.parent)!r} ({exc.strerror})") from None
     result = tune(args.robot, args.contour, args.controller, rate=args.rate, rounds=args.rounds,
                   progress=None if args.quiet else progress, scheduler=args.scheduler)
     spec = result.spec
-    out = Path(args.out or f"{Path(args.robot).stem}_{args.contour}_{args.controller}.yaml")
-    write_params_file(out, result.best.gains, controller=spec.controller, robot=spec.robot,
-                      contour=spec.contour, rate=spec.rate)
+    try:
+        write_params_file(out, result.best.gains, controller=spec.controller, robot=spec.robot,
+                          contour=spec.contour, rate=spec.rate)
+    except OSError as exc:
+        raise ConfigError(f"--out {str(out)!r}: cannot write it ({exc.strerror}); the best gains: "
+                          f"{result.best.gains.as_dict()}") from None
     tried = len(result.tried)
     refused = sum(not c.ok for c in result.tried)
     print(f"{spec.robot}/{spec.contour}/{spec.controller} at {spec.rate:g} Hz: contour error mean "

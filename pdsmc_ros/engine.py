@@ -17,6 +17,7 @@ import os
 import re
 import sys
 import time
+import uuid
 from collections.abc import Callable, Iterator, Sequence
 from typing import Any, TextIO
 
@@ -53,8 +54,18 @@ def dask_client(scheduler: str | None = None, workers: int | None = None) -> Ite
             client.close()
         return
     count = workers or os.cpu_count() or 1
-    cluster = LocalCluster(n_workers=count, threads_per_worker=1, processes=True, dashboard_address=None,
-                           silence_logs=logging.ERROR)
+    import dask
+
+    # What a worker does beside its task costs the task CPU on a small machine: the statistical
+    # profiler samples the running task's stack every 10 ms, the memory monitors poll every
+    # 100 ms (the runs need a few MB), the system monitor every 0.5 s (docs/PERFORMANCE.md).
+    # Workers of a local cluster inherit these settings; a user's own cluster keeps its own.
+    quiet = {"distributed.worker.profile.enabled": False, "distributed.worker.memory.target": False,
+             "distributed.worker.memory.spill": False, "distributed.worker.memory.pause": False,
+             "distributed.worker.memory.terminate": False, "distributed.admin.system-monitor.interval": "5s"}
+    with dask.config.set(quiet):
+        cluster = LocalCluster(n_workers=count, threads_per_worker=1, processes=True, dashboard_address=None,
+                               silence_logs=logging.ERROR)
     client = Client(cluster)
     try:
         yield client
@@ -70,7 +81,8 @@ def run_tasks(client: Any, fn: Callable[..., Any], arguments: Sequence[tuple[Any
     """
     from distributed import as_completed
 
-    futures = [client.submit(fn, *args, key=f"pdsmc-{fn.__name__}-{i}-{os.getpid()}-{time.time_ns()}", pure=False)
+    batch = uuid.uuid4().hex  # unique keys per call; "pdsmc_<fn>" is what a dashboard groups them by
+    futures = [client.submit(fn, *args, key=f"pdsmc_{fn.__name__}-{i}-{batch}", pure=False)
                for i, args in enumerate(arguments)]
     index = {future.key: i for i, future in enumerate(futures)}
     try:

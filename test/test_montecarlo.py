@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import dataclasses
 import os
 import signal
 import subprocess
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -77,6 +79,31 @@ def free_port() -> int:
         return int(sock.getsockname()[1])
 
 
+@contextlib.contextmanager
+def dask_cluster(workers: int) -> Iterator[tuple[str, list[subprocess.Popen]]]:
+    """``dask scheduler`` and ``workers`` ``dask worker`` processes from the venv; stopped by PID."""
+    port = free_port()
+    started: list[subprocess.Popen] = []
+    try:
+        started.append(subprocess.Popen([str(BIN / "dask"), "scheduler", "--host", "127.0.0.1", "--port", str(port),
+                                         "--no-dashboard"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                                        start_new_session=True))
+        for _ in range(workers):
+            started.append(subprocess.Popen([str(BIN / "dask"), "worker", f"tcp://127.0.0.1:{port}", "--nthreads",
+                                             "1", "--no-dashboard"], stdout=subprocess.DEVNULL,
+                                            stderr=subprocess.DEVNULL, start_new_session=True))
+        yield f"tcp://127.0.0.1:{port}", started
+    finally:
+        for proc in started:
+            if proc.poll() is None:
+                os.killpg(proc.pid, signal.SIGTERM)
+        for proc in started:
+            try:
+                proc.wait(timeout=20)
+            except subprocess.TimeoutExpired:
+                os.killpg(proc.pid, signal.SIGKILL)
+
+
 @pytest.mark.timeout(900)
 def test_the_table_is_the_same_on_a_local_cluster_and_on_a_scheduler_with_a_worker_killed(tmp_path: Path) -> None:
     local = montecarlo(*ARGS, "--runs", "24", "--workers", "2", "--out", str(tmp_path / "local"))
@@ -88,19 +115,10 @@ def test_the_table_is_the_same_on_a_local_cluster_and_on_a_scheduler_with_a_work
     assert len(rows) == 48 and {r["status"] for r in rows} == {"ok"}
     assert [r["run"] for r in rows] == [str(i // 2) for i in range(48)]
 
-    port = free_port()
-    started: list[subprocess.Popen] = []
-    try:
-        started.append(subprocess.Popen([str(BIN / "dask"), "scheduler", "--host", "127.0.0.1", "--port", str(port),
-                                         "--no-dashboard"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-                                        start_new_session=True))
-        for _ in range(2):
-            started.append(subprocess.Popen([str(BIN / "dask"), "worker", f"tcp://127.0.0.1:{port}", "--nthreads",
-                                             "1", "--no-dashboard"], stdout=subprocess.DEVNULL,
-                                            stderr=subprocess.DEVNULL, start_new_session=True))
+    with dask_cluster(2) as (address, started):
         out = tmp_path / "cluster"
         run = subprocess.Popen([sys.executable, "-m", "pdsmc_ros.cli", "montecarlo", *ARGS, "--runs", "24",
-                                "--scheduler", f"tcp://127.0.0.1:{port}", "--out", str(out)],
+                                "--scheduler", address, "--out", str(out)],
                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         # kill one worker once the first run is in (the rest still to do): its tasks are redone
         first = run.stderr.readline()  # type: ignore[union-attr]
@@ -110,15 +128,49 @@ def test_the_table_is_the_same_on_a_local_cluster_and_on_a_scheduler_with_a_work
         assert run.returncode == 0, first + err
         assert "montecarlo: 24/24 runs" in err
         assert (out / "montecarlo.csv").read_bytes() == (tmp_path / "local" / "montecarlo.csv").read_bytes()
-    finally:
-        for proc in started:
-            if proc.poll() is None:
-                os.killpg(proc.pid, signal.SIGTERM)
-        for proc in started:
-            try:
-                proc.wait(timeout=20)
-            except subprocess.TimeoutExpired:
-                os.killpg(proc.pid, signal.SIGKILL)
+
+
+def pdsmc(*args: str, timeout: float = 300) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "pdsmc_ros.cli", *args], capture_output=True, text=True,
+                          timeout=timeout)
+
+
+@pytest.mark.timeout(600)
+def test_sweep_tune_and_reproduce_on_a_scheduler_equal_their_local_runs(tmp_path: Path) -> None:
+    """The other commands with ``--scheduler``: the same files as without it, byte for byte."""
+    commands = {
+        "sweep_kp.csv": ["sweep", "--param", "kp", "--robot", "parallel_5r", "--contour", "circle",
+                         "--values", "100,1000"],
+        "gains.yaml": ["tune", "--robot", "parallel_5r", "--contour", "circle", "--controller", "pd",
+                       "--rounds", "1", "--quiet"],
+        "reproduction.csv": ["reproduce", "--only", "parallel_5r/circle/*/pd*", "--no-readings", "--quiet"],
+    }
+
+    def run(name: str, where: str, *engine: str) -> None:
+        command = commands[name]
+        out = tmp_path / where / name if name.endswith(".yaml") else tmp_path / where
+        proc = pdsmc(*command, *engine, "--out", str(out))
+        assert proc.returncode == 0, f"{command[0]} {engine}: {proc.stderr}"
+
+    def tasks_run(dask_scheduler) -> dict[str, int]:  # noqa: ANN001
+        return {name: sum(prefix.state_counts.values()) for name, prefix in dask_scheduler.task_prefixes.items()}
+
+    for name in commands:
+        run(name, "local")
+    from distributed import Client
+
+    with dask_cluster(1) as (address, _), Client(address, timeout="20s") as client:
+        counts = [client.run_on_scheduler(tasks_run)]
+        for name in commands:
+            run(name, "cluster", "--scheduler", address)
+            counts.append(client.run_on_scheduler(tasks_run))
+    # each command's runs were tasks of the cluster: 2 sweep values, tune's candidates, 2 reproduction cells
+    simulated = [c.get("pdsmc_simulate", 0) for c in counts]
+    assert simulated[1] - simulated[0] >= 2 and simulated[3] - simulated[2] >= 2, counts
+    assert counts[2].get("pdsmc_evaluate", 0) > counts[1].get("pdsmc_evaluate", 0), counts
+    for name in commands:
+        local = (tmp_path / "local" / name).read_bytes()
+        assert local and (tmp_path / "cluster" / name).read_bytes() == local, name
 
 
 @pytest.mark.timeout(600)
