@@ -3,9 +3,10 @@
 For each thesis arm (the serial 3R and the five-bar, circle, PD-SMC at 10 kHz) it runs
 
 - the production loop, :func:`pdsmc_ros.sim.loop.closed_loop` (what ``simulate`` runs), and
-- a reference written here for that one arm: the same arithmetic in the same order, every
-  loop unrolled into scalar locals, no dispatch, no scratch array -- the fastest form this
-  maths takes in numba,
+- a reference written here for that one arm: the same arithmetic in the same order in one
+  function -- the arm's scalar terms (the kernels' own), then the solve, RK4 and the law with
+  every loop over the joints unrolled into scalar locals, no dispatch, no scratch array: what
+  the generic loop (any robot, any law, arrays of n joints) costs over a hand-fused one,
 
 checks that both give the same samples bit for bit, and prints steps per second and their
 ratio. Target: production within 1.5x of the unrolled loop for both arms.
@@ -29,65 +30,22 @@ from pdsmc_ros.control import ControlLaw
 from pdsmc_ros.control.registry import KD, KP, KS, LAM, PHI
 from pdsmc_ros.presets import make_run
 from pdsmc_ros.robots import parallel_5r_kernels as five_bar
+from pdsmc_ros.robots import serial_3r as serial
 from pdsmc_ros.sim.loop import closed_loop
 from pdsmc_ros.sim.simulator import _reference_samples
 
 
 # --------------------------------------------------------------------------- #
-# The serial 3R, unrolled (serial_3r.terms + chain_mass_bias + compiled.solve_spd)
+# The serial 3R, unrolled: its scalar terms (serial_3r._terms, shared with the
+# production loop), the Cholesky solve, RK4 and the law in scalars, one function
 # --------------------------------------------------------------------------- #
 @njit(cache=True)
-def _serial_accel(p, q0, q1, q2, w0, w1, w2, t0, t1, t2):  # noqa: ANN001, ANN202, PLR0913, PLR0915
-    """Eq. (4.1) for the 3R arm: ``qdd`` as three floats (layout of Serial3R.pack)."""
-    g = p[24]
-    a0 = q0
-    a1 = a0 + q1
-    a2 = a1 + q2
-    d0 = w0
-    d1 = d0 + w1
-    d2 = d1 + w2
-    c0 = math.cos(a0)
-    s0 = math.sin(a0)
-    c1 = math.cos(a1)
-    s1 = math.sin(a1)
-    c2 = math.cos(a2)
-    s2 = math.sin(a2)
-    # absolute-angle inertia W o cos(th_a - th_b) + diag(I), and y = C_th thd + G_th
-    m00 = p[0] * (c0 * c0 + s0 * s0) + p[12]
-    m01 = p[1] * (c0 * c1 + s0 * s1)
-    m02 = p[2] * (c0 * c2 + s0 * s2)
-    m10 = p[3] * (c1 * c0 + s1 * s0)
-    m11 = p[4] * (c1 * c1 + s1 * s1) + p[13]
-    m12 = p[5] * (c1 * c2 + s1 * s2)
-    m20 = p[6] * (c2 * c0 + s2 * s0)
-    m21 = p[7] * (c2 * c1 + s2 * s1)
-    m22 = p[8] * (c2 * c2 + s2 * s2) + p[14]
-    y0 = g * p[9] * c0
-    y0 += p[0] * (s0 * c0 - c0 * s0) * d0 * d0
-    y0 += p[1] * (s0 * c1 - c0 * s1) * d1 * d1
-    y0 += p[2] * (s0 * c2 - c0 * s2) * d2 * d2
-    y1 = g * p[10] * c1
-    y1 += p[3] * (s1 * c0 - c1 * s0) * d0 * d0
-    y1 += p[4] * (s1 * c1 - c1 * s1) * d1 * d1
-    y1 += p[5] * (s1 * c2 - c1 * s2) * d2 * d2
-    y2 = g * p[11] * c2
-    y2 += p[6] * (s2 * c0 - c2 * s0) * d0 * d0
-    y2 += p[7] * (s2 * c1 - c2 * s1) * d1 * d1
-    y2 += p[8] * (s2 * c2 - c2 * s2) * d2 * d2
-    # joint space: suffix sums, then the motor inertia J on the diagonal
-    b0 = 0.0 + y0 + y1 + y2
-    b1 = 0.0 + y1 + y2
-    b2 = 0.0 + y2
-    k00 = 0.0 + m00 + m01 + m02 + m10 + m11 + m12 + m20 + m21 + m22 + p[18]
-    k01 = 0.0 + m01 + m02 + m11 + m12 + m21 + m22
-    k02 = 0.0 + m02 + m12 + m22
-    k11 = 0.0 + m11 + m12 + m21 + m22 + p[19]
-    k12 = 0.0 + m12 + m22
-    k22 = 0.0 + m22 + p[20]
+def _serial_accel(p, q0, q1, q2, w0, w1, w2, t0, t1, t2):  # noqa: ANN001, ANN202, PLR0913
+    """Eq. (4.1) for the 3R arm: ``qdd`` as three floats (the arm's scalar terms, then Cholesky)."""
+    k00, k01, k02, k11, k12, k22, b0, b1, b2 = serial._terms(p, q0, q1, q2, w0, w1, w2)
     r0 = t0 - b0 - p[21] * w0
     r1 = t1 - b1 - p[22] * w1
     r2 = t2 - b2 - p[23] * w2
-    # Cholesky of the symmetric 3 x 3, then the two triangular solves
     l00 = math.sqrt(k00)
     l10 = k01 / l00
     l11 = math.sqrt(k11 - l10 * l10)
@@ -153,61 +111,14 @@ def serial_pdsmc_loop(p, g, q_start, refs, h, every, out_q, out_qd, out_tau):  #
 
 
 # --------------------------------------------------------------------------- #
-# The five-bar, unrolled (parallel_5r_kernels.terms with its two 2-link chains
-# and the 2 x 2 solve in scalars; the closed-form geometry is the kernels' own)
+# The five-bar, unrolled: its geometry and scalar terms (the kernels' own), the
+# 2 x 2 solve, RK4 and the law in scalars, one function
 # --------------------------------------------------------------------------- #
-@njit(cache=True)
-def _chain2(p, base, g, th0, th1, d0, d1):  # noqa: ANN001, ANN202, PLR0913
-    """Joint-space mass matrix and ``C qd + G`` of a 2-link chain: ``k00, k01, k11, b0, b1``."""
-    a0 = th0
-    a1 = a0 + th1
-    e0 = d0
-    e1 = e0 + d1
-    c0 = math.cos(a0)
-    s0 = math.sin(a0)
-    c1 = math.cos(a1)
-    s1 = math.sin(a1)
-    w00, w01, w10, w11 = p[base], p[base + 1], p[base + 2], p[base + 3]
-    m00 = w00 * (c0 * c0 + s0 * s0) + p[base + 6]
-    m01 = w01 * (c0 * c1 + s0 * s1)
-    m10 = w10 * (c1 * c0 + s1 * s0)
-    m11 = w11 * (c1 * c1 + s1 * s1) + p[base + 7]
-    y0 = g * p[base + 4] * c0
-    y0 += w00 * (s0 * c0 - c0 * s0) * e0 * e0
-    y0 += w01 * (s0 * c1 - c0 * s1) * e1 * e1
-    y1 = g * p[base + 5] * c1
-    y1 += w10 * (s1 * c0 - c1 * s0) * e0 * e0
-    y1 += w11 * (s1 * c1 - c1 * s1) * e1 * e1
-    return 0.0 + m00 + m01 + m10 + m11, 0.0 + m01 + m11, 0.0 + m11, 0.0 + y0 + y1, 0.0 + y1
-
-
 @njit(cache=True)
 def _five_bar_accel(p, geo, q0, q1, w0, w1, t0, t1):  # noqa: ANN001, ANN202, PLR0913
     """Eq. (4.1) for the five-bar's reduced model: ``qdd`` as two floats."""
     five_bar._geometry(p, (q0, q1), (w0, w1), geo)
-    g = p[25]
-    l00, l01, l11, lb0, lb1 = _chain2(p, 0, g, geo[0], geo[1], geo[4], geo[5])
-    r00_, r01_, r11_, rb0, rb1 = _chain2(p, 10, g, geo[2], geo[3], geo[6], geo[7])
-    cdot0, cdot1 = five_bar._jdot_times(p, geo, geo[4], geo[5], geo[6], geo[7])
-    pas0, pas1 = five_bar._passive_rates(geo, cdot0, cdot1)
-    fl0 = lb0 + l01 * pas0
-    fl1 = lb1 + l11 * pas0
-    fr0 = rb0 + r01_ * pas1
-    fr1 = rb1 + r11_ * pas1
-    r00 = geo[8]
-    r01 = geo[9]
-    r10 = geo[10]
-    r11 = geo[11]
-    b0 = fl0 + r00 * fl1 + r10 * fr1
-    b1 = r01 * fl1 + fr0 + r11 * fr1
-    m00 = l00 + 2.0 * r00 * l01 + r00 * r00 * l11
-    m01 = r01 * l01 + r00 * r01 * l11
-    m11 = r01 * r01 * l11
-    m00 += r10 * r10 * r11_
-    m01 += r10 * r01_ + r10 * r11 * r11_
-    m11 += r00_ + 2.0 * r11 * r01_ + r11 * r11 * r11_
-    k00 = m00 + p[21]
-    k11 = m11 + p[22]
+    k00, m01, k11, b0, b1 = five_bar._terms(p, geo)
     x0 = t0 - b0 - p[23] * w0
     x1 = t1 - b1 - p[24] * w1
     c00 = math.sqrt(k00)

@@ -176,6 +176,25 @@ def _smc(g, m, kind, p, q, qd, q_ref, qd_ref, qdd_ref, e, ed, sat, tau, work):  
 
 
 @njit(cache=True, inline="always")
+def law_torque(code, gains, smc_model, kind, p, q, qd, q_ref, qd_ref, qdd_ref, tau, work, n):  # noqa: ANN001, ANN201, PLR0913
+    """:func:`compiled_torque` with its inputs as separate vectors of ``n`` joints.
+
+    What a compiled loop calls: ``n`` is its constant joint count (loops of known length)
+    and the reference rows are views of its samples (nothing copied).
+    """
+    e = work[0:n]
+    ed = work[n : 2 * n]
+    sat = work[2 * n : 3 * n]
+    _errors(gains, q, qd, q_ref, qd_ref, e, ed, sat, n)
+    if code == PD:
+        _pd(gains, e, ed, tau, n)
+    elif code == PDSMC:
+        _pdsmc(gains, e, ed, sat, tau, n)
+    elif code == SMC:
+        _smc(gains, smc_model, kind, p, q, qd, q_ref, qd_ref, qdd_ref, e, ed, sat, tau, work[3 * n :])
+
+
+@njit(cache=True)
 def compiled_torque(code, gains, smc_model, kind, p, x, tau, work):  # noqa: ANN001, ANN201
     """The law ``code`` (``PD``, ``SMC``, ``PDSMC``) for one state, into ``tau``.
 
@@ -187,22 +206,9 @@ def compiled_torque(code, gains, smc_model, kind, p, x, tau, work):  # noqa: ANN
     (:func:`pdsmc_ros.robots.compiled.pack`), ``work`` from
     :func:`pdsmc_ros.robots.compiled.workspace`.
     """
-    n = robot.size(kind, tau.shape[0])
-    q = x[0:n]
-    qd = x[n : 2 * n]
-    q_ref = x[2 * n : 3 * n]
-    qd_ref = x[3 * n : 4 * n]
-    qdd_ref = x[4 * n : 5 * n]
-    e = work[0:n]
-    ed = work[n : 2 * n]
-    sat = work[2 * n : 3 * n]
-    _errors(gains, q, qd, q_ref, qd_ref, e, ed, sat, n)
-    if code == PD:
-        _pd(gains, e, ed, tau, n)
-    elif code == PDSMC:
-        _pdsmc(gains, e, ed, sat, tau, n)
-    elif code == SMC:
-        _smc(gains, smc_model, kind, p, q, qd, q_ref, qd_ref, qdd_ref, e, ed, sat, tau, work[3 * n :])
+    n = tau.shape[0]
+    law_torque(code, gains, smc_model, kind, p, x[0:n], x[n : 2 * n], x[2 * n : 3 * n], x[3 * n : 4 * n],
+               x[4 * n : 5 * n], tau, work, n)
 
 
 register_law(LawEntry("pd", "PD", ("kp", "kd"), pd_torque, "Eq. (3.4)", PD, pd_linear_gains))

@@ -230,9 +230,8 @@ def terms(p, q, qd, mass, bias, work):  # noqa: ANN001, ANN202
 @njit(cache=True, inline="always")
 def accelerations(p, q, qd, tau, out, work):  # noqa: ANN001, ANN202
     """Eq. (4.1) for the reduced model, ``qdd = Mbar^{-1} (tau - C qd - B qd - G)``, into ``out``."""
-    geo = work[0:GEOMETRY_SIZE]
-    _geometry(p, q, qd, geo)
-    m00, m01, m11, b0, b1 = _terms(p, geo)
+    _geometry(p, q, qd, work)  # its GEOMETRY_SIZE floats at the front of work (no slice: the hot path)
+    m00, m01, m11, b0, b1 = _terms(p, work)
     x0 = tau[0] - b0 - p[_B] * qd[0]
     x1 = tau[1] - b1 - p[_B + 1] * qd[1]
     c00 = math.sqrt(m00)

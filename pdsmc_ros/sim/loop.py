@@ -13,7 +13,7 @@ import numpy as np
 from numba import njit
 
 from ..control.law import ControlLaw
-from ..control.laws import compiled_torque
+from ..control.laws import law_torque
 from ..robots import compiled as robot_compiled
 from ..robots.base import FloatArray, Manipulator
 from ..robots.parallel_5r_kernels import PARALLEL_5R
@@ -47,17 +47,12 @@ def _loop(  # noqa: ANN202, PLR0913
     n = robot_compiled.size(kind, q0.shape[0])
     steps = refs.shape[0] - 1
     stages, rest = carve(work, n)
-    x = np.empty(5 * n)  # the law's inputs: q, qd, then the reference's three rows
-    q = x[0:n]
-    qd = x[n : 2 * n]
-    q[:] = q0
-    qd[:] = qd0
+    q = q0.copy()
+    qd = qd0.copy()
     tau = np.empty(n)
     for k in range(steps + 1):
-        for j in range(3):
-            for i in range(n):
-                x[(2 + j) * n + i] = refs[k, j, i]
-        compiled_torque(code, gains, smc_model, model_kind, model_p, x, tau, work)
+        law_torque(code, gains, smc_model, model_kind, model_p, q, qd, refs[k, 0], refs[k, 1], refs[k, 2], tau,
+                   work, n)
         if k % sample_every == 0:
             j = k // sample_every
             for i in range(n):
