@@ -112,6 +112,11 @@ def test_pdsmc_commands_in_a_clean_environment(tmp_path: Path) -> None:
         (["sweep", "--param", "kp", "--robot", "serial_3r", "--contour", "zigzag", "--workers", "100000"],
          "at most 256 processes"),
         (["analyze", "no_such_bag"], "does not exist"),
+        # tune checks where it writes before its search, not after it
+        (["tune", "--robot", "parallel_5r", "--contour", "circle", "--controller", "pd", "--out", "report"],
+         "--out 'report' is a directory"),
+        (["tune", "--robot", "parallel_5r", "--contour", "circle", "--controller", "pd", "--out",
+          "report/REPRODUCTION.md/gains.yaml"], "cannot create 'report/REPRODUCTION.md'"),
     ):
         bad = run([str(BIN / "pdsmc"), *argv], tmp_path, timeout=60)
         assert bad.returncode == 2 and needle in bad.stderr, (argv, bad.stderr)
