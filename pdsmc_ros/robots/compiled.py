@@ -7,8 +7,7 @@ robot's flat parameter array from :meth:`Manipulator.pack`.
 
 Why compiled at all: a 10 kHz loop written with small numpy arrays spends most
 of its time in per-call overhead (docs/PERFORMANCE.md). The functions allocate
-nothing; temporaries live in a caller-owned scratch array (:func:`workspace`),
-carved into rows of ``n`` with :func:`rows`.
+nothing; temporaries live in a caller-owned scratch array (:func:`workspace`).
 
 The hot path -- the four forward-dynamics calls of an RK4 step -- is chosen at
 compile time instead: :func:`accelerations` and :func:`size` take the robot
@@ -73,16 +72,10 @@ def _size(kind, n):  # noqa: ANN001, ANN202
     return lambda kind, n: n
 
 
-@njit(cache=True)
-def rows(work, count, n):  # noqa: ANN001, ANN201
-    """``count`` rows of ``n`` floats from the front of ``work``, and the rest of it."""
-    return work[0 : count * n].reshape((count, n)), work[count * n :]
-
-
 # --------------------------------------------------------------------------- #
 # Dispatch: one line per robot
 # --------------------------------------------------------------------------- #
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def terms(kind, p, q, qd, mass, bias, work):  # noqa: ANN001, ANN201
     """``Mbar(q)`` (motor inertia included) and ``C(q, qd) qd + G(q)``."""
     if kind == SERIAL_3R:
@@ -115,7 +108,7 @@ def gravity(kind, p, q, out, work):  # noqa: ANN001, ANN201
         chain.gravity(p, q, out, work)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def damping(kind, p, i):  # noqa: ANN001, ANN201
     """Motor damping ``B_i``."""
     if kind == SERIAL_3R:
@@ -125,7 +118,7 @@ def damping(kind, p, i):  # noqa: ANN001, ANN201
     return five_bar.damping(p, i)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def motor_inertia(kind, p, i):  # noqa: ANN001, ANN201
     """Motor inertia ``J_i``."""
     if kind == SERIAL_3R:

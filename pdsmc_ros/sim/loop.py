@@ -23,20 +23,29 @@ from .rk4 import carve, rk4_advance, rk4_step
 
 
 @njit(cache=True)
-def _closed_loop_compiled(  # noqa: ANN202, PLR0913
-    kind, p, code, gains, smc_model, model_kind, model_p, q0, qd0, refs, h, sample_every,
-    out_q, out_qd, out_tau, work,
-):  # noqa: ANN001
-    # a constant robot code: the loop is compiled once per robot with its dynamics inlined
-    if kind == SERIAL_3R:
-        _loop(SERIAL_3R, p, code, gains, smc_model, model_kind, model_p, q0, qd0, refs, h, sample_every,
-              out_q, out_qd, out_tau, work)
-    elif kind == PARALLEL_5R:
-        _loop(PARALLEL_5R, p, code, gains, smc_model, model_kind, model_p, q0, qd0, refs, h, sample_every,
-              out_q, out_qd, out_tau, work)
-    elif kind == SERIAL_CHAIN:
-        _loop(SERIAL_CHAIN, p, code, gains, smc_model, model_kind, model_p, q0, qd0, refs, h, sample_every,
-              out_q, out_qd, out_tau, work)
+def _closed_loop_serial_3r(p, code, gains, smc_model, model_kind, model_p, q0, qd0, refs, h, sample_every,  # noqa: ANN001, ANN202, PLR0913
+                           out_q, out_qd, out_tau, work):
+    _loop(SERIAL_3R, p, code, gains, smc_model, model_kind, model_p, q0, qd0, refs, h, sample_every,
+          out_q, out_qd, out_tau, work)
+
+
+@njit(cache=True)
+def _closed_loop_parallel_5r(p, code, gains, smc_model, model_kind, model_p, q0, qd0, refs, h, sample_every,  # noqa: ANN001, ANN202, PLR0913
+                             out_q, out_qd, out_tau, work):
+    _loop(PARALLEL_5R, p, code, gains, smc_model, model_kind, model_p, q0, qd0, refs, h, sample_every,
+          out_q, out_qd, out_tau, work)
+
+
+@njit(cache=True)
+def _closed_loop_serial_chain(p, code, gains, smc_model, model_kind, model_p, q0, qd0, refs, h, sample_every,  # noqa: ANN001, ANN202, PLR0913
+                              out_q, out_qd, out_tau, work):
+    _loop(SERIAL_CHAIN, p, code, gains, smc_model, model_kind, model_p, q0, qd0, refs, h, sample_every,
+          out_q, out_qd, out_tau, work)
+
+
+# one compiled loop per robot code, its dynamics inlined: a process compiles (or loads) only the robots it runs
+_CLOSED_LOOPS = {SERIAL_3R: _closed_loop_serial_3r, PARALLEL_5R: _closed_loop_parallel_5r,
+                 SERIAL_CHAIN: _closed_loop_serial_chain}
 
 
 @njit(cache=True, inline="always")
@@ -94,7 +103,7 @@ def closed_loop(
     out_tau = np.empty((count, n))
     if law.compiled and plant.kernel is not None:
         kind, p = robot_compiled.pack(plant)
-        _closed_loop_compiled(kind, p, law.code, law.gains, law.smc_model, law.model_kind, law.model_params,
+        _CLOSED_LOOPS[kind](p, law.code, law.gains, law.smc_model, law.model_kind, law.model_params,
                               np.array(q0, dtype=float), np.zeros(n), refs, h, sample_every, out_q, out_qd, out_tau,
                               robot_compiled.workspace(n))
         return out_q, out_qd, out_tau

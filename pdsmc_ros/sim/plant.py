@@ -8,7 +8,7 @@ from numpy.typing import ArrayLike
 from ..errors import InvalidInputError
 from ..robots import compiled as robot_compiled
 from ..robots.base import FloatArray, Manipulator, as_vector
-from .rk4 import rk4_step, rk4_step_compiled
+from .rk4 import compiled_step, rk4_step
 
 
 class PlantStepper:
@@ -32,6 +32,7 @@ class PlantStepper:
         self.compiled = robot.kernel is not None
         if self.compiled:
             self.kind, self.params = robot_compiled.pack(robot)
+            self._step = compiled_step(self.kind)
         n = robot.n
         self.state = np.concatenate([as_vector(q0, n, "q0"), as_vector(qd0, n, "qd0")]).astype(float)
         self._q = self.state[:n]  # views: step() advances the state in place
@@ -61,7 +62,7 @@ class PlantStepper:
     def step(self, tau: FloatArray) -> None:
         """Integrate one period with ``tau`` held (RK4, :mod:`pdsmc_ros.sim.rk4`)."""
         if self.compiled:
-            rk4_step_compiled(self.kind, self.params, self.state, tau, self.period, self._work)
+            self._step(self.params, self.state, tau, self.period, self._work)
         else:
             self._q[:], self._qd[:] = rk4_step(self.robot, self.q, self.qd, np.asarray(tau, dtype=float), self.period)
         self.steps += 1
@@ -89,6 +90,5 @@ class PlantStepper:
         (tens of ms); a real-time loop calls this before its first tick.
         """
         if self.compiled:
-            rk4_step_compiled(self.kind, self.params, self.state.copy(), np.zeros(self.robot.n), self.period,
-                              self._work)
+            self._step(self.params, self.state.copy(), np.zeros(self.robot.n), self.period, self._work)
         self.outputs()

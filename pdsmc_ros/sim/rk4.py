@@ -8,6 +8,8 @@ the same order, on robots with a compiled form.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 from numba import njit
 
 from ..robots import compiled as robot
@@ -48,7 +50,7 @@ def rk4_step(
     return q_next, qd_next
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def rk4_advance(kind, p, q, qd, tau, h, stages, work):  # noqa: ANN001, ANN201, PLR0913
     """:func:`rk4_step_compiled` on ``q``, ``qd`` in place, with its scratch carved by the caller.
 
@@ -101,19 +103,41 @@ def carve(work, n):  # noqa: ANN001, ANN201
 
 
 @njit(cache=True)
-def rk4_step_compiled(kind, p, state, tau, h, work):  # noqa: ANN001, ANN201
+def _step_serial_3r(p, state, tau, h, work):  # noqa: ANN001, ANN202
+    n = tau.shape[0]
+    stages, rest = carve(work, n)
+    rk4_advance(SERIAL_3R, p, state[0:n], state[n : 2 * n], tau, h, stages, rest)
+
+
+@njit(cache=True)
+def _step_parallel_5r(p, state, tau, h, work):  # noqa: ANN001, ANN202
+    n = tau.shape[0]
+    stages, rest = carve(work, n)
+    rk4_advance(PARALLEL_5R, p, state[0:n], state[n : 2 * n], tau, h, stages, rest)
+
+
+@njit(cache=True)
+def _step_serial_chain(p, state, tau, h, work):  # noqa: ANN001, ANN202
+    n = tau.shape[0]
+    stages, rest = carve(work, n)
+    rk4_advance(SERIAL_CHAIN, p, state[0:n], state[n : 2 * n], tau, h, stages, rest)
+
+
+# one compiled entry per robot code: a process compiles (or loads) only the robots it runs
+_STEPS = {SERIAL_3R: _step_serial_3r, PARALLEL_5R: _step_parallel_5r, SERIAL_CHAIN: _step_serial_chain}
+
+
+def compiled_step(kind: int) -> Callable[[FloatArray, FloatArray, FloatArray, float, FloatArray], None]:
+    """:func:`rk4_step_compiled` for robot code ``kind``, without the lookup (what a stepper keeps)."""
+    return _STEPS[kind]
+
+
+def rk4_step_compiled(kind: int, p: FloatArray, state: FloatArray, tau: FloatArray, h: float,
+                      work: FloatArray) -> None:
     """:func:`rk4_step` of a compiled robot ``(kind, p)``: advances ``state`` in place.
 
     ``state`` starts with ``q`` and ``qd`` (``2 n`` floats; one array: from Python each
-    argument of a compiled call costs about 0.1 us).
+    argument of a compiled call costs about 0.1 us); ``work`` from
+    :func:`pdsmc_ros.robots.compiled.workspace`.
     """
-    n = tau.shape[0]
-    stages, rest = carve(work, n)
-    q = state[0:n]
-    qd = state[n : 2 * n]
-    if kind == SERIAL_3R:
-        rk4_advance(SERIAL_3R, p, q, qd, tau, h, stages, rest)
-    elif kind == PARALLEL_5R:
-        rk4_advance(PARALLEL_5R, p, q, qd, tau, h, stages, rest)
-    elif kind == SERIAL_CHAIN:
-        rk4_advance(SERIAL_CHAIN, p, q, qd, tau, h, stages, rest)
+    _STEPS[kind](p, state, tau, h, work)
