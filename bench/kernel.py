@@ -4,7 +4,7 @@ For each thesis arm (the serial 3R and the five-bar, circle, PD-SMC at 10 kHz) i
 
 - the production loop, :func:`pdsmc_ros.sim.loop.closed_loop` (what ``simulate`` runs), and
 - a reference written here for that one arm: the same arithmetic in the same order in one
-  function -- the arm's scalar terms (the kernels' own), then the solve, RK4 and the law with
+  function -- the arm's scalar terms and solve (the kernels' own), then RK4 and the law with
   every loop over the joints unrolled into scalar locals, no dispatch, no scratch array: what
   the generic loop (any robot, any law, arrays of n joints) costs over a hand-fused one,
 
@@ -36,29 +36,15 @@ from pdsmc_ros.sim.simulator import _reference_samples
 
 
 # --------------------------------------------------------------------------- #
-# The serial 3R, unrolled: its scalar terms (serial_3r._terms, shared with the
-# production loop), the Cholesky solve, RK4 and the law in scalars, one function
+# The serial 3R, unrolled: its scalar terms and Cholesky solve (serial_3r's, shared
+# with the production loop), RK4 and the law in scalars, one function
 # --------------------------------------------------------------------------- #
 @njit(cache=True)
 def _serial_accel(p, q0, q1, q2, w0, w1, w2, t0, t1, t2):  # noqa: ANN001, ANN202, PLR0913
-    """Eq. (4.1) for the 3R arm: ``qdd`` as three floats (the arm's scalar terms, then Cholesky)."""
+    """Eq. (4.1) for the 3R arm: ``qdd`` as three floats (the arm's scalar terms and solve)."""
     k00, k01, k02, k11, k12, k22, b0, b1, b2 = serial._terms(p, q0, q1, q2, w0, w1, w2)
-    r0 = t0 - b0 - p[21] * w0
-    r1 = t1 - b1 - p[22] * w1
-    r2 = t2 - b2 - p[23] * w2
-    l00 = math.sqrt(k00)
-    l10 = k01 / l00
-    l11 = math.sqrt(k11 - l10 * l10)
-    l20 = k02 / l00
-    l21 = (k12 - l20 * l10) / l11
-    l22 = math.sqrt(k22 - l20 * l20 - l21 * l21)
-    z0 = r0 / l00
-    z1 = (r1 - l10 * z0) / l11
-    z2 = (r2 - l20 * z0 - l21 * z1) / l22
-    x2 = z2 / l22
-    x1 = (z1 - l21 * x2) / l11
-    x0 = (z0 - l10 * x1 - l20 * x2) / l00
-    return x0, x1, x2
+    return serial._solve(k00, k01, k02, k11, k12, k22, t0 - b0 - p[21] * w0, t1 - b1 - p[22] * w1,
+                         t2 - b2 - p[23] * w2)
 
 
 @njit(cache=True)
@@ -111,24 +97,15 @@ def serial_pdsmc_loop(p, g, q_start, refs, h, every, out_q, out_qd, out_tau):  #
 
 
 # --------------------------------------------------------------------------- #
-# The five-bar, unrolled: its geometry and scalar terms (the kernels' own), the
-# 2 x 2 solve, RK4 and the law in scalars, one function
+# The five-bar, unrolled: its geometry, scalar terms and 2 x 2 solve (the kernels'
+# own), RK4 and the law in scalars, one function
 # --------------------------------------------------------------------------- #
 @njit(cache=True)
 def _five_bar_accel(p, geo, q0, q1, w0, w1, t0, t1):  # noqa: ANN001, ANN202, PLR0913
     """Eq. (4.1) for the five-bar's reduced model: ``qdd`` as two floats."""
     five_bar._geometry(p, (q0, q1), (w0, w1), geo)
     k00, m01, k11, b0, b1 = five_bar._terms(p, geo)
-    x0 = t0 - b0 - p[23] * w0
-    x1 = t1 - b1 - p[24] * w1
-    c00 = math.sqrt(k00)
-    c10 = m01 / c00
-    c11 = math.sqrt(k11 - c10 * c10)
-    z0 = x0 / c00
-    z1 = (x1 - c10 * z0) / c11
-    u1 = z1 / c11
-    u0 = (z0 - c10 * u1) / c00
-    return u0, u1
+    return five_bar._solve(k00, m01, k11, t0 - b0 - p[23] * w0, t1 - b1 - p[24] * w1)
 
 
 @njit(cache=True)

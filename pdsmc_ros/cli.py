@@ -60,11 +60,16 @@ MAX_WORKERS = 256
 """Processes a command may start (each holds its own compiled kernels and run arrays)."""
 
 
-def worker_count(text: str) -> int:
+def count_at_most(text: str, most: int, what: str) -> int:
+    """A whole number from 1 to ``most`` (``what`` names the unit in the error)."""
     value = positive_int(text)
-    if value > MAX_WORKERS:
-        raise argparse.ArgumentTypeError(f"expected at most {MAX_WORKERS} processes, got {text!r}")
+    if value > most:
+        raise argparse.ArgumentTypeError(f"expected at most {most:,} {what}, got {text!r}")
     return value
+
+
+def worker_count(text: str) -> int:
+    return count_at_most(text, MAX_WORKERS, "processes")
 
 
 def value_list(text: str) -> list[float]:
@@ -83,10 +88,7 @@ MAX_RUNS = 1_000_000
 
 
 def run_count(text: str) -> int:
-    value = positive_int(text)
-    if value > MAX_RUNS:
-        raise argparse.ArgumentTypeError(f"expected at most {MAX_RUNS:,} runs, got {text!r}")
-    return value
+    return count_at_most(text, MAX_RUNS, "runs")
 
 
 def seed_value(text: str) -> int:

@@ -213,6 +213,19 @@ def _terms(p, geo):  # noqa: ANN001, ANN202
     return m00 + p[_J], m01, m11 + p[_J + 1], b0, b1
 
 
+@njit(cache=True, inline="always")
+def _solve(m00, m01, m11, r0, r1):  # noqa: ANN001, ANN202
+    """``Mbar x = r`` for the symmetric 2 x 2 of :func:`_terms` (Cholesky in scalars): ``x`` as two floats."""
+    c00 = math.sqrt(m00)
+    c10 = m01 / c00
+    c11 = math.sqrt(m11 - c10 * c10)
+    z0 = r0 / c00
+    z1 = (r1 - c10 * z0) / c11
+    x1 = z1 / c11
+    x0 = (z0 - c10 * x1) / c00
+    return x0, x1
+
+
 @njit(cache=True)
 def terms(p, q, qd, mass, bias, work):  # noqa: ANN001, ANN202
     """Reduced ``Mbar`` and ``C qd + G`` of the five-bar."""
@@ -232,15 +245,7 @@ def accelerations(p, q, qd, tau, out, work):  # noqa: ANN001, ANN202
     """Eq. (4.1) for the reduced model, ``qdd = Mbar^{-1} (tau - C qd - B qd - G)``, into ``out``."""
     _geometry(p, q, qd, work)  # its GEOMETRY_SIZE floats at the front of work (no slice: the hot path)
     m00, m01, m11, b0, b1 = _terms(p, work)
-    x0 = tau[0] - b0 - p[_B] * qd[0]
-    x1 = tau[1] - b1 - p[_B + 1] * qd[1]
-    c00 = math.sqrt(m00)
-    c10 = m01 / c00
-    c11 = math.sqrt(m11 - c10 * c10)
-    z0 = x0 / c00
-    z1 = (x1 - c10 * z0) / c11
-    out[1] = z1 / c11
-    out[0] = (z0 - c10 * out[1]) / c00
+    out[0], out[1] = _solve(m00, m01, m11, tau[0] - b0 - p[_B] * qd[0], tau[1] - b1 - p[_B + 1] * qd[1])
 
 
 @njit(cache=True)

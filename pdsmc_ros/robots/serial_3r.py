@@ -199,6 +199,24 @@ def _terms(p, q0, q1, q2, w0, w1, w2):  # noqa: ANN001, ANN202, PLR0913, PLR0915
     )
 
 
+@njit(cache=True, inline="always")
+def _solve(k00, k01, k02, k11, k12, k22, r0, r1, r2):  # noqa: ANN001, ANN202, PLR0913
+    """``Mbar x = r`` for the symmetric 3 x 3 of :func:`_terms` (Cholesky in scalars): ``x`` as three floats."""
+    l00 = math.sqrt(k00)
+    l10 = k01 / l00
+    l11 = math.sqrt(k11 - l10 * l10)
+    l20 = k02 / l00
+    l21 = (k12 - l20 * l10) / l11
+    l22 = math.sqrt(k22 - l20 * l20 - l21 * l21)
+    z0 = r0 / l00
+    z1 = (r1 - l10 * z0) / l11
+    z2 = (r2 - l20 * z0 - l21 * z1) / l22
+    x2 = z2 / l22
+    x1 = (z1 - l21 * x2) / l11
+    x0 = (z0 - l10 * x1 - l20 * x2) / l00
+    return x0, x1, x2
+
+
 @njit(cache=True)
 def terms(p, q, qd, mass, bias, work):  # noqa: ANN001, ANN201, ARG001
     """``Mbar = M + J`` and ``C qd + G``."""
@@ -218,21 +236,8 @@ def terms(p, q, qd, mass, bias, work):  # noqa: ANN001, ANN201, ARG001
 def accelerations(p, q, qd, tau, out, work):  # noqa: ANN001, ANN201, ARG001
     """Eq. (4.1), ``qdd = Mbar^{-1} (tau - C qd - B qd - G)``, into ``out``: Cholesky in scalars."""
     k00, k01, k02, k11, k12, k22, b0, b1, b2 = _terms(p, q[0], q[1], q[2], qd[0], qd[1], qd[2])
-    r0 = tau[0] - b0 - p[_B] * qd[0]
-    r1 = tau[1] - b1 - p[_B + 1] * qd[1]
-    r2 = tau[2] - b2 - p[_B + 2] * qd[2]
-    l00 = math.sqrt(k00)
-    l10 = k01 / l00
-    l11 = math.sqrt(k11 - l10 * l10)
-    l20 = k02 / l00
-    l21 = (k12 - l20 * l10) / l11
-    l22 = math.sqrt(k22 - l20 * l20 - l21 * l21)
-    z0 = r0 / l00
-    z1 = (r1 - l10 * z0) / l11
-    z2 = (r2 - l20 * z0 - l21 * z1) / l22
-    out[2] = z2 / l22
-    out[1] = (z1 - l21 * out[2]) / l11
-    out[0] = (z0 - l10 * out[1] - l20 * out[2]) / l00
+    out[0], out[1], out[2] = _solve(k00, k01, k02, k11, k12, k22, tau[0] - b0 - p[_B] * qd[0],
+                                    tau[1] - b1 - p[_B + 1] * qd[1], tau[2] - b2 - p[_B + 2] * qd[2])
 
 
 @njit(cache=True)

@@ -44,6 +44,7 @@ def _closed_loop_serial_chain(p, code, gains, smc_model, model_kind, model_p, q0
 
 
 # one compiled loop per robot code, its dynamics inlined: a process compiles (or loads) only the robots it runs
+# (written out one per robot: numba caches no function a factory makes, and these must be cached)
 _CLOSED_LOOPS = {SERIAL_3R: _closed_loop_serial_3r, PARALLEL_5R: _closed_loop_parallel_5r,
                  SERIAL_CHAIN: _closed_loop_serial_chain}
 

@@ -124,6 +124,7 @@ def _step_serial_chain(p, state, tau, h, work):  # noqa: ANN001, ANN202
 
 
 # one compiled entry per robot code: a process compiles (or loads) only the robots it runs
+# (written out one per robot: numba caches no function a factory makes, and these must be cached)
 _STEPS = {SERIAL_3R: _step_serial_3r, PARALLEL_5R: _step_parallel_5r, SERIAL_CHAIN: _step_serial_chain}
 
 
