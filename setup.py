@@ -43,6 +43,7 @@ setup(
             "recorder = pdsmc_ros.nodes.recorder:main",
             "composed = pdsmc_ros.nodes.composed:main",
             "viewer = pdsmc_ros.nodes.viewer:main",
+            "mujoco_driver = pdsmc_ros.nodes.mujoco_driver:main",
             "analyze = pdsmc_ros.cli:analyze_main",
         ],
     },
