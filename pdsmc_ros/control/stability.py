@@ -1,4 +1,4 @@
-"""Discrete-time stability of a control law sampled with a zero-order hold.
+"""Discrete-time stability of a control law sampled with a zero-order hold, with the loop's delay.
 
 A digital controller applies ``tau_k`` over a whole period ``h``. Around the
 reference, the error dynamics are ``Mbar edd = -Kp_eff e - Kd_eff ed`` with a
@@ -7,10 +7,16 @@ held input, whose exact discretisation is
     e_{k+1}  = e_k + h ed_k - (h^2/2) Mbar^{-1} (Kp e_k + Kd ed_k)
     ed_{k+1} = ed_k        - h Mbar^{-1} (Kp e_k + Kd ed_k)
 
-(damping, Coriolis and gravity variations left out). The loop is stable at
-rate ``1/h`` only if the spectral radius of that map is below 1 at every
-configuration the motion visits. With the serial arm's thesis gains this
-requires about 10 kHz (NOTES.md section 1).
+(damping, Coriolis and gravity variations left out). That is lockstep, where the
+plant waits for the command of its state. In real time the plant applies the latest
+command it has, computed from the state it published a period earlier: the command
+arrives ``d = 1`` period late (plus any delay the user declares, ``delay_periods``),
+and the map is augmented with the ``d`` commands on their way (:func:`loop_matrix`).
+The loop is stable at rate ``1/h`` only if the spectral radius of that map is below 1
+at every configuration the motion visits. With the serial arm's thesis gains this
+requires about 10 kHz without delay (it diverges at 5 kHz); one period of delay
+roughly doubles the lowest stable rate. :func:`check_rate` asks for a margin
+``rate / lowest stable rate`` on top (:data:`REQUIRED_MARGIN`).
 
 Effective gains inside the boundary layer (``|s| < phi``), where the
 switching term is linear:
@@ -26,11 +32,113 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import UnstableRateError
+from ..errors import InvalidInputError, UnstableRateError
 from ..presets import RunSpec
 from ..robots.base import FloatArray
 from ..trajectories import JointReference
 from .registry import law
+
+
+def effective_gains(spec: RunSpec, mass: FloatArray) -> tuple[FloatArray, FloatArray] | None:
+    """Linear gains ``(Kp_eff, Kd_eff)`` of the law inside its boundary layer (None: the law has none)."""
+    linear_gains = law(spec.controller).linear_gains
+    if linear_gains is None:
+        return None
+    return linear_gains(spec.gains.matrix(), spec.smc_model_vector(), mass)
+
+
+def loop_matrix(mass: FloatArray, kp: FloatArray, kd: FloatArray, h: float | FloatArray,
+                delay: int = 0) -> FloatArray:
+    """The error map of a held input applied ``delay`` periods after the state it was computed from.
+
+    With ``a_k = -Mbar^{-1} (Kp e_k + Kd ed_k)`` the acceleration commanded from the state of
+    instant ``k`` and held (zero-order hold) over a whole period ``h``, the plant applies
+    ``a_{k-d}``: ``x_{k+1} = Ad x_k + Bd a_{k-d}`` with ``x = (e, ed)``, ``Ad = [[I, hI], [0, I]]``,
+    ``Bd = [h^2/2 I; h I]``. The state is augmented with the ``d`` commands computed but not yet
+    applied, ``X_k = (x_k, a_{k-1}, ..., a_{k-d})``, of dimension ``(2 + d) n``; ``d = 0`` is the
+    plain held-input map of the module docstring. Works on one configuration or on a stack
+    (leading axis ``m``, ``h`` scalar or of shape ``(m,)``).
+    """
+    if isinstance(delay, bool) or not isinstance(delay, (int, np.integer)) or delay < 0:
+        raise InvalidInputError(f"delay must be a whole number of periods >= 0, got {delay!r}")
+    mass = np.asarray(mass, dtype=float)
+    n = mass.shape[-1]
+    h = np.asarray(h, dtype=float)[..., None, None]
+    gain = -np.concatenate([np.linalg.solve(mass, kp), np.linalg.solve(mass, kd)], axis=-1)  # a = gain x
+    eye = np.broadcast_to(np.eye(n), gain.shape[:-2] + (n, n))
+    bd = np.concatenate([0.5 * h * h * eye, h * eye], axis=-2)  # (.., 2n, n)
+    size = (2 + delay) * n
+    a = np.zeros((*gain.shape[:-2], size, size))
+    a[..., :n, :n] = eye
+    a[..., :n, n:2 * n] = h * eye
+    a[..., n:2 * n, n:2 * n] = eye
+    if delay == 0:
+        a[..., :2 * n, :2 * n] += bd @ gain
+        return a
+    a[..., :2 * n, size - n:] = bd  # the oldest command is the one applied
+    a[..., 2 * n:3 * n, :2 * n] = gain  # the command computed now waits
+    for j in range(1, delay):  # and moves one slot older each period
+        a[..., (2 + j) * n:(3 + j) * n, (1 + j) * n:(2 + j) * n] = eye
+    return a
+
+
+def spectral_radius(
+    mass: FloatArray, kp: FloatArray, kd: FloatArray, h: float | FloatArray, delay: int = 0
+) -> tuple[FloatArray, FloatArray]:
+    """Spectral radius of :func:`loop_matrix` and the joint dominating its mode.
+
+    Works on one configuration (``mass``, ``kp``, ``kd`` of shape ``(n, n)``,
+    scalar ``h``) or on a stack of them (leading axis ``m``, ``h`` scalar or of
+    shape ``(m,)``); returns the radii and the 1-based joints, of the stack's shape.
+    """
+    n = np.shape(mass)[-1]
+    a = loop_matrix(mass, kp, kd, h, delay)
+    h = np.asarray(h, dtype=float)[..., None]
+    values, vectors = np.linalg.eig(a)
+    k = np.argmax(np.abs(values), axis=-1)
+    radius = np.take_along_axis(np.abs(values), k[..., None], axis=-1)[..., 0]
+    vec = np.take_along_axis(vectors, k[..., None, None], axis=-1)[..., 0]
+    mode = np.abs(vec[..., :n]) + np.abs(vec[..., n:2 * n]) * h
+    return radius, np.argmax(mode, axis=-1) + 1
+
+
+def _lowest_rates(mass: FloatArray, kp: FloatArray, kd: FloatArray, delay: int) -> FloatArray:
+    """Lowest stable rate (Hz) of each configuration of a stack, by bisection (the loop is
+    stable above it: a faster loop is closer to the continuous one, stable for positive gains)."""
+    m = mass.shape[0]
+    lo = np.full(m, 1.0)  # Hz
+    hi = np.full(m, 1e8)  # stable at 1e8 Hz for any positive gains
+    stable_at_lo = spectral_radius(mass, kp, kd, 1.0 / lo, delay)[0] < 1.0
+    for _ in range(24):  # bracket ratio 1e8 -> about 0.1 % resolution
+        mid = np.sqrt(lo * hi)
+        stable = spectral_radius(mass, kp, kd, 1.0 / mid, delay)[0] < 1.0
+        hi = np.where(stable, mid, hi)
+        lo = np.where(stable, lo, mid)
+    return np.where(stable_at_lo, 1.0, hi)
+
+
+MODES = ("lockstep", "realtime")
+"""How the loop runs (the nodes' ``mode`` parameter)."""
+COMPUTATION_DELAY = {"lockstep": 0, "realtime": 1}
+"""Periods between the state a command is computed from and the period it is applied in.
+Lockstep: the plant waits for the command of its state (none). Real time: the plant applies
+the latest command it has, computed from the state it published a period earlier (one)."""
+REQUIRED_MARGIN = {"lockstep": 1.0, "realtime": 2.0}
+"""Default ``rate / lowest stable rate`` each mode requires. Real time: 2x, for what the
+model leaves out (jitter and late periods stretch the delay, damping, Coriolis and a drifting
+inertia change the poles) -- the UR5's old shipped gains, x1.04 without delay, diverged within
+40 ms. Lockstep: stable (x1): its delay is exactly zero and the held input exactly what the
+plant integrates, so the map is exact up to the terms the linearisation leaves out; the
+thesis's presets run there at x1.3 (serial arm, its 10 kHz) and must keep running."""
+
+
+def loop_delay(mode: str, delay_periods: int = 0) -> int:
+    """Periods of delay the check models: the mode's own plus ``delay_periods`` declared."""
+    if mode not in COMPUTATION_DELAY:
+        raise InvalidInputError(f"unknown mode {mode!r}; choose one of: {', '.join(MODES)}")
+    if isinstance(delay_periods, bool) or not isinstance(delay_periods, (int, np.integer)) or delay_periods < 0:
+        raise InvalidInputError(f"delay_periods must be a whole number >= 0, got {delay_periods!r}")
+    return COMPUTATION_DELAY[mode] + int(delay_periods)
 
 
 @dataclass(frozen=True)
@@ -42,60 +150,32 @@ class RateCheck:
     spectral_radius: float
     worst_joint: int  # 1-based
     stable: bool
+    mode: str = "lockstep"
+    delay: int = 0  # periods modelled
+    required_margin: float = 1.0
+
+    @property
+    def margin(self) -> float:
+        """``rate / lowest stable rate`` (inf for a law without linear gains)."""
+        if not np.isfinite(self.lowest_stable_rate):
+            return float("inf")
+        return self.rate / self.lowest_stable_rate
+
+    @property
+    def passes(self) -> bool:
+        """Stable, with at least the required margin."""
+        return self.stable and self.margin >= self.required_margin
 
 
-def effective_gains(spec: RunSpec, mass: FloatArray) -> tuple[FloatArray, FloatArray] | None:
-    """Linear gains ``(Kp_eff, Kd_eff)`` of the law inside its boundary layer (None: the law has none)."""
-    linear_gains = law(spec.controller).linear_gains
-    if linear_gains is None:
-        return None
-    return linear_gains(spec.gains.matrix(), spec.smc_model_vector(), mass)
-
-
-def spectral_radius(
-    mass: FloatArray, kp: FloatArray, kd: FloatArray, h: float | FloatArray
-) -> tuple[FloatArray, FloatArray]:
-    """Spectral radius of the held-input error map and the joint dominating its mode.
-
-    Works on one configuration (``mass``, ``kp``, ``kd`` of shape ``(n, n)``,
-    scalar ``h``) or on a stack of them (leading axis ``m``, ``h`` scalar or of
-    shape ``(m,)``); returns the radii and the 1-based joints, of the stack's shape.
-    """
-    mass = np.asarray(mass, dtype=float)
-    n = mass.shape[-1]
-    h = np.asarray(h, dtype=float)[..., None, None]
-    minv_kp = np.linalg.solve(mass, kp)
-    minv_kd = np.linalg.solve(mass, kd)
-    eye = np.broadcast_to(np.eye(n), minv_kp.shape)
-    a = np.empty((*minv_kp.shape[:-2], 2 * n, 2 * n))
-    a[..., :n, :n] = eye - 0.5 * h * h * minv_kp
-    a[..., :n, n:] = h * eye - 0.5 * h * h * minv_kd
-    a[..., n:, :n] = -h * minv_kp
-    a[..., n:, n:] = eye - h * minv_kd
-    values, vectors = np.linalg.eig(a)
-    k = np.argmax(np.abs(values), axis=-1)
-    radius = np.take_along_axis(np.abs(values), k[..., None], axis=-1)[..., 0]
-    vec = np.take_along_axis(vectors, k[..., None, None], axis=-1)[..., 0]
-    mode = np.abs(vec[..., :n]) + np.abs(vec[..., n:]) * h[..., 0]
-    return radius, np.argmax(mode, axis=-1) + 1
-
-
-def _lowest_rates(mass: FloatArray, kp: FloatArray, kd: FloatArray) -> FloatArray:
-    """Lowest stable rate (Hz) of each configuration of a stack, by bisection."""
-    m = mass.shape[0]
-    lo = np.full(m, 1.0)  # Hz
-    hi = np.full(m, 1e8)  # stable at 1e8 Hz for any positive gains
-    stable_at_lo = spectral_radius(mass, kp, kd, 1.0 / lo)[0] < 1.0
-    for _ in range(24):  # bracket ratio 1e8 -> about 0.1 % resolution
-        mid = np.sqrt(lo * hi)
-        stable = spectral_radius(mass, kp, kd, 1.0 / mid)[0] < 1.0
-        hi = np.where(stable, mid, hi)
-        lo = np.where(stable, lo, mid)
-    return np.where(stable_at_lo, 1.0, hi)
-
-
-def rate_margin(spec: RunSpec, reference: JointReference, *, points: int = 13) -> RateCheck:
-    """Lowest stable rate over the motion and the radius at ``spec.rate``."""
+def rate_margin(spec: RunSpec, reference: JointReference, *, points: int = 13, mode: str = "lockstep",
+                delay_periods: int = 0, margin: float | None = None) -> RateCheck:
+    """Lowest stable rate over the motion and the radius at ``spec.rate``, for the loop of ``mode``
+    with ``delay_periods`` more periods of delay (:func:`loop_delay`); ``margin`` is the required
+    margin (default :data:`REQUIRED_MARGIN` of the mode)."""
+    delay = loop_delay(mode, delay_periods)
+    required = REQUIRED_MARGIN[mode] if margin is None else float(margin)
+    if not np.isfinite(required) or required <= 0.0:
+        raise InvalidInputError(f"margin must be a positive number, got {margin!r}")
     robot = spec.robot_model()
     t = np.linspace(0.0, reference.duration, points)
     q = reference.sample(t).q
@@ -103,32 +183,68 @@ def rate_margin(spec: RunSpec, reference: JointReference, *, points: int = 13) -
     linear = [effective_gains(spec, mass) for mass in masses]
     pairs = [pair for pair in linear if pair is not None]
     if len(pairs) < len(linear):  # a law without linear gains: not checked
-        return RateCheck(spec.rate, float("nan"), float("nan"), 0, True)
+        return RateCheck(spec.rate, float("nan"), float("nan"), 0, True, mode, delay, required)
     kp = np.stack([p[0] for p in pairs])
     kd = np.stack([p[1] for p in pairs])
-    lowest = float(np.max(_lowest_rates(masses, kp, kd)))
-    radii, joints = spectral_radius(masses, kp, kd, 1.0 / spec.rate)
+    lowest = float(np.max(_lowest_rates(masses, kp, kd, delay)))
+    radii, joints = spectral_radius(masses, kp, kd, 1.0 / spec.rate, delay)
     worst = int(np.argmax(radii))
     radius = float(radii[worst])
-    return RateCheck(spec.rate, lowest, radius, int(joints[worst]), radius < 1.0)
+    return RateCheck(spec.rate, lowest, radius, int(joints[worst]), radius < 1.0, mode, delay, required)
 
 
-def check_rate(spec: RunSpec, reference: JointReference) -> RateCheck:
-    """Refuse a rate at which the gains cannot be stable.
+ENTRY_POINTS = ("cli", "node")
+"""How an error names the settings: the ``pdsmc`` command's flags or a node's parameters."""
+
+
+def describe_loop(check: RateCheck) -> str:
+    """``lockstep (zero-order hold)`` / ``realtime (zero-order hold + 1 period of delay)``."""
+    if check.delay == 0:
+        return f"{check.mode} (zero-order hold)"
+    return f"{check.mode} (zero-order hold + {check.delay} period{'s' if check.delay > 1 else ''} of delay)"
+
+
+def check_rate(spec: RunSpec, reference: JointReference, *, mode: str = "lockstep", delay_periods: int = 0,
+               margin: float | None = None, entry: str = "cli") -> RateCheck:
+    """Refuse gains that are not stable, with the required margin, at ``spec.rate`` in ``mode``.
+
+    Parameters
+    ----------
+    mode : str
+        ``lockstep`` or ``realtime`` (:data:`COMPUTATION_DELAY`).
+    delay_periods : int
+        Periods of delay beyond the mode's own (a driver's or a network's).
+    margin : float, optional
+        Required ``rate / lowest stable rate``; :data:`REQUIRED_MARGIN` of the mode by default.
+    entry : str
+        ``cli`` or ``node``: the error advises ``--rate 1500`` or ``-p rate:=1500.0``.
 
     Raises
     ------
     UnstableRateError
-        Naming the joint that dominates the unstable mode and the lowest
-        rate that would work.
+        Naming the joint that dominates the slowest-to-settle mode, the lowest stable rate, the
+        margin and the rate that would give the required margin, as the entry point spells it.
     """
-    result = rate_margin(spec, reference)
-    if not result.stable:
-        suggestion = np.ceil(1.2 * result.lowest_stable_rate / spec.sample_rate) * spec.sample_rate
-        raise UnstableRateError(
-            f"{spec.controller} gains for {spec.robot}/{spec.contour} cannot be stable at "
-            f"{spec.rate:g} Hz: joint {result.worst_joint} diverges (discrete pole radius "
-            f"{result.spectral_radius:.3f} > 1); the lowest stable rate is about "
-            f"{result.lowest_stable_rate:,.0f} Hz, use --rate {suggestion:g} or higher"
-        )
-    return result
+    if entry not in ENTRY_POINTS:
+        raise InvalidInputError(f"entry must be one of {ENTRY_POINTS}, got {entry!r}")
+    result = rate_margin(spec, reference, mode=mode, delay_periods=delay_periods, margin=margin)
+    if result.passes:
+        return result
+    needed = max(1.2, result.required_margin * 1.05) * result.lowest_stable_rate
+    suggestion = float(np.ceil(needed / spec.sample_rate) * spec.sample_rate)
+    if entry == "node":
+        rate_advice, margin_name = f"-p rate:={suggestion:.1f}", "-p stability_margin:="
+    else:
+        rate_advice, margin_name = f"--rate {suggestion:g}", "--margin "
+    if result.stable:
+        problem = (f"has a margin of only x{result.margin:.2f} (lowest stable rate about "
+                   f"{result.lowest_stable_rate:,.0f} Hz, joint {result.worst_joint} the closest to the edge; "
+                   f"{result.required_margin:g}x required, {margin_name}sets it)")
+    else:
+        problem = (f"cannot be stable: joint {result.worst_joint} diverges (discrete pole radius "
+                   f"{result.spectral_radius:.3f} > 1); the lowest stable rate is about "
+                   f"{result.lowest_stable_rate:,.0f} Hz")
+    raise UnstableRateError(
+        f"{spec.controller} gains for {spec.robot}/{spec.contour} at {spec.rate:g} Hz in "
+        f"{describe_loop(result)} {problem}; use {rate_advice} or higher, or gentler gains"
+    )
