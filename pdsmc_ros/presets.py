@@ -83,6 +83,9 @@ class RunSpec:
         CSV of task-space waypoints for ``contour == "csv"``.
     segment_duration : float
         Duration (s) of each segment of a CSV contour.
+    enforce_limits : bool
+        Clamp the controller's torque to the arm's effort limits (``robot.effort_limits``) at
+        every step; False opts out (``--no-enforce-limits``, ``enforce_limits:=false``).
     """
 
     robot: str
@@ -100,6 +103,7 @@ class RunSpec:
     waypoints_file: str | None = None
     segment_duration: float = 2.0
     bound: float = 0.0
+    enforce_limits: bool = True
 
     def __post_init__(self) -> None:
         resolve_robot(self.robot)
@@ -189,6 +193,7 @@ class RunSpec:
             "ellipse_error": self.ellipse_error,
             "waypoints_file": self.waypoints_file,
             "segment_duration": self.segment_duration,
+            "enforce_limits": self.enforce_limits,
         }
 
     @classmethod
@@ -211,6 +216,7 @@ class RunSpec:
             waypoints_file=data.get("waypoints_file"),
             segment_duration=float(data.get("segment_duration", 2.0)),
             bound=float(data.get("contour_bound_m", robot_settings(robot).contour_bound)),
+            enforce_limits=bool(data.get("enforce_limits", True)),
         )
 
 
