@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import dataclasses
-import gc
 import math
 import signal
 import sys
@@ -23,6 +22,7 @@ from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy_impl
 
 from ..errors import InvalidInputError, PdsmcError
+from ..runtime.realtime import Collector, restore
 from . import intra
 from .io import (
     Inputs,
@@ -40,6 +40,7 @@ from .lifecycle import (
     arm_teardown_watch,
 )
 from .params import BUSY_WAIT_S
+from .realtime_params import LoopReport, apply_settings, loop_reports, publish_reports
 
 
 def run_node(
@@ -73,6 +74,7 @@ def run_nodes(
     """
     rclpy.init(args=args)
     wrappers: list[Any] = []
+    reports: list[LoopReport] = []  # the real-time settings and loop statistics of each loop node
     executor: SingleThreadedExecutor | None = None
     domain = intra.IntraProcess(rclpy.get_default_context()) if intra_process else None
     code = EXIT_OK
@@ -86,6 +88,7 @@ def run_nodes(
             intra.activate(domain)
             for factory in factories:
                 wrappers.append(factory())
+                reports += loop_reports(wrappers[-1])
             if domain is not None:
                 domain.bind()
         except (InvalidInputError, ParameterException, InvalidParameterTypeException, ValueError,
@@ -99,7 +102,7 @@ def run_nodes(
             return code
         finally:
             intra.activate(None)
-        group = _Group(wrappers)
+        group = _Group(wrappers, reports)
         period = group.period
         # The loop's messages go through a hand-driven wait set (Inputs), the rest through
         # the executor between them. Real-time nodes are paced by the loop, not by rclpy
@@ -121,7 +124,7 @@ def run_nodes(
             [item for inputs in with_inputs if inputs.batch_s for item in inputs.local],
             None if domain is None else domain.guard)
         _serve_loop(executor, group, loop_inputs, period, observed, observe_every, local,
-                    busy_wait=group.busy_wait)
+                    busy_wait=group.busy_wait, reports=reports)
         code = group.exit_code
         if not group.stopped_by_signal:
             _drain(executor, wrappers)
@@ -163,8 +166,11 @@ class _LocalInputs:
 class _Group:
     """Several node wrappers seen as one: done when all are, failed if any is."""
 
-    def __init__(self, wrappers: Sequence[Any]) -> None:
+    def __init__(self, wrappers: Sequence[Any], reports: Sequence[LoopReport] = ()) -> None:
         self.wrappers = list(wrappers)
+        stats = {id(r.diagnostics.node): r.stats for r in reports if r.diagnostics is not None}
+        # the ticking nodes, each with its loop statistics (None: not a loop node)
+        self.ticking = [(w, stats.get(id(w.node))) for w in self.wrappers if getattr(w, "period", None)]
         self.stopped_by_signal: str | None = None
         periods = {getattr(w, "period", None) for w in self.wrappers} - {None}
         self.period = min(periods) if periods else None
@@ -192,9 +198,14 @@ class _Group:
         return max(w.exit_code for w in self.wrappers)
 
     def tick(self, lateness: float) -> None:
-        for w in self.wrappers:
-            if getattr(w, "period", None) and not w.done:
+        clock = time.perf_counter
+        deadline = clock() - lateness
+        for w, stats in self.ticking:
+            if not w.done:
+                start = clock()
                 w.tick(lateness)
+                if stats is not None:  # ros2_control's overrun accounting, per node
+                    stats.record(start, start - deadline, clock())
         if self.watchers and self.state_sources and all(w.done for w in self.state_sources):
             for watch in self.watchers:
                 if not watch.gone:
@@ -202,6 +213,8 @@ class _Group:
                     watch.on_gone()
 
 
+STATISTICS_EVERY_S = 1.0  # real time: loop statistics on /diagnostics this often
+IDLE_MARGIN = 0.3  # real time: the young generation is collected only with this share of a period to spare
 COLD_PERIOD_S = 0.02  # lockstep: the executor's turn (timers, parameters, /clock) this often
 # (one turn costs 0.2-1 ms of Python; every 5 ms it took 15 % of the lockstep rate)
 COLD_WAIT_S = 5.0  # real time: the executor thread's longest sleep (it is woken to stop)
@@ -212,7 +225,7 @@ def _serve_loop(executor: SingleThreadedExecutor, group: Any,
                 hot: Sequence[tuple[Any, Callable[[bytes], None]]], period: float | None,
                 observed: Sequence[tuple[Any, Callable[[bytes], None]]] = (),
                 observe_every: float = 0.0, local: _LocalInputs | None = None, *,
-                busy_wait: float = BUSY_WAIT_S) -> None:
+                busy_wait: float = BUSY_WAIT_S, reports: Sequence[LoopReport] = ()) -> None:
     """Take the loop's inputs with a wait set of their own; serve the rest beside them.
 
     Every ready input of ``hot`` is drained (``take_message`` until empty) and
@@ -229,7 +242,12 @@ def _serve_loop(executor: SingleThreadedExecutor, group: Any,
     0.8 ms: 0-2 in 5,000). Late ticks
     run at once (no burst catch-up beyond one period); ``tick`` may count missed
     deadlines from the lateness. The garbage collector is kept off the path (the
-    loop creates no reference cycles) and its young generation collected now and then.
+    loop creates no reference cycles) and its young generation collected now and then
+    (real time: right after a tick, when the next is far enough away).
+
+    ``reports``: the loop nodes' real-time settings, applied to this thread once the
+    executor thread runs (it stays at normal priority), and their loop statistics,
+    published every ``STATISTICS_EVERY_S`` right after a tick and once at the end.
 
     ``observed`` are the inputs of observers (see :class:`Inputs`): once they
     have given messages, they are left alone for ``observe_every`` seconds, so
@@ -248,9 +266,8 @@ def _serve_loop(executor: SingleThreadedExecutor, group: Any,
                                    executor.context.handle)
     inputs = [(sub.handle, sub.msg_type, handler) for sub, handler in hot]
     observer_inputs = [(sub.handle, sub.msg_type, handler) for sub, handler in observed]
-    gc.collect()
-    gc.freeze()
-    gc.disable()
+    collector = Collector() if period else Collector(young_at=50_000)
+    collector.start()
     switch_interval = sys.getswitchinterval()
     if period:
         # the executor thread (timers, the recorder's flush) must hand the GIL back to the loop
@@ -273,6 +290,8 @@ def _serve_loop(executor: SingleThreadedExecutor, group: Any,
 
         cold_thread = threading.Thread(target=spin_cold, name="executor", daemon=True)
         cold_thread.start()
+    applied = apply_settings(reports, guard_node)  # after the executor thread exists: per thread
+    next_report = clock() + STATISTICS_EVERY_S
     try:
         next_cold = float("inf") if period else 0.0
         next_tick = clock() + period if period else float("inf")
@@ -302,6 +321,12 @@ def _serve_loop(executor: SingleThreadedExecutor, group: Any,
                 next_tick += period
                 if now - next_tick > period:  # more than a period behind: resynchronise
                     next_tick = now + period
+                now = clock()
+                if now >= next_report:  # at most once a second, in the time left after a tick
+                    publish_reports(reports, collector)
+                    next_report = now + STATISTICS_EVERY_S
+                elif next_tick - now > busy_wait + IDLE_MARGIN * period:
+                    collector.idle()
                 continue
             if now >= next_cold:
                 if not ok():
@@ -309,8 +334,8 @@ def _serve_loop(executor: SingleThreadedExecutor, group: Any,
                 executor.spin_once(timeout_sec=0.0)
                 next_cold = now + COLD_PERIOD_S
                 continue
-            if gc.get_count()[0] > 50_000:
-                gc.collect(0)
+            if not period:
+                collector.idle()
             if took:
                 continue
             due = min(next_cold, next_tick - busy_wait, now + 0.1)
@@ -336,6 +361,8 @@ def _serve_loop(executor: SingleThreadedExecutor, group: Any,
                 wait_set.add_guard_condition(guard)
             wait_set.wait(int(sleep * 1e9))
     finally:
+        restore(applied)
+        publish_reports(reports, collector)
         stop.set()
         if wake_guard is not None:  # real time: stop the executor thread
             wake_guard.trigger()  # end its wait now
@@ -344,8 +371,7 @@ def _serve_loop(executor: SingleThreadedExecutor, group: Any,
                 print("warning: the executor thread did not stop within 2 s", file=sys.stderr, flush=True)
             guard_node.destroy_guard_condition(wake_guard)
         sys.setswitchinterval(switch_interval)
-        gc.enable()
-        gc.unfreeze()
+        collector.stop()
 
 
 def _drain(executor: Any, wrappers: Sequence[Any], timeout: float = DRAIN_TIMEOUT_S) -> None:

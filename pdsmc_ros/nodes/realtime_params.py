@@ -1,0 +1,120 @@
+"""The real-time parameters of a ticking node, named as ros2_control's.
+
+``thread_priority`` (SCHED_FIFO priority of the loop's thread, 1-99; 0 = normal scheduling;
+50 by default in ``mode:=realtime``, as the controller manager), ``cpu_affinity`` (cores the
+loop's thread may run on; empty = any) and ``lock_memory`` (``mlockall`` of present and
+future pages; on by default in real time). They are read once at start-up and fixed while
+the loop runs (a later set is refused); :mod:`pdsmc_ros.runtime.realtime` applies them.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+
+from ..errors import ConfigError
+from ..runtime.realtime import MAX_PRIORITY, Applied, Collector, RealtimeSettings, apply, minor_faults
+from ..runtime.statistics import LoopStatistics, status_name
+from .diagnostics import Diagnostics
+
+NAMES = ("thread_priority", "cpu_affinity", "lock_memory")
+
+
+def declare_realtime_parameters(node: Node, mode: str) -> RealtimeSettings:
+    """Declare the three parameters on ``node`` with ``mode``'s defaults; the validated
+    settings, or a ConfigError naming the parameter and what it allows."""
+    default = RealtimeSettings.for_mode(mode)
+    node.declare_parameter("thread_priority", default.thread_priority, ParameterDescriptor(
+        description=f"SCHED_FIFO priority of the loop's thread, 1-{MAX_PRIORITY} (0: normal scheduling; "
+                    "default 50 in real time, as ros2_control's controller manager)", dynamic_typing=True))
+    node.declare_parameter("cpu_affinity", [-1], ParameterDescriptor(
+        description="cores the loop's thread may run on, e.g. [1] (default [-1]: any core)", dynamic_typing=True))
+    node.declare_parameter("lock_memory", default.lock_memory, ParameterDescriptor(
+        description="lock the process's present and future memory pages (mlockall; default on in real time)",
+        dynamic_typing=True))
+    node.add_on_set_parameters_callback(_refuse_changes)
+    priority = node.get_parameter("thread_priority").value
+    if isinstance(priority, bool) or not isinstance(priority, int):
+        raise ConfigError(f"parameter thread_priority must be a whole number in [0, {MAX_PRIORITY}] "
+                          f"(0: normal scheduling), got {priority!r}")
+    cores = node.get_parameter("cpu_affinity").value
+    if isinstance(cores, int) and not isinstance(cores, bool):
+        cores = [cores]
+    if isinstance(cores, str) or not isinstance(cores, (list, tuple)) or not all(
+            isinstance(c, int) and not isinstance(c, bool) for c in cores):
+        raise ConfigError(f"parameter cpu_affinity must be a list of core numbers, e.g. [1], or [-1] "
+                          f"for any core, got {cores!r}")
+    cores = [] if list(cores) == [-1] else list(cores)
+    lock = node.get_parameter("lock_memory").value
+    if not isinstance(lock, bool):
+        raise ConfigError(f"parameter lock_memory must be true or false, got {lock!r}")
+    try:
+        return RealtimeSettings(priority, tuple(cores), lock).validated()
+    except ConfigError as exc:
+        raise ConfigError(f"parameter {exc}") from None
+
+
+def _refuse_changes(params: list[Parameter]) -> SetParametersResult:
+    for param in params:
+        if param.name in NAMES:
+            return SetParametersResult(
+                successful=False, reason=f"{param.name} is applied at start-up and cannot change while the loop runs")
+    return SetParametersResult(successful=True)
+
+
+class LoopReport:
+    """A node's real-time settings and, if it ticks, its loop statistics on ``/diagnostics``.
+
+    Built right after the node (while a composed process's intra-process routes are still
+    being made, so a composed recorder receives the statistics too); the serve loop records
+    every tick in ``stats`` and calls :meth:`publish` once a second and at the end.
+    """
+
+    def __init__(self, wrapper: Any) -> None:
+        node: Node = wrapper.node
+        self.settings = declare_realtime_parameters(node, wrapper.mode)
+        period = getattr(wrapper, "period", None)
+        self.stats = LoopStatistics(period) if period else None
+        self.diagnostics = None if self.stats is None else Diagnostics(
+            node, status_name(node.get_name()), "pdsmc_ros/loop", values=self.stats.values)
+
+    def publish(self) -> None:
+        if self.stats is None or self.diagnostics is None or not self.stats.ticks:
+            return
+        missed = self.stats.missed
+        self.diagnostics.publish("warn" if missed else "info",
+                                 f"{missed} of {self.stats.ticks} periods missed")
+
+
+def loop_reports(wrapper: Any) -> list[LoopReport]:
+    """``[LoopReport(wrapper)]`` for a node of the control loop (it has a ``mode``), else none
+    (the recorder and the viewer only observe)."""
+    return [LoopReport(wrapper)] if hasattr(wrapper, "mode") else []
+
+
+def apply_settings(reports: Sequence[LoopReport], node: Node) -> Applied:
+    """Apply the loop nodes' settings (merged: one thread ticks them all) to the calling
+    thread; one info line of what holds and, if the system refused something, one warning."""
+    applied = apply(RealtimeSettings.merged([r.settings for r in reports]))
+    logger = node.get_logger()
+    logger.info(applied.summary())
+    if applied.warning:
+        logger.warn(applied.warning)
+    return applied
+
+
+def publish_reports(reports: Sequence[LoopReport], collector: Collector) -> None:
+    """Publish the loop statistics, with the loop thread's page faults and collections."""
+    stats = [r.stats for r in reports if r.stats is not None]
+    if not stats:
+        return
+    faults = minor_faults()
+    for s in stats:
+        s.page_faults(faults)
+        s.collections = collector.collections
+    for report in reports:
+        report.publish()

@@ -1,0 +1,240 @@
+"""Real-time settings of a control loop's thread, named as ros2_control's (ROS-free).
+
+ros2_control's controller manager runs its update loop in a thread it configures with
+``realtime_tools``: ``SCHED_FIFO`` at ``thread_priority`` (50 by default), optionally pinned
+to ``cpu_affinity`` and with the process's memory locked (``lock_memory``,
+``mlockall(MCL_CURRENT | MCL_FUTURE)``). Where the system refuses (no privilege, limits), it
+warns and runs on at normal scheduling; so does :func:`apply` here, with one warning that
+names the fix (``/etc/security/limits.conf`` ``rtprio``/``memlock``, or the capability).
+
+The scheduling policy and the affinity are per thread on Linux (``sched_setscheduler(0)``
+and ``sched_setaffinity(0)`` act on the calling thread): they are applied by the loop's own
+thread, after the threads that must stay at normal priority (the executor's, Fast DDS's)
+exist, so those do not inherit them. Memory locking is per process.
+
+Python's garbage collector is kept out of the loop (:class:`Collector`): everything alive
+after start-up is frozen (``gc.freeze``: never scanned again), automatic collection is off,
+and the young generation is collected only where the loop says it has time to spare.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import ctypes.util
+import dataclasses
+import gc
+import os
+import resource
+from collections.abc import Sequence
+from pathlib import Path
+
+from ..errors import ConfigError
+
+DEFAULT_PRIORITY = 50  # ros2_control's controller manager: SCHED_FIFO 50
+MAX_PRIORITY = 99
+# mlockall flags of Linux on x86, arm and riscv (<bits/mman-linux.h>)
+MCL_CURRENT, MCL_FUTURE = 1, 2
+
+FIFO_FIX = ("allow it with 'rtprio 99' for the user in /etc/security/limits.conf (then log in again) "
+            "or give the process CAP_SYS_NICE (setcap cap_sys_nice+ep, or a container's --cap-add SYS_NICE)")
+MEMLOCK_FIX = ("allow it with 'memlock unlimited' for the user in /etc/security/limits.conf (then log in "
+               "again) or give the process CAP_IPC_LOCK (a container's --cap-add IPC_LOCK)")
+AFFINITY_FIX = "choose cores this process may use (taskset -p <pid>, the container's cpuset)"
+
+
+@dataclasses.dataclass(frozen=True)
+class RealtimeSettings:
+    """What a ticking node asks of the system for its loop.
+
+    Attributes
+    ----------
+    thread_priority : int
+        ``SCHED_FIFO`` priority of the loop's thread, 1-99; 0 keeps normal scheduling.
+    cpu_affinity : tuple of int
+        Cores the loop's thread may run on; empty keeps the inherited set.
+    lock_memory : bool
+        Lock the process's pages in memory, present and future (no page-in in the loop).
+    """
+
+    thread_priority: int = 0
+    cpu_affinity: tuple[int, ...] = ()
+    lock_memory: bool = False
+
+    @classmethod
+    def for_mode(cls, mode: str) -> RealtimeSettings:
+        """The defaults: ros2_control's in ``realtime`` (FIFO 50, memory locked), none in lockstep."""
+        if mode == "realtime":
+            return cls(thread_priority=DEFAULT_PRIORITY, lock_memory=True)
+        return cls()
+
+    def validated(self) -> RealtimeSettings:
+        """``self``, or a ConfigError naming the setting and what is allowed."""
+        if not 0 <= self.thread_priority <= MAX_PRIORITY:
+            raise ConfigError(f"thread_priority must be a whole number in [0, {MAX_PRIORITY}] "
+                              f"(0: normal scheduling), got {self.thread_priority}")
+        cores = os.cpu_count() or 1
+        bad = [c for c in self.cpu_affinity if not 0 <= c < cores]
+        if bad:
+            raise ConfigError(f"cpu_affinity must list cores in [0, {cores - 1}] (this machine has {cores}), "
+                              f"got {list(self.cpu_affinity)}")
+        return self
+
+    @staticmethod
+    def merged(settings: Sequence[RealtimeSettings]) -> RealtimeSettings:
+        """Several nodes composed in one loop: the highest priority, every core asked for, and
+        memory locked if any node asks (one thread ticks them all)."""
+        if not settings:
+            return RealtimeSettings()
+        cores = sorted({c for s in settings for c in s.cpu_affinity})
+        return RealtimeSettings(max(s.thread_priority for s in settings), tuple(cores),
+                                any(s.lock_memory for s in settings))
+
+
+@dataclasses.dataclass
+class Applied:
+    """What :func:`apply` achieved, and the one warning for what the system refused (or "")."""
+
+    fifo: bool = False
+    affinity: tuple[int, ...] = ()
+    memory_locked: bool = False
+    warning: str = ""
+
+    def summary(self) -> str:
+        """One line for the node's log."""
+        parts = [f"SCHED_FIFO priority {os.sched_getparam(0).sched_priority}" if self.fifo else "normal scheduling",
+                 f"cores {','.join(map(str, self.affinity))}" if self.affinity else "any core",
+                 "memory locked" if self.memory_locked else "memory not locked"]
+        return "real time: " + ", ".join(parts)
+
+
+def _libc() -> ctypes.CDLL:
+    return ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6", use_errno=True)
+
+
+def lock_memory() -> str:
+    """``mlockall(MCL_CURRENT | MCL_FUTURE)``; "" on success, else the reason it was refused."""
+    libc = _libc()
+    if libc.mlockall(MCL_CURRENT | MCL_FUTURE) == 0:
+        return ""
+    err = ctypes.get_errno()
+    soft, _ = resource.getrlimit(resource.RLIMIT_MEMLOCK)
+    limit = "unlimited" if soft == resource.RLIM_INFINITY else f"{soft // 1024} KiB"
+    return f"{os.strerror(err)} (memlock limit {limit})"
+
+
+def unlock_memory() -> None:
+    """``munlockall()``: the loop is over (tear-down need not stay resident)."""
+    _libc().munlockall()
+
+
+def set_fifo(priority: int) -> str:
+    """The calling thread to ``SCHED_FIFO`` at ``priority`` (0: normal); "" or the refusal."""
+    try:
+        if priority > 0:
+            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+        else:
+            os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
+    except OSError as exc:
+        soft, _ = resource.getrlimit(resource.RLIMIT_RTPRIO)
+        return f"{exc.strerror} (rtprio limit {soft})"
+    return ""
+
+
+def apply(settings: RealtimeSettings) -> Applied:
+    """Apply ``settings`` to the calling thread (and, for memory, the process).
+
+    Refusals do not raise: each is described in ``Applied.warning`` (one line, with its fix)
+    and the loop runs on without it, as ros2_control's controller manager does.
+    """
+    applied = Applied()
+    refused = []
+    if settings.cpu_affinity:
+        try:
+            os.sched_setaffinity(0, settings.cpu_affinity)
+            applied.affinity = tuple(sorted(os.sched_getaffinity(0)))
+        except OSError as exc:
+            refused.append(f"cpu_affinity {list(settings.cpu_affinity)} ({exc.strerror}): {AFFINITY_FIX}")
+    if settings.lock_memory:
+        why = lock_memory()
+        applied.memory_locked = not why
+        if why:
+            refused.append(f"lock_memory ({why}): {MEMLOCK_FIX}")
+    if settings.thread_priority > 0:
+        why = set_fifo(settings.thread_priority)
+        applied.fifo = not why
+        if why:
+            refused.append(f"SCHED_FIFO priority {settings.thread_priority} ({why}): {FIFO_FIX}")
+    if refused:
+        applied.warning = "real time: running on without " + "; without ".join(refused)
+    return applied
+
+
+def restore(applied: Applied) -> None:
+    """Undo :func:`apply` at the end of the loop: normal scheduling (tear-down at FIFO could
+    starve the machine if it spun), memory unlocked. The affinity stays."""
+    if applied.fifo:
+        set_fifo(0)
+    if applied.memory_locked:
+        unlock_memory()
+
+
+def scheduler_of_thread() -> tuple[str, int]:
+    """The calling thread's policy name and priority (read back, e.g. in tests)."""
+    policy = os.sched_getscheduler(0)
+    names = {os.SCHED_OTHER: "SCHED_OTHER", os.SCHED_FIFO: "SCHED_FIFO", os.SCHED_RR: "SCHED_RR",
+             os.SCHED_BATCH: "SCHED_BATCH", os.SCHED_IDLE: "SCHED_IDLE"}
+    return names.get(policy, str(policy)), os.sched_getparam(0).sched_priority
+
+
+def locked_kib(status: Path = Path("/proc/self/status")) -> int:
+    """``VmLck`` of ``/proc/self/status`` in KiB: the process's locked memory (0 if unknown)."""
+    try:
+        for line in status.read_text().splitlines():
+            if line.startswith("VmLck:"):
+                return int(line.split()[1])
+    except (OSError, ValueError, IndexError):
+        return 0
+    return 0
+
+
+def minor_faults() -> int:
+    """Minor page faults of the calling thread so far (``getrusage(RUSAGE_THREAD)``)."""
+    return resource.getrusage(resource.RUSAGE_THREAD).ru_minflt
+
+
+YOUNG_COLLECT_AT = 2_000  # young-generation collections happen when this many objects are pending
+
+
+class Collector:
+    """Python's garbage collector kept out of the loop.
+
+    :meth:`start` collects everything, freezes what is alive (the nodes, the kernels, the
+    references: never scanned again) and turns automatic collection off, so a collection
+    never starts inside a tick. :meth:`idle` collects the young generation only when the
+    loop calls it with time to spare and enough objects are pending: a young collection of
+    ``YOUNG_COLLECT_AT`` objects takes tens of microseconds, against milliseconds for the
+    automatic full collections a long run would otherwise meet at a random tick.
+    """
+
+    def __init__(self, young_at: int = YOUNG_COLLECT_AT) -> None:
+        self.young_at = young_at
+        self.collections = 0
+        self._was_enabled = gc.isenabled()
+
+    def start(self) -> None:
+        gc.collect()
+        gc.freeze()
+        gc.disable()
+
+    def idle(self) -> bool:
+        """The loop has time: collect the young generation if enough is pending."""
+        if gc.get_count()[0] < self.young_at:
+            return False
+        gc.collect(0)
+        self.collections += 1
+        return True
+
+    def stop(self) -> None:
+        if self._was_enabled:
+            gc.enable()
+        gc.unfreeze()

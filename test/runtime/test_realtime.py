@@ -1,0 +1,123 @@
+"""Real-time settings (ROS-free part): applied when allowed, read back from the kernel; refused
+settings give one warning with the fix and the caller runs on; the loop statistics and the
+garbage-collector policy.
+
+Settings are applied in a child process (a SCHED_FIFO or memory-locked pytest would outlive
+the test); the child runs a few lines and exits, so no FIFO thread is left behind.
+"""
+
+from __future__ import annotations
+
+import gc
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from pdsmc_ros.errors import ConfigError
+from pdsmc_ros.runtime.realtime import Collector, RealtimeSettings
+from pdsmc_ros.runtime.statistics import LoopStatistics, parse_values
+
+ROOT = Path(__file__).resolve().parent.parent.parent
+
+CHILD = """
+import json, os
+from pdsmc_ros.runtime.realtime import RealtimeSettings, apply, locked_kib, restore, scheduler_of_thread
+applied = apply(RealtimeSettings(thread_priority=10, cpu_affinity=(0,), lock_memory=True))
+policy, priority = scheduler_of_thread()
+read = {"policy": policy, "priority": priority, "affinity": sorted(os.sched_getaffinity(0)),
+        "getscheduler_fifo": os.sched_getscheduler(0) == os.SCHED_FIFO, "vmlck_kib": locked_kib(),
+        "warning": applied.warning}
+restore(applied)
+read["after_policy"] = scheduler_of_thread()[0]
+read["after_vmlck_kib"] = locked_kib()
+print(json.dumps(read))
+"""
+
+
+def run_child(prefix: list[str] | None = None) -> dict:
+    proc = subprocess.run([*(prefix or []), sys.executable, "-c", CHILD], cwd=ROOT, capture_output=True,
+                          text=True, timeout=60)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    return json.loads(proc.stdout.strip().splitlines()[-1])
+
+
+def privileged() -> bool:
+    """Whether this machine lets a child set SCHED_FIFO and lock its memory (root here)."""
+    probe = "import os; os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(1))"
+    return subprocess.run([sys.executable, "-c", probe], capture_output=True, timeout=30).returncode == 0
+
+
+def test_settings_are_applied_and_read_back_from_the_kernel() -> None:
+    if not privileged():
+        pytest.skip("this user may not set SCHED_FIFO (the refusal test covers it)")
+    read = run_child()
+    assert read["policy"] == "SCHED_FIFO" and read["priority"] == 10 and read["getscheduler_fifo"]
+    assert read["affinity"] == [0]
+    assert read["vmlck_kib"] > 0  # /proc/self/status VmLck: the pages are locked
+    assert read["warning"] == ""
+    assert read["after_policy"] == "SCHED_OTHER" and read["after_vmlck_kib"] == 0
+
+
+def test_refused_settings_warn_once_with_the_fix_and_run_on() -> None:
+    setpriv = shutil.which("setpriv")
+    if setpriv is None or not privileged():
+        pytest.skip("needs setpriv and a privileged user to drop the capabilities from")
+    # the capabilities dropped and the limits of an ordinary user: both settings are refused
+    read = run_child([setpriv, "--bounding-set=-sys_nice,-ipc_lock", "prlimit", "--rtprio=0", "--memlock=8388608",
+                      "--"])
+    assert read["policy"] == "SCHED_OTHER" and read["vmlck_kib"] == 0
+    assert read["affinity"] == [0]  # what is allowed still holds
+    warning = read["warning"]
+    assert warning.count("real time: running on without") == 1  # one warning for both refusals
+    assert "SCHED_FIFO priority 10" in warning and "rtprio" in warning and "CAP_SYS_NICE" in warning
+    assert "lock_memory" in warning and "memlock" in warning and "CAP_IPC_LOCK" in warning
+    assert "/etc/security/limits.conf" in warning
+
+
+def test_bad_settings_are_refused_with_what_is_allowed() -> None:
+    with pytest.raises(ConfigError, match=r"thread_priority must be a whole number in \[0, 99\]"):
+        RealtimeSettings(thread_priority=100).validated()
+    with pytest.raises(ConfigError, match=r"cpu_affinity must list cores in \[0, "):
+        RealtimeSettings(cpu_affinity=(4096,)).validated()
+    assert RealtimeSettings.for_mode("realtime") == RealtimeSettings(50, (), True)
+    assert RealtimeSettings.for_mode("lockstep") == RealtimeSettings(0, (), False)
+    merged = RealtimeSettings.merged([RealtimeSettings(10, (1,), False), RealtimeSettings(50, (0,), True)])
+    assert merged == RealtimeSettings(50, (0, 1), True)
+
+
+def test_statistics_count_a_stalled_period() -> None:
+    stats = LoopStatistics(0.001, warm_up=2)
+    start = 100.0
+    for k in range(5):  # on time
+        stats.record(start + k * 0.001, 2e-6, start + k * 0.001 + 1e-4)
+    stats.page_faults(40)  # warm-up over: faults counted from here
+    stats.record(start + 0.0500, 0.0450, start + 0.0501)  # a stall: 45 ms late
+    stats.record(start + 0.0510, 0.0, start + 0.0511)
+    stats.page_faults(43)
+    v = parse_values(stats.values())
+    assert v["ticks"] == 7 and v["missed"] == 1
+    assert v["late_max_us"] == pytest.approx(45000.0)
+    assert v["period_worst_us"] == pytest.approx(46000.0, abs=0.2)
+    assert v["minor_faults"] == 3
+
+
+def test_collector_keeps_collection_out_of_the_loop() -> None:
+    collector = Collector(young_at=100)
+    try:
+        collector.start()
+        assert not gc.isenabled()
+        assert gc.get_freeze_count() > 0
+        assert not collector.idle() or gc.get_count()[0] == 0
+        for _ in range(500):  # reference cycles: only a collection frees them
+            cycle: list = []
+            cycle.append(cycle)
+        del cycle
+        assert collector.idle() and collector.collections == 1
+        assert gc.get_count()[0] < 100
+    finally:
+        collector.stop()
+    assert gc.isenabled() and gc.get_freeze_count() == 0
