@@ -32,7 +32,13 @@ from ..joints import check_joint_names
 from ..robots.catalog import allowed_robots, resolve_robot
 from ..robots.registry import ROBOTS
 from ..robots.urdf_robot import UrdfRobot
-from ..sim.mujoco_driver import JOINT_STATE_ORDERS, MujocoDriver, default_positions, joint_state_order
+from ..sim.mujoco_driver import (
+    JOINT_STATE_ORDERS,
+    MujocoDriver,
+    default_positions,
+    initial_passive,
+    joint_state_order,
+)
 from ..sim.mujoco_model import build_model
 from .executor import run_node
 from .io import GuardedPublisher, Inputs
@@ -83,7 +89,8 @@ class MujocoDriverNode:
         command_joints = check_joint_names(arm.joint_names if joints is None else joints, arm.n)
         q0 = default_positions(robot) if initial is None else self._positions(initial, arm.n)
         try:
-            self.driver = MujocoDriver(arm, q0, command_joints=command_joints, command_timeout=timeout)
+            self.driver = MujocoDriver(arm, q0, passive0=initial_passive(robot, q0), command_joints=command_joints,
+                                       command_timeout=timeout)
         except InvalidInputError as exc:
             raise ConfigError(f"parameter {exc}") from None
         names = list(arm.joint_names + arm.passive_joint_names)

@@ -38,8 +38,11 @@ class MujocoDriver:
     arm : MujocoArm
         The MuJoCo model (:func:`pdsmc_ros.sim.mujoco_model.build_model`).
     q0 : array_like
-        Initial angles of the actuated joints (robot order); the five-bar's passive joints are
-        solved so that the loop is closed.
+        Initial angles of the actuated joints (robot order).
+    passive0 : array_like, optional
+        Initial angles of the passive joints (the five-bar's: those that close its loop at
+        ``q0``, in the assembly the thesis uses; :func:`initial_passive`). Required when the
+        arm has passive joints.
     command_joints : sequence of str, optional
         The joint each entry of a command drives (``data[i]`` -> ``command_joints[i]``);
         by default the arm's actuated joints in its order.
@@ -48,8 +51,8 @@ class MujocoDriver:
         command is held forever, as a forward command controller does).
     """
 
-    def __init__(self, arm: MujocoArm, q0: ArrayLike, *, command_joints: Sequence[str] | None = None,
-                 command_timeout: float = 0.0) -> None:
+    def __init__(self, arm: MujocoArm, q0: ArrayLike, *, passive0: ArrayLike | None = None,
+                 command_joints: Sequence[str] | None = None, command_timeout: float = 0.0) -> None:
         self._mujoco = _mujoco()
         self.arm = arm
         self.data = arm.data()
@@ -68,8 +71,13 @@ class MujocoDriver:
         if q.shape != (arm.n,) or not np.all(np.isfinite(q)):
             raise InvalidInputError(f"initial positions must be {arm.n} finite angles (rad), got {q.tolist()}")
         set_state(arm, self.data, q)
-        if arm.passive_joint_names:
-            self._close_loop()
+        k = len(arm.passive_joint_names)
+        if k:
+            passive = np.zeros(0) if passive0 is None else np.asarray(passive0, dtype=float)
+            if passive.shape != (k,) or not np.all(np.isfinite(passive)):
+                raise InvalidInputError(f"the passive joints {list(arm.passive_joint_names)} need {k} finite "
+                                        f"initial angles, got {passive.tolist()}")
+            self.data.qpos[arm.qpos[arm.n:]] = passive
         self._mujoco.mj_forward(arm.model, self.data)
         self.timestep = float(arm.model.opt.timestep)
         self.torque = np.zeros(arm.n)  # robot order
@@ -80,21 +88,6 @@ class MujocoDriver:
         self.dropped = 0
         self.steps = 0
         self.skipped = 0.0  # wall seconds not integrated (beyond MAX_CATCH_UP_S)
-
-    def _close_loop(self) -> None:
-        """Settle the passive joints onto the closed loop with the actuated joints held (a few
-        hundred steps of MuJoCo with the actuated joints' rates pinned at zero)."""
-        m, d = self.arm.model, self.data
-        n = self.arm.n
-        active = self.arm.dof[:n]
-        q = d.qpos[self.arm.qpos[:n]].copy()
-        for _ in range(2000):
-            d.qvel[:] = 0.0
-            self._mujoco.mj_step(m, d)
-            d.qpos[self.arm.qpos[:n]] = q
-            d.qvel[active] = 0.0
-        d.qvel[:] = 0.0
-        d.time = 0.0
 
     # -- commands ------------------------------------------------------------ #
     def command(self, values: Sequence[float], now: float) -> str | None:
@@ -184,6 +177,17 @@ def default_positions(robot: str) -> FloatArray:
         return np.asarray(cls.home, dtype=float).copy()
     reference = JointReference(make_robot(robot), build_contour(robot, "circle"))
     return np.asarray(reference.sample([0.0]).q[0], dtype=float)
+
+
+def initial_passive(robot: str, q0: ArrayLike) -> FloatArray:
+    """The passive joints' angles that close a closed chain's loop at ``q0`` (the five-bar's, in
+    the thesis's assembly: its closed-form kinematics, a state, not a model, handed to MuJoCo);
+    empty for a serial arm."""
+    from ..robots.registry import make_robot
+
+    robot_model = make_robot(robot)
+    q = np.asarray(q0, dtype=float)
+    return np.asarray(robot_model.passive_joints(q, np.zeros_like(q))[0], dtype=float)
 
 
 JOINT_STATE_ORDERS = ("alphabetical", "urdf", "reversed")

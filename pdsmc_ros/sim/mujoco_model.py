@@ -43,6 +43,7 @@ from numpy.typing import ArrayLike
 
 from ..errors import InvalidInputError
 from ..robots.base import GRAVITY, FloatArray
+from ..robots.catalog import resolve_robot
 from ..robots.registry import ROBOTS, robot_params
 from ..robots.urdf_robot import UrdfRobot
 from ..urdf import robot_urdf
@@ -104,9 +105,7 @@ class MujocoArm:
 def description(robot: str) -> tuple[str, float, FloatArray | float, tuple[str, ...]]:
     """``(urdf, gravity, armature, locked_joints)`` of a registered robot: what both our model
     and MuJoCo's are built from."""
-    cls = ROBOTS.get(robot)
-    if cls is None:
-        raise InvalidInputError(f"robot {robot!r} is not loaded (resolve it first)")
+    cls = ROBOTS[resolve_robot(robot)]
     if issubclass(cls, UrdfRobot):
         locked = tuple(cls.options.get("locked_joints", ()))
         return cls.urdf, GRAVITY, np.asarray(cls.armature, dtype=float), locked
@@ -161,8 +160,8 @@ def build_model(robot: str, *, timestep: float = 1e-3, integrator: str = "rk4") 
     Parameters
     ----------
     robot : str
-        A registered robot: ``serial_3r``, ``parallel_5r`` or a URDF arm
-        (resolve names and paths with :func:`pdsmc_ros.robots.catalog.resolve_robot` first).
+        ``serial_3r``, ``parallel_5r``, a named URDF arm or a ``.urdf`` path
+        (:func:`pdsmc_ros.robots.catalog.resolve_robot`).
     timestep : float
         MuJoCo's step (s).
     integrator : str
@@ -171,16 +170,14 @@ def build_model(robot: str, *, timestep: float = 1e-3, integrator: str = "rk4") 
     Raises
     ------
     InvalidInputError
-        An unknown robot, a URDF MuJoCo refuses (one line, its reason), a bad step.
+        An unknown robot (naming what is allowed), a URDF MuJoCo refuses (one line, its reason), a bad step.
     """
     mujoco = _mujoco()
     if not np.isfinite(timestep) or timestep <= 0.0:
         raise InvalidInputError(f"timestep must be > 0 s, got {timestep!r}")
     if integrator not in INTEGRATORS:
         raise InvalidInputError(f"integrator must be one of {', '.join(INTEGRATORS)}, got {integrator!r}")
-    cls = ROBOTS.get(robot)
-    if cls is None:
-        raise InvalidInputError(f"robot {robot!r} is not loaded (resolve it first)")
+    cls = ROBOTS[resolve_robot(robot)]
     urdf, gravity, armature, locked = description(robot)
     joints = tuple(cls.joint_names)
     passive = tuple(cls.passive_joint_names)

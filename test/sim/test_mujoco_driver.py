@@ -1,0 +1,119 @@
+"""The driver around MuJoCo, without ROS: brakes, commands by joint name, drops, timeout, wall clock."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from pdsmc_ros.errors import InvalidInputError
+
+pytest.importorskip("mujoco")
+
+from pdsmc_ros.sim import mujoco_driver as md  # noqa: E402
+from pdsmc_ros.sim.mujoco_model import MujocoArm, build_model  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def arm() -> MujocoArm:
+    return build_model("serial_3r", timestep=1e-3)
+
+
+def driver(arm: MujocoArm, **kwargs: object) -> md.MujocoDriver:
+    return md.MujocoDriver(arm, md.default_positions("serial_3r"), **kwargs)  # type: ignore[arg-type]
+
+
+def test_braked_until_the_first_command_then_it_moves(arm: MujocoArm) -> None:
+    d = driver(arm)
+    q0, _, _ = d.state()
+    for t in np.arange(0.0, 0.3, 0.001):
+        d.advance(float(t))
+    q, qd, effort = d.state()
+    assert d.braked and d.steps == 0
+    np.testing.assert_array_equal(q, q0)
+    np.testing.assert_array_equal(qd, 0.0)
+    np.testing.assert_array_equal(effort, 0.0)
+    assert d.command([0.0, 0.0, 0.0], 1.0) is None  # released at t = 1 s: a zero torque, so the arm falls
+    for k in range(1, 201):
+        d.advance(1.0 + k * 1e-3)
+    q, qd, _ = d.state()
+    assert not d.braked and d.steps == 200
+    assert np.all(np.abs(q - q0) > 1e-3) and np.all(qd != 0.0)
+
+
+def test_the_command_is_held_and_applied_by_joint_name(arm: MujocoArm) -> None:
+    in_order = driver(arm)
+    reversed_ = driver(arm, command_joints=["joint3", "joint2", "joint1"])
+    in_order.command([1.0, -2.0, 3.0], 0.0)
+    reversed_.command([3.0, -2.0, 1.0], 0.0)
+    for t in (0.05, 0.1):  # no new command: the last one is applied on
+        in_order.advance(t)
+        reversed_.advance(t)
+    a, b = in_order.state(), reversed_.state()
+    for x, y in zip(a, b, strict=True):
+        np.testing.assert_array_equal(x, y)
+    np.testing.assert_array_equal(a[2], [1.0, -2.0, 3.0])  # effort: the motors' torque, robot order
+
+
+def test_a_bad_command_is_dropped_and_the_last_good_one_stays(arm: MujocoArm) -> None:
+    d = driver(arm)
+    assert "2 values for 3 joints" in str(d.command([1.0, 2.0], 0.0))
+    assert d.braked  # a dropped command does not release the brakes
+    d.command([1.0, 2.0, 3.0], 0.0)
+    why = d.command([1.0, float("nan"), 3.0], 0.01)
+    assert why is not None and "'joint2'" in why and "non-finite" in why
+    assert d.dropped == 2 and d.commands == 1
+    d.advance(0.02)
+    np.testing.assert_array_equal(d.state()[2], [1.0, 2.0, 3.0])
+
+
+def test_effort_saturates_at_the_urdf_limit() -> None:
+    arm = build_model("ur5")
+    d = md.MujocoDriver(arm, md.default_positions("ur5"))
+    d.command([500.0, -500.0, 10.0, 100.0, -100.0, 1.0], 0.0)
+    d.advance(0.001)
+    np.testing.assert_array_equal(d.state()[2], [150.0, -150.0, 10.0, 28.0, -28.0, 1.0])
+
+
+def test_command_timeout_closes_the_brakes(arm: MujocoArm) -> None:
+    d = driver(arm, command_timeout=0.05)
+    d.command([0.0, 0.0, 0.0], 0.0)
+    assert d.advance(0.04) is False
+    assert d.advance(0.06) is True and d.braked
+    frozen = d.state()
+    np.testing.assert_array_equal(frozen[1], 0.0)
+    d.advance(0.5)
+    np.testing.assert_array_equal(d.state()[0], frozen[0])
+    d.command([0.0, 0.0, 0.0], 0.6)  # the next command releases them again
+    d.advance(0.61)
+    assert not d.braked and np.any(d.state()[1] != 0.0)
+
+
+def test_a_stall_is_caught_up_only_so_far(arm: MujocoArm) -> None:
+    d = driver(arm)
+    d.command([0.0, 0.0, 0.0], 0.0)
+    d.advance(1.0)  # the process stood still for a second
+    assert d.steps == round(md.MAX_CATCH_UP_S / 1e-3)
+    assert d.skipped == pytest.approx(1.0 - md.MAX_CATCH_UP_S)
+    assert d.clock == pytest.approx(1.0)
+
+
+def test_bad_set_ups_are_one_line(arm: MujocoArm) -> None:
+    q0 = md.default_positions("serial_3r")
+    with pytest.raises(InvalidInputError, match="joints must name each"):
+        md.MujocoDriver(arm, q0, command_joints=["joint1", "joint2", "elbow"])
+    with pytest.raises(InvalidInputError, match="3 finite angles"):
+        md.MujocoDriver(arm, [0.0, 0.0])
+    with pytest.raises(InvalidInputError, match="command_timeout"):
+        md.MujocoDriver(arm, q0, command_timeout=-1.0)
+    five_bar = build_model("parallel_5r")
+    with pytest.raises(InvalidInputError, match="passive joints"):
+        md.MujocoDriver(five_bar, md.default_positions("parallel_5r"))
+
+
+def test_joint_state_orders() -> None:
+    names = ["b_joint", "c_joint", "a_joint"]
+    assert md.joint_state_order(names, "urdf") == [0, 1, 2]
+    assert md.joint_state_order(names, "reversed") == [2, 1, 0]
+    assert md.joint_state_order(names, "alphabetical") == [2, 0, 1]
+    with pytest.raises(InvalidInputError, match="joint_state_order"):
+        md.joint_state_order(names, "random")
