@@ -97,6 +97,7 @@ class MujocoDriverNode:
         self.order = joint_state_order(names, str(order))
         self.names = [names[i] for i in self.order]
         self.period = 1.0 / rate  # run_node paces tick() at this period
+        self.mode = "realtime"  # a loop node: real-time settings and loop statistics (realtime_params)
         self.done = False
         self.exit_code = EXIT_OK
 

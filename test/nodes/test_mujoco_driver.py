@@ -1,0 +1,170 @@
+"""The mujoco_driver node seen from a plain rclpy node: states at the rate, wall-clock stamps, its
+own joint order, brakes until the first command, bad commands dropped, the node lives on.
+
+The driver runs as `ros2 run pdsmc_ros mujoco_driver` in its own ROS domain, is stopped by
+its PID and given a timeout.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import time
+from collections.abc import Iterator
+
+import numpy as np
+import pytest
+from conftest import next_domain
+
+rclpy = pytest.importorskip("rclpy")
+pytest.importorskip("mujoco")
+
+from rclpy.context import Context  # noqa: E402
+from rclpy.executors import SingleThreadedExecutor  # noqa: E402
+from rclpy.node import Node  # noqa: E402
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
+from sensor_msgs.msg import JointState  # noqa: E402
+from std_msgs.msg import Float64MultiArray, String  # noqa: E402
+
+RATE = 1000.0
+
+
+class Client:
+    """A plain rclpy node: records /joint_states and /robot_description, publishes commands."""
+
+    def __init__(self, domain: int) -> None:
+        self.ctx = Context()
+        rclpy.init(context=self.ctx, domain_id=domain)
+        self.node = Node("driver_client", context=self.ctx)
+        self.states: list[tuple[float, JointState]] = []
+        self.description: list[str] = []
+        self.node.create_subscription(JointState, "/joint_states", self.on_state, 10_000)
+        self.node.create_subscription(String, "/robot_description", lambda m: self.description.append(m.data),
+                                      QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                                                 durability=DurabilityPolicy.TRANSIENT_LOCAL))
+        self.commands = self.node.create_publisher(Float64MultiArray, "/effort_controller/commands", 10)
+        self.executor = SingleThreadedExecutor(context=self.ctx)
+        self.executor.add_node(self.node)
+
+    def on_state(self, msg: JointState) -> None:
+        self.states.append((time.time(), msg))
+
+    def spin_for(self, seconds: float) -> None:
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            self.executor.spin_once(timeout_sec=0.01)
+
+    def wait_states(self, count: int, timeout: float) -> None:
+        end = time.monotonic() + timeout
+        while len(self.states) < count and time.monotonic() < end:
+            self.executor.spin_once(timeout_sec=0.05)
+
+    def command(self, values: list[float]) -> None:
+        self.commands.publish(Float64MultiArray(data=values))
+
+    def close(self) -> None:
+        self.executor.shutdown(timeout_sec=1.0)
+        self.node.destroy_node()
+        rclpy.shutdown(context=self.ctx)
+
+
+@pytest.fixture
+def domain_env(ros_env: dict[str, str]) -> tuple[int, dict[str, str]]:
+    domain = next_domain()
+    return domain, dict(ros_env, ROS_DOMAIN_ID=str(domain))
+
+
+@pytest.fixture
+def client(domain_env: tuple[int, dict[str, str]]) -> Iterator[Client]:
+    made = Client(domain_env[0])
+    try:
+        yield made
+    finally:
+        made.close()
+
+
+def start(env: dict[str, str], *params: str) -> subprocess.Popen:
+    args = ["ros2", "run", "pdsmc_ros", "mujoco_driver", "--ros-args", "-p", f"rate:={RATE}"]
+    for p in params:
+        args += ["-p", p]
+    return subprocess.Popen(args, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+
+
+def stop(proc: subprocess.Popen) -> tuple[int, str]:
+    if proc.poll() is None:
+        proc.send_signal(signal.SIGINT)
+    try:
+        out, _ = proc.communicate(timeout=20)
+    except subprocess.TimeoutExpired:
+        os.kill(proc.pid, signal.SIGKILL)
+        out, _ = proc.communicate(timeout=10)
+    return proc.returncode, out
+
+
+def positions(msg: JointState) -> np.ndarray:
+    return np.asarray(msg.position)
+
+
+@pytest.mark.timeout(120)
+def test_states_brakes_commands_and_bad_commands(domain_env: tuple[int, dict[str, str]], client: Client) -> None:
+    proc = start(domain_env[1], "robot:=serial_3r", "joint_state_order:=reversed")
+    try:
+        client.wait_states(1, timeout=60.0)
+        assert client.states, "no /joint_states from the driver"
+        client.spin_for(0.2)  # past discovery
+        client.states.clear()
+        client.spin_for(1.0)  # braked: a second of states
+        braked = list(client.states)
+        assert 0.3 * RATE <= len(braked) <= 1.5 * RATE  # about the rate, not 100 Hz nor one per spin
+        first = braked[0][1]
+        assert list(first.name) == ["joint3", "joint2", "joint1"]  # the declared order
+        assert first.header.frame_id == ""
+        stamps = np.array([m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec for _, m in braked])
+        received = np.array([t for t, _ in braked])
+        assert np.all(np.diff(stamps) > 0.0)
+        assert np.all(np.abs(received - stamps) < 1.0)  # wall-clock stamps, not sim time from 0
+        for _, msg in braked:  # the brakes hold the arm where it started (gravity pulls on it)
+            np.testing.assert_array_equal(positions(msg), positions(first))
+            np.testing.assert_array_equal(msg.velocity, [0.0, 0.0, 0.0])
+
+        client.command([1.0, 2.0])  # wrong length
+        client.command([0.0, float("nan"), 0.0])  # non-finite
+        client.states.clear()
+        client.spin_for(0.5)
+        assert len(client.states) > 0.3 * RATE * 0.5, "the driver stopped publishing after bad commands"
+        np.testing.assert_array_equal(positions(client.states[-1][1]), positions(first))
+
+        client.command([0.0, 0.0, 0.0])  # a zero torque releases the brakes: the arm falls
+        client.states.clear()
+        client.spin_for(0.5)
+        moved = [msg for _, msg in client.states if np.any(positions(msg) != positions(first))]
+        assert moved, "a command did not release the brakes"
+        assert np.abs(positions(moved[-1])[1] - positions(first)[1]) > 0.01  # joint2 sags
+        assert proc.poll() is None
+        assert client.description and '<robot name="serial_3r">' in client.description[0]
+    finally:
+        code, out = stop(proc)
+    assert code == 0, out[-3000:]
+    assert "command dropped: 2 values for 3 joints" in out, out[-3000:]
+    assert "first command: brakes released" in out, out[-3000:]
+    assert "2 dropped" in out, out[-3000:]
+
+
+@pytest.mark.timeout(60)
+def test_a_bad_parameter_is_one_line_and_exit_2(domain_env: tuple[int, dict[str, str]]) -> None:
+    proc = start(domain_env[1], "robot:=serial_3r", "joints:=[joint1, joint2, elbow]")
+    code, out = stop_after_exit(proc)
+    assert code == 2, out
+    lines = [line for line in out.splitlines() if line.strip()]
+    assert lines[-1] == ("mujoco_driver: error: parameter joints must name each of the arm's 3 actuated joints "
+                         "once (joint1, joint2, joint3), got ['joint1', 'joint2', 'elbow']"), out
+    assert "Traceback" not in out, out
+
+
+def stop_after_exit(proc: subprocess.Popen) -> tuple[int, str]:
+    try:
+        out, _ = proc.communicate(timeout=50)
+    except subprocess.TimeoutExpired:
+        return stop(proc)
+    return proc.returncode, out
