@@ -99,9 +99,11 @@ def loop_reports(wrapper: Any) -> list[LoopReport]:
 def apply_settings(reports: Sequence[LoopReport], node: Node) -> Applied:
     """Apply the loop nodes' settings (merged: one thread ticks them all) to the calling
     thread; one info line of what holds and, if the system refused something, one warning."""
-    applied = apply(RealtimeSettings.merged([r.settings for r in reports]))
+    settings = RealtimeSettings.merged([r.settings for r in reports])
+    applied = apply(settings)
     logger = node.get_logger()
-    logger.info(applied.summary())
+    if settings != RealtimeSettings():
+        logger.info(applied.summary())
     if applied.warning:
         logger.warn(applied.warning)
     return applied

@@ -14,6 +14,7 @@ the last of each node back for ``pdsmc analyze``.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -33,12 +34,14 @@ class LoopStatistics:
     A tick is *missed* when it starts more than one period after its deadline (the
     deadline passed and the next one too: ros2_control's overrun); ``late`` is how long
     after its deadline a tick started; the *period* is the time between two tick starts.
-    The first ``warm_up`` ticks count toward everything but the page faults.
+    Everything counts from the end of the first ``warm_up`` ticks (start-up: discovery,
+    the nodes waiting for each other, kernels loaded); ``seen`` counts those too.
     """
 
     def __init__(self, period: float, *, warm_up: int = 1000) -> None:
         self.period = period
         self.warm_up = warm_up
+        self.seen = 0
         self.ticks = 0
         self.missed = 0
         self.late_sum = 0.0
@@ -52,6 +55,10 @@ class LoopStatistics:
 
     def record(self, start: float, lateness: float, end: float) -> None:
         """A tick that started at ``start`` (``lateness`` s after its deadline), ended at ``end``."""
+        self.seen += 1
+        if self.seen <= self.warm_up:
+            self._last_start = start
+            return
         self.ticks += 1
         if lateness > self.period:
             self.missed += 1
@@ -67,7 +74,7 @@ class LoopStatistics:
     def page_faults(self, total: int) -> None:
         """The loop thread's minor-fault count now; counted from the end of the warm-up."""
         if self.faults_at_warm_up is None:
-            if self.ticks >= self.warm_up:
+            if self.seen >= self.warm_up:
                 self.faults_at_warm_up = total
             return
         self.faults = total - self.faults_at_warm_up
@@ -130,4 +137,14 @@ def format_loop_statistics(label: str, stats: dict[str, dict[str, float]]) -> li
             f"late mean {v['late_mean_us']:.1f} us max {v['late_max_us']:.1f} us, worst period "
             f"{v['period_worst_us']:.1f} us, longest tick {v['tick_max_us']:.1f} us, "
             f"page faults after warm-up {faults}")
+    return lines
+
+
+def loop_report_lines(bags: Sequence[Any]) -> list[str]:
+    """``pdsmc analyze``: the loop statistics of each real-time run among ``bags`` (objects
+    with ``path``, ``label`` and ``run.description``, as :class:`~pdsmc_ros.thesis.analysis.AnalyzedBag`)."""
+    lines = []
+    for b in bags:
+        if b.run.description.get("mode") == "realtime":
+            lines += format_loop_statistics(b.label, bag_loop_statistics(b.path))
     return lines

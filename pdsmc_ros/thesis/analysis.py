@@ -19,6 +19,7 @@ from ..bag.reader import RecordedRun, read_run, run_metrics
 from ..control import LAWS
 from ..errors import BagError, InvalidInputError
 from ..metrics import Metrics
+from ..runtime.statistics import loop_report_lines
 
 
 def is_bag(path: Path) -> bool:
@@ -172,6 +173,7 @@ def comparison_table(bags: Sequence[AnalyzedBag]) -> str:
                 f"{1e6 * t['jitter_p99_s']:.0f} us, missed deadlines {t['missed_deadlines']} "
                 f"({t['missed_pct']:.2f} %)"
             )
+    lines.extend(loop_report_lines(bags))  # real time: each loop node's overrun statistics
     lines.extend(improvements(bags))
     return "\n".join(lines)
 
