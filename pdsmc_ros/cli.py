@@ -15,7 +15,7 @@ from typing import NoReturn
 
 import numpy as np
 
-from . import __version__
+from . import __version__, rt_check
 from .errors import ConfigError, InvalidInputError, PdsmcError
 
 EXIT_USAGE = 2
@@ -212,6 +212,7 @@ def build_parser() -> argparse.ArgumentParser:
                      help="the params file to write (default: <robot>_<contour>_<controller>.yaml here)")
     tun.add_argument("--quiet", action="store_true", help="no line per candidate")
     tun.add_argument("--scheduler", default=None, help="run each gain's candidates on a Dask cluster, tcp://HOST:PORT")
+    rt_check.add_parser(sub, COMMANDS)  # pdsmc rt-check (pdsmc_ros/rt_check.py)
     return parser
 
 
