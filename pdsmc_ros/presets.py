@@ -356,14 +356,11 @@ def make_run(
 ) -> RunSpec:
     """A run from preset names, with the scenario of Section 4.5 applied."""
     choice(contour, contour_names(robot), f"contour for {robot}")
-    needs = law(controller).gains
     settings = robot_settings(robot)
     scenarios = load_config("scenarios")
     sc = scenarios[choice(scenario, list(scenarios), "scenario")] or {}
     base = gains or preset_gains(robot, contour, controller)
-    factors = {
-        k: v for k, v in (sc.get("gain_factors") or {}).items() if k in needs
-    }
+    factors = scenario_gain_factors(scenario, controller)
     model = smc_model_default()
     model.update(smc_model or {})
     return RunSpec(
@@ -383,6 +380,15 @@ def make_run(
         segment_duration=segment_duration,
         bound=settings.contour_bound,
     )
+
+
+def scenario_gain_factors(scenario: str, controller: str) -> dict[str, float]:
+    """The factors ``scenario`` multiplies ``controller``'s gains by (Section 4.5.3): applied to
+    the gains given (a params file, ``-p``, ``ros2 param set``) as to the presets."""
+    scenarios = load_config("scenarios")
+    sc = scenarios[choice(scenario, list(scenarios), "scenario")] or {}
+    needs = law(controller).gains
+    return {k: float(v) for k, v in (sc.get("gain_factors") or {}).items() if k in needs}
 
 
 def smc_reading(name: str) -> dict[str, float]:

@@ -2,11 +2,13 @@
 
 Section 4.2.3 tunes by sweeping Kp, Kd, Ks and lambda one at a time and keeping the
 values that lower the contour error. :func:`tune` does that from a starting point
-derived from the arm (:func:`starting_gains`), inside the stable region (every
-candidate passes :func:`~pdsmc_ros.control.stability.check_rate` at the run's rate)
-and without exceeding the arm's torque limits (URDF ``<limit effort>``); phi stays
-the thesis's 0.25 rad/s of boundary layer. Each candidate is one in-process run.
-ROS-free.
+derived from the arm (:func:`starting_gains`), keeping only candidates that
+``pdsmc check-gains`` accepts (:func:`~pdsmc_ros.control.stability.check_gains`: the
+law's Eq. 3.19 conditions and the discrete rate condition with its margin, by default
+for the real-time loop with its period of delay, the loop a robot runs) and that
+do not exceed the arm's torque limits (URDF ``<limit effort>``); phi keeps its starting
+value (the thesis's 0.25 rad/s, wider for a PD-SMC whose Ks must exceed gravity's torque).
+Each candidate is one in-process run. ROS-free.
 """
 
 from __future__ import annotations
@@ -21,13 +23,14 @@ from typing import Any
 import numpy as np
 import yaml
 
-from .config import read_yaml
 from .control.gains import Gains
 from .control.registry import GAIN_NAMES, law
+from .control.stability import THEOREM_LAWS, check_gains, loop_delay
 from .errors import ConfigError, PdsmcError
 from .presets import RunSpec, make_run
 from .robots import ROBOTS
 from .robots.catalog import resolve_robot
+from .settings import CONTROLLER_PARAMETERS, node_parameters
 
 SWEPT = ("kp", "kd", "ks", "lam")
 """The gains the recipe sweeps, in its order (phi keeps its starting value)."""
@@ -36,7 +39,23 @@ FACTORS = (0.5, 0.7, 1.4, 2.0)
 BOUNDARY_LAYER = 0.25
 """phi of the starting point: the thesis's serial arm's (Table 4.16)."""
 NODE_NAME = "controller"
-"""The node a params file written by :func:`write_params_file` configures."""
+"""The node whose section of a params file holds the gains (:func:`write_params_file`)."""
+SLOWER_STARTS = 6
+"""Times the starting bandwidth is halved when the starting gains fail the check."""
+
+
+@dataclass(frozen=True)
+class Requirement:
+    """What every kept candidate passes: ``pdsmc check-gains --mode --delay-periods --margin``."""
+
+    mode: str = "realtime"
+    delay_periods: int = 0
+    margin: float | None = None  # None: the mode's (stability.REQUIRED_MARGIN)
+
+    def __post_init__(self) -> None:
+        loop_delay(self.mode, self.delay_periods)  # one line if either is wrong
+        if self.margin is not None and (not np.isfinite(self.margin) or self.margin <= 0.0):
+            raise ConfigError(f"margin must be a positive number, got {self.margin!r}")
 
 
 @dataclass(frozen=True)
@@ -61,6 +80,11 @@ class TuneResult:
     best: Candidate
     tried: tuple[Candidate, ...]
 
+    @property
+    def start(self) -> Candidate:
+        """The starting point the search began from (the first candidate kept)."""
+        return next(c for c in self.tried if c.ok)
+
 
 def bandwidth(rate: float) -> float:
     """Closed-loop bandwidth (rad/s) of the starting point: a twentieth of the control rate,
@@ -68,31 +92,73 @@ def bandwidth(rate: float) -> float:
     return rate / 20.0
 
 
-def starting_gains(spec: RunSpec) -> Gains:
-    """Critically damped joints at :func:`bandwidth`, scaled by each joint's inertia.
+def starting_gains(spec: RunSpec, w: float | None = None) -> Gains:
+    """Critically damped joints at bandwidth ``w`` (:func:`bandwidth` by default), scaled by each
+    joint's inertia, and for the PD-SMC inside the conditions of Eq. (3.19).
 
-    With ``m_i`` the largest ``Mbar_ii`` along the reference (motor inertia included) and
-    ``w`` the bandwidth: ``Kp = m w^2``, ``Kd = 2 m w`` (Eq. 3.4 as a second-order joint);
-    the SMC's sliding surface ``s = edot + lambda e`` (Eq. 3.13) with ``lambda = w / 2`` and,
-    inside the boundary layer, ``Ks / phi = 2 m w`` (the same damping as the PD).
+    With ``m_i`` the largest ``Mbar_ii`` along the reference (motor inertia included):
+    ``Kp = m w^2``, ``Kd = 2 m w`` (Eq. 3.4 as a second-order joint); the SMC's sliding surface
+    ``s = edot + lambda e`` (Eq. 3.13) with ``lambda = w / 2`` and, inside the boundary layer,
+    ``Ks / phi = 2 m w`` (the same damping as the PD). The PD-SMC's theorem (Eq. 3.19) compares
+    the smallest gain with the largest inertia: its ``Ks_i`` is raised above ``max |tau_d,i|``,
+    ``Kd`` above ``lambda_M(K + C^T) / 2``, phi widened to keep ``Ks / phi <= Kd`` (the damping of
+    the start), and lambda lowered until the rest hold.
     """
     reference = spec.reference()
     t = np.linspace(0.0, reference.duration, 13)
     mass = spec.robot_model().mass_matrix(reference.sample(t).q)
     m = np.max(np.diagonal(mass, axis1=-2, axis2=-1), axis=0)
-    w = bandwidth(spec.rate)
+    w = bandwidth(spec.rate) if w is None else w
     values = {"kp": m * w * w, "kd": 2.0 * m * w, "ks": 2.0 * m * w * BOUNDARY_LAYER,
               "lam": np.full_like(m, w / 2.0), "phi": np.full_like(m, BOUNDARY_LAYER)}
     needed = law(spec.controller).gains
-    return Gains.from_mapping({k: [float(x) for x in values[k]] for k in needed}, len(m), spec.controller)
+    gains = _gains(values, needed, spec.controller)
+    if spec.controller in THEOREM_LAWS:
+        gains = _inside_theorem(spec, values, needed)
+    return gains
 
 
-def evaluate(spec: RunSpec, gains: Gains, torque_limit: np.ndarray) -> Candidate:
-    """One in-process run with ``gains``: its contour error, or why it is refused."""
+def _gains(values: Mapping[str, np.ndarray], needed: Sequence[str], controller: str) -> Gains:
+    n = len(values["kp"])
+    return Gains.from_mapping({k: [float(x) for x in values[k]] for k in needed}, n, controller)
+
+
+def _inside_theorem(spec: RunSpec, values: dict[str, np.ndarray], needed: Sequence[str]) -> Gains:
+    """``values`` moved inside Eq. (3.19): Ks and Kd raised to the bounds that do not depend on
+    the gains (``max |tau_d,i|``, ``lambda_M(K + C^T) / 2``), then lambda halved until all hold."""
+    from .control.lyapunov import theorem_conditions
+
+    def conditions(v: Mapping[str, np.ndarray]) -> list:  # type: ignore[type-arg]
+        return theorem_conditions(dataclasses.replace(spec, gains=_gains(v, needed, spec.controller)), points=101)
+
+    first = conditions(values)
+    tau_d = np.array([c.rhs for c in first if c.name.startswith("Ks_")])
+    values["ks"] = np.maximum(values["ks"], 1.25 * tau_d)
+    # a wider boundary layer keeps the damping Ks/phi of the start (a Ks above gravity's torque
+    # over the thesis's 0.25 rad/s would be a damping no sampled loop holds)
+    values["phi"] = np.maximum(values["phi"], values["ks"] / values["kd"])
+    k_ct = next(c.rhs for c in first if c.name.startswith("lambda_m(Kd) > lambda_M"))
+    values["kd"] = np.maximum(values["kd"], 1.25 * k_ct)
+    for _ in range(30):
+        if all(c.holds for c in conditions(values)):
+            break
+        values["lam"] = values["lam"] / 2.0
+    return _gains(values, needed, spec.controller)
+
+
+def evaluate(spec: RunSpec, gains: Gains, torque_limit: np.ndarray,
+             requirement: Requirement | None = None) -> Candidate:
+    """One candidate: refused if ``check-gains`` refuses it (:class:`Requirement`), else one
+    in-process run with ``gains``: its contour error, or why it is refused."""
     from .sim import simulate  # numba: only when a run is made
 
     trial = dataclasses.replace(spec, gains=gains)
+    requirement = requirement or Requirement()
     try:
+        check = check_gains(trial, mode=requirement.mode, delay_periods=requirement.delay_periods,
+                            margin=requirement.margin)
+        if not check.passes:
+            return Candidate(gains, None, (), f"refused: {check.failure()}")
         result = simulate(trial)
     except PdsmcError as exc:
         return Candidate(gains, None, (), f"refused: {exc}")
@@ -119,6 +185,7 @@ def tune(
     start: Gains | None = None,
     progress: Callable[[Candidate], None] | None = None,
     scheduler: str | None = None,
+    requirement: Requirement | None = None,
 ) -> TuneResult:
     """Gains for ``robot`` on ``contour`` with ``controller`` by the recipe of Section 4.2.3.
 
@@ -139,6 +206,11 @@ def tune(
     scheduler : str, optional
         A Dask scheduler (``tcp://HOST:PORT``): each gain's candidates run there in parallel.
         The result does not depend on it: every candidate of a gain starts from the same best.
+    requirement : Requirement, optional
+        The loop every candidate must be accepted for by ``check-gains`` (default: real time,
+        one period of delay, margin x2: the loop on a robot, whose gains also run in lockstep).
+        A starting point refused by it is retried at half the bandwidth, up to
+        :data:`SLOWER_STARTS` times.
 
     Raises
     ------
@@ -150,16 +222,23 @@ def tune(
     if not factors or any(not np.isfinite(f) or f <= 0.0 for f in factors):
         raise ConfigError(f"factors must be positive numbers, got {list(factors)!r}")
     needed = law(controller).gains
+    requirement = requirement or Requirement()
     spec = _spec(robot, contour, controller, rate)
     limit = _torque_limit(spec)
-    best = evaluate(spec, start or starting_gains(spec), limit)
-    tried = [best]
-    if progress:
-        progress(best)
+    tried: list[Candidate] = []
+    w = bandwidth(spec.rate)
+    for _ in range(SLOWER_STARTS + 1):
+        best = evaluate(spec, start or starting_gains(spec, w), limit, requirement)
+        tried.append(best)
+        if progress:
+            progress(best)
+        if best.ok or start is not None or not best.verdict.startswith("refused"):
+            break
+        w /= 2.0
     if not best.ok:
         raise ConfigError(f"tune {robot}/{contour}/{controller}: the starting gains are {best.verdict}")
     swept = [name for name in SWEPT if name in needed]
-    with _evaluator(spec, limit, scheduler) as evaluate_all:
+    with _evaluator(spec, limit, scheduler, requirement) as evaluate_all:
         for _ in range(rounds):
             kept = False
             for name in swept:
@@ -178,18 +257,18 @@ def tune(
 
 
 @contextlib.contextmanager
-def _evaluator(spec: RunSpec, limit: np.ndarray, scheduler: str | None
+def _evaluator(spec: RunSpec, limit: np.ndarray, scheduler: str | None, requirement: Requirement
                ) -> Iterator[Callable[[list[Gains]], list[Candidate]]]:
     """Evaluate a batch of gains here, or as tasks on the Dask cluster of ``scheduler``."""
     if scheduler is None:
-        yield lambda batch: [evaluate(spec, gains, limit) for gains in batch]
+        yield lambda batch: [evaluate(spec, gains, limit, requirement) for gains in batch]
         return
     from .engine import dask_client, run_tasks
 
     with dask_client(scheduler) as client:
         def remote(batch: list[Gains]) -> list[Candidate]:
             out: list[Candidate | None] = [None] * len(batch)
-            for i, candidate in run_tasks(client, evaluate, [(spec, gains, limit) for gains in batch]):
+            for i, candidate in run_tasks(client, evaluate, [(spec, gains, limit, requirement) for gains in batch]):
                 out[i] = candidate
             return out  # type: ignore[return-value]
         yield remote
@@ -213,11 +292,33 @@ def _torque_limit(spec: RunSpec) -> np.ndarray:
 
 
 def write_params_file(path: str | Path, gains: Gains, *, controller: str, robot: str, contour: str,
-                      rate: float, node: str = NODE_NAME) -> None:
-    """A ROS 2 params file for the controller node (``--ros-args --params-file``)."""
-    params: dict[str, Any] = {"robot": robot, "contour": contour, "type": controller, "rate": float(rate)}
-    params.update({k: [float(x) for x in v] for k, v in gains.as_dict().items() if k in law(controller).gains})
-    Path(path).write_text(yaml.safe_dump({node: {"ros__parameters": params}}, sort_keys=False))
+                      rate: float, node: str = NODE_NAME, requirement: Requirement | None = None) -> None:
+    """A ROS 2 params file for every node of a run (``--ros-args --params-file``).
+
+    The run (robot, contour, type, rate) in ``/**``, which every node reads, and the gains in the
+    controller's section, the only node that needs them: the same file serves ``ros2 run`` of
+    any node, ``scripts/run_experiment.sh --params-file`` and ``pdsmc simulate --params-file``.
+    """
+    run: dict[str, Any] = {"robot": robot, "contour": contour, "type": controller, "rate": float(rate)}
+    own = {k: [float(x) for x in v] for k, v in gains.as_dict().items() if k in law(controller).gains}
+    requirement = requirement or Requirement()
+    margin = "the mode's default margin" if requirement.margin is None else f"margin x{requirement.margin:g}"
+    header = (f"# pdsmc tune: {controller} gains for {robot}/{contour} at {float(rate):g} Hz, accepted by\n"
+              f"# pdsmc check-gains --mode {requirement.mode} --delay-periods {requirement.delay_periods} ({margin})\n")
+    body = yaml.safe_dump({"/**": {"ros__parameters": run}, node: {"ros__parameters": own}}, sort_keys=False)
+    Path(path).write_text(header + body)
+
+
+def controller_parameters(path: str | Path, *, node: str = NODE_NAME) -> dict[str, Any]:
+    """What a params file gives the controller node (its section and ``/**``, merged as rcl does).
+
+    Raises
+    ------
+    ConfigError
+        One line naming the file: not a params file, no section for the controller, or a key the
+        controller does not declare (the closest one suggested).
+    """
+    return node_parameters(path, "/" + node, CONTROLLER_PARAMETERS)
 
 
 def read_params_file(path: str | Path, n: int, controller: str, *, node: str = NODE_NAME) -> Gains:
@@ -228,10 +329,9 @@ def read_params_file(path: str | Path, n: int, controller: str, *, node: str = N
     ConfigError
         One line naming the file and what is wrong.
     """
-    data = read_yaml(path, f"params file {str(path)!r}")
-    block = data.get(node, data.get("/**")) if isinstance(data, Mapping) else None
-    params = block.get("ros__parameters") if isinstance(block, Mapping) else None
-    if not isinstance(params, Mapping):
-        raise ConfigError(f"params file {str(path)!r}: no {node}.ros__parameters mapping")
+    params = controller_parameters(path, node=node)
     values = {k: params[k] for k in GAIN_NAMES if k in params and params[k]}
-    return Gains.from_mapping(values, n, controller)
+    try:
+        return Gains.from_mapping(values, n, controller)
+    except ConfigError as exc:
+        raise ConfigError(f"params file {str(path)!r}: {exc}") from None

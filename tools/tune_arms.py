@@ -1,7 +1,9 @@
 """Gains of the named URDF arms in config/gains.yaml: `pdsmc tune` for each contour group and law.
 
 Run from the repository (after `make setup`): `.venv/bin/python tools/tune_arms.py ur5 panda`. Prints
-the YAML block of each arm for config/gains.yaml and, on stderr, the contour error before and after.
+the YAML block of each arm for config/gains.yaml and, on stderr, the contour error before and after and
+the margin of the gains kept (rate / lowest stable rate in real time, one period of delay; tune keeps only
+gains that `pdsmc check-gains` accepts there, margin x2, and the PD-SMC's Eq. 3.19 conditions).
 """
 
 from __future__ import annotations
@@ -10,6 +12,7 @@ import sys
 
 import yaml
 
+from pdsmc_ros.control.stability import check_gains
 from pdsmc_ros.tuning import tune
 
 GROUPS = {"linear": "zigzag", "circle": "circle", "ellipse": "ellipse"}  # a contour of each gain group
@@ -26,8 +29,11 @@ def main(arms: list[str]) -> int:
                 block.setdefault(group, {})[controller] = {
                     k: [float(f"{x:.4g}") for x in gains[k]] for k in ("kp", "kd", "ks", "lam", "phi")
                     if k in result.spec.gains.as_dict() and k in _needed(controller)}
-                print(f"{arm}/{contour}/{controller}: contour mean {result.tried[0].contour_mean:.4e} -> "
-                      f"{result.best.contour_mean:.4e} m ({len(result.tried)} runs)", file=sys.stderr, flush=True)
+                check = check_gains(result.spec)
+                print(f"{arm}/{contour}/{controller}: contour mean {result.start.contour_mean:.4e} -> "
+                      f"{result.best.contour_mean:.4e} m ({len(result.tried)} runs), max torque "
+                      f"{max(result.best.max_torque):.4g} N m, real-time margin x{check.rate.margin:.2f} "
+                      f"({'passes' if check.passes else 'FAILS'} check-gains)", file=sys.stderr, flush=True)
         print(yaml.safe_dump({arm: block}, sort_keys=False, default_flow_style=None, width=120))
     return 0
 

@@ -36,6 +36,7 @@ from ..errors import InvalidInputError, UnstableRateError
 from ..presets import RunSpec
 from ..robots.base import FloatArray
 from ..trajectories import JointReference
+from .lyapunov import Condition, theorem_conditions
 from .registry import law
 
 
@@ -248,3 +249,44 @@ def check_rate(spec: RunSpec, reference: JointReference, *, mode: str = "lockste
         f"{spec.controller} gains for {spec.robot}/{spec.contour} at {spec.rate:g} Hz in "
         f"{describe_loop(result)} {problem}; use {rate_advice} or higher, or gentler gains"
     )
+
+
+THEOREM_LAWS = ("pdsmc",)
+"""Laws whose gains Eq. (3.19) constrains (the PD-SMC theorem of Section 3.5); the PD and the
+SMC have no conditions of it."""
+
+
+@dataclass(frozen=True)
+class GainCheck:
+    """What ``pdsmc check-gains`` decides: the law's Eq. (3.19) conditions and the rate condition."""
+
+    conditions: tuple[Condition, ...]
+    rate: RateCheck
+
+    @property
+    def passes(self) -> bool:
+        return self.rate.passes and all(c.holds for c in self.conditions)
+
+    def failure(self) -> str:
+        """Why it does not pass (the first reason), or ``''``."""
+        for c in self.conditions:
+            if not c.holds:
+                return f"Eq. 3.19 fails: {c.name} ({c.lhs:.5g} <= {c.rhs:.5g})"
+        if not self.rate.stable:
+            return f"unstable at {self.rate.rate:g} Hz in {describe_loop(self.rate)}"
+        if not self.rate.passes:
+            return (f"margin x{self.rate.margin:.2f} < x{self.rate.required_margin:g} in "
+                    f"{describe_loop(self.rate)}")
+        return ""
+
+
+def check_gains(spec: RunSpec, reference: JointReference | None = None, *, mode: str = "realtime",
+                delay_periods: int = 0, margin: float | None = None, points: int = 401) -> GainCheck:
+    """Eq. (3.19) where the law has it (:data:`THEOREM_LAWS`) and :func:`rate_margin` in ``mode``.
+
+    The default mode is the real-time loop's (one period of delay): gains that pass it run on a
+    robot, and pass in lockstep too (no delay, a lower required margin).
+    """
+    rate = rate_margin(spec, reference or spec.reference(), mode=mode, delay_periods=delay_periods, margin=margin)
+    conditions = tuple(theorem_conditions(spec, points=points)) if spec.controller in THEOREM_LAWS else ()
+    return GainCheck(conditions, rate)

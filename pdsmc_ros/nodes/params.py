@@ -24,11 +24,12 @@ from rclpy.exceptions import (
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
-from ..control import GAIN_NAMES, Gains, law_names
+from ..config import choice
+from ..control import GAIN_NAMES, Gains, law, law_names
 from ..control.safety import MAX_SAFE_DAMPING, MAX_SAFE_STIFFNESS, SafetyConfig
 from ..errors import ConfigError, InvalidInputError, MissingGainsError
 from ..joints import check_joint_names
-from ..presets import RunSpec, make_run, smc_reading
+from ..presets import RunSpec, contour_names, make_run, preset_gains, scenario_gain_factors, smc_reading
 from ..robots import ROBOTS, Manipulator
 from ..robots.catalog import ROBOT_DESCRIPTION, allowed_robots, register_description, resolve_robot
 from .topics import MODES
@@ -64,13 +65,22 @@ RUN_PARAMETERS: dict[str, tuple[Any, ParameterDescriptor]] = {
     "segment_duration": (2.0, _descriptor("seconds per CSV segment", lo=0.001, hi=1000.0)),
     "clock_rate": (100.0, _descriptor("lockstep: /clock publication rate in sim-time Hz", lo=1.0, hi=1.0e6)),
 }
-GAIN_DESCRIPTIONS = {
+GAIN_DESCRIPTIONS = {  # every node declares them (one params file for all); only the controller needs them
     "kp": "proportional gains Kp, one per joint (empty: preset of Table 4.16 / 4.33)",
     "kd": "derivative gains Kd, one per joint (empty: preset)",
     "ks": "switching gains Ks, one per joint (empty: preset)",
     "lam": "sliding-surface slopes lambda, one per joint (empty: preset)",
     "phi": "boundary layers phi > 0, one per joint (empty: preset)",
 }
+STABILITY_PARAMETERS: dict[str, tuple[Any, ParameterDescriptor]] = {
+    "stability_margin": (0.0, _descriptor(
+        "required control rate / lowest stable rate of the gains (0: the mode's, 2 realtime, 1 lockstep)",
+        lo=0.0, hi=1.0e6)),
+    "delay_periods": (0, ParameterDescriptor(
+        description="periods of delay beyond the mode's own that the stability check models (a driver's)",
+        additional_constraints="a whole number in [0, 1000]", dynamic_typing=True)),
+}
+"""The controller's: what :func:`~pdsmc_ros.control.stability.check_rate` requires of its gains."""
 
 
 SAFETY_PARAMETERS: dict[str, tuple[Any, ParameterDescriptor]] = {
@@ -192,16 +202,21 @@ def declare_controller_parameters(node: Node, robot: Manipulator) -> ControllerP
 
 @dataclass(frozen=True)
 class NodeRun:
-    """What every node starts from: the run its parameters name, the mode and the busy-wait."""
+    """What every node starts from: the run its parameters name, the mode and the busy-wait;
+    for the controller, ``stability``: the keywords of
+    :func:`~pdsmc_ros.control.stability.check_rate` its gains must pass."""
 
     spec: RunSpec
     mode: str
     busy_wait: float
+    stability: dict[str, Any] = dataclasses.field(default_factory=dict)
 
 
 def declare_node_run(node: Node, *, gains: bool = False) -> NodeRun:
     """The start-up lines of every node: declare the run's parameters (and the gains) and
-    ``busy_wait``, and build the RunSpec they name (a ConfigError if bad). A node whose run
+    ``busy_wait``, and build the RunSpec they name (a ConfigError if bad). ``gains``: the node
+    needs them (the controller: no preset and none given is an error; it also declares
+    :data:`STABILITY_PARAMETERS`); the other nodes accept them and run without. A node whose run
     cannot change adds :func:`refuse_run_changes` once all its parameters are declared."""
     declare_run_parameters(node, gains=gains)
     busy_wait = declare_busy_wait(node)  # used in real time
@@ -210,8 +225,21 @@ def declare_node_run(node: Node, *, gains: bool = False) -> NodeRun:
             register_description(receive_robot_description(node))
         except ConfigError as exc:
             raise ConfigError(f"parameter robot: {exc}") from None
-    spec = run_spec_from_parameters(node)
-    return NodeRun(spec, str(node.get_parameter("mode").value), busy_wait)
+    spec = run_spec_from_parameters(node, needs_gains=gains)
+    mode = str(node.get_parameter("mode").value)
+    stability = stability_from_parameters(node, mode) if gains else {}
+    return NodeRun(spec, mode, busy_wait, stability)
+
+
+def stability_from_parameters(node: Node, mode: str) -> dict[str, Any]:
+    """``check_rate``'s keywords from ``stability_margin`` and ``delay_periods`` (ConfigError if bad)."""
+    margin = node.get_parameter("stability_margin").value
+    if isinstance(margin, bool) or not isinstance(margin, (int, float)) or not 0.0 <= margin <= 1.0e6:
+        raise ConfigError(f"parameter stability_margin must be a number >= 0 (0: the mode's), got {margin!r}")
+    delay = node.get_parameter("delay_periods").value
+    if isinstance(delay, bool) or not isinstance(delay, int) or not 0 <= delay <= 1000:
+        raise ConfigError(f"parameter delay_periods must be a whole number in [0, 1000], got {delay!r}")
+    return {"mode": mode, "delay_periods": delay, "margin": float(margin) or None, "entry": "node"}
 
 
 ROBOT_DESCRIPTION_WAIT_S = 60.0
@@ -258,16 +286,25 @@ def _range_of(name: str) -> tuple[float, float]:
 
 
 def declare_run_parameters(node: Node, *, gains: bool = False) -> None:
-    """Declare the parameters that define a run (and the gains, for the controller)."""
+    """Declare the parameters that define a run and the gains (every node: one params file or
+    ``-p kp:=`` serves all; only the controller uses them) and, for the controller (``gains``),
+    :data:`STABILITY_PARAMETERS`."""
     for name, (default, desc) in RUN_PARAMETERS.items():
         node.declare_parameter(name, default, desc)
+    for name in GAIN_NAMES:
+        node.declare_parameter(name, None, _descriptor(GAIN_DESCRIPTIONS[name]))
     if gains:
-        for name in GAIN_NAMES:
-            node.declare_parameter(name, None, _descriptor(GAIN_DESCRIPTIONS[name]))
+        for name, (default, desc) in STABILITY_PARAMETERS.items():
+            node.declare_parameter(name, default, desc)
 
 
-def run_spec_from_parameters(node: Node) -> RunSpec:
+def run_spec_from_parameters(node: Node, *, needs_gains: bool = True) -> RunSpec:
     """Build and validate the RunSpec named by the node's parameters.
+
+    The gains given (``-p kp:=``, a params file) replace the preset's before the scenario's
+    gain factors apply, as ``pdsmc simulate --params-file`` does (``scenario:=high_pd`` scales
+    them the same way in-process and in the nodes). An arm without preset gains needs them all
+    given when ``needs_gains`` (the controller); the other nodes run with placeholders.
 
     Raises
     ------
@@ -314,22 +351,27 @@ def run_spec_from_parameters(node: Node) -> RunSpec:
         "segment_duration": p["segment_duration"],
     }
     try:
+        robot = resolve_robot(p["robot"])
+        n = ROBOTS[robot].n
+        choice(p["contour"], contour_names(p["robot"]), f"contour for {p['robot']}")
+        needed = law(p["type"]).gains
         try:
-            spec = make_run(p["robot"], p["contour"], p["type"], **options)
+            base = preset_gains(p["robot"], p["contour"], p["type"]).as_dict()
         except MissingGainsError:
-            # an arm without preset gains (a URDF arm): the given ones must be complete
-            n = ROBOTS[resolve_robot(p["robot"])].n
-            gains = Gains.from_mapping(overrides, n, p["type"])
-            spec = make_run(p["robot"], p["contour"], p["type"], gains=gains, **options)
+            base = {}  # an arm without preset gains (a URDF arm)
+        given = {**base, **overrides}
+        missing = [g for g in needed if g not in given]
+        if missing and needs_gains:
+            raise ConfigError(f"{p['type']} needs gains {', '.join(missing)}: this arm has no preset for "
+                              f"{p['contour']}; give them (-p {missing[0]}:=[...], one per joint) or a params file "
+                              "(pdsmc tune writes one)")
+        # the other nodes never use the gains: placeholders where none are given
+        gains = Gains.from_mapping({**{g: [0.0] * n for g in missing}, **given}, n, p["type"])
+        spec = make_run(p["robot"], p["contour"], p["type"], gains=gains, **options)
     except ConfigError as exc:
         raise ConfigError(f"parameters: {exc}") from None
     if p["duration_factor"] != 1.0:
         spec = dataclasses.replace(spec, duration_factor=spec.duration_factor * p["duration_factor"])
-    if overrides:
-        merged = {**spec.gains.as_dict(), **overrides}
-        n = len(spec.gains.kp)
-        gains = Gains.from_mapping(merged, n, spec.controller)
-        spec = dataclasses.replace(spec, gains=gains)
     return spec
 
 
@@ -356,6 +398,7 @@ class GainUpdates:
 
     def validate(self, params: list[Parameter]) -> SetParametersResult:
         merged = self.spec.gains.as_dict()
+        factors = scenario_gain_factors(self.spec.scenario, self.spec.controller)
         changed = False
         for param in params:
             if param.name in GAIN_NAMES:
@@ -373,6 +416,8 @@ class GainUpdates:
             gains = Gains.from_mapping(
                 {k: v for k, v in merged.items() if v}, len(self.spec.gains.kp), self.spec.controller
             )
+            # as at start: the scenario's factors apply to the gains given
+            gains = gains.scaled({k: f for k, f in factors.items() if any(p.name == k for p in params)})
             self.check(dataclasses.replace(self.spec, gains=gains))
         except (InvalidInputError, TypeError) as exc:
             return SetParametersResult(successful=False, reason=str(exc))

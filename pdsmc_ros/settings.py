@@ -1,0 +1,141 @@
+"""ROS 2 params files and parameter names checked against what a node declares (ROS-free).
+
+A params file (``--ros-args --params-file``, ``pdsmc ... --params-file``) maps node names to
+``ros__parameters``. rcl applies every section whose name matches the node -- its name,
+its fully qualified name, or a wildcard pattern (``/**``, ``/*/controller``) -- and silently
+ignores the rest, and a key no node declares is silently dropped. Here both are errors:
+a file with no section for the node, or with a key the node does not declare (naming the
+closest declared one), is one line naming the file.
+"""
+
+from __future__ import annotations
+
+import difflib
+import re
+from collections.abc import Iterable, Mapping
+from pathlib import Path
+from typing import Any
+
+from .config import read_yaml
+from .errors import ConfigError
+
+ALWAYS_DECLARED = ("use_sim_time", "start_type_description_service")
+"""Parameters rclpy declares on every node itself."""
+ALWAYS_ALLOWED_PREFIXES = ("qos_overrides.",)
+"""Parameters rclpy reads without declaring them for the node (QoS overrides of its topics)."""
+
+CONTROLLER_PARAMETERS = (
+    # the run (every node; pdsmc_ros.nodes.params.RUN_PARAMETERS)
+    "robot", "contour", "type", "scenario", "mode", "rate", "sample_rate", "duration_factor", "smc_reading",
+    "ellipse_error", "waypoints_file", "segment_duration", "clock_rate", "busy_wait",
+    # the gains (pdsmc_ros.control.registry.GAIN_NAMES)
+    "kp", "kd", "ks", "lam", "phi",
+    # the controller's own
+    "joints", "autostart", "torque_limit", "stale_periods", "enforce_limits", "stability_margin",
+    "delay_periods",
+)
+"""What the controller node declares: the keys ``pdsmc simulate/check-gains --params-file`` accept
+(the CLI reads the controller's sections without starting ROS)."""
+
+
+def closest(name: str, names: Iterable[str]) -> str:
+    """`` (did you mean 'type'?)`` for the declared name closest to ``name``, or ``''``."""
+    match = difflib.get_close_matches(name, list(names), n=1, cutoff=0.6)
+    return f" (did you mean {match[0]!r}?)" if match else ""
+
+
+def unknown_parameter(name: str, declared: Iterable[str]) -> str:
+    """``unknown parameter 'typ' (did you mean 'type'?)``."""
+    return f"unknown parameter {name!r}{closest(name, declared)}"
+
+
+def is_declared(name: str, declared: Iterable[str]) -> bool:
+    """``name`` is declared, or one rclpy handles for every node."""
+    return name in declared or name in ALWAYS_DECLARED or name.startswith(ALWAYS_ALLOWED_PREFIXES)
+
+
+def section_pattern(section: str) -> re.Pattern[str]:
+    """rcl's node-name pattern of a section: ``*`` one name token, ``**`` any number of them;
+    a name without a leading ``/`` is relative to the root namespace."""
+    name = section if section.startswith("/") else "/" + section
+    parts = re.split(r"(\*\*|\*)", name)
+    regex = "".join(".*" if p == "**" else "[^/]*" if p == "*" else re.escape(p) for p in parts)
+    return re.compile(regex)
+
+
+def section_matches(section: str, node_fqn: str) -> bool:
+    """Whether rcl applies ``section`` of a params file to the node ``node_fqn`` (``/ns/name``)."""
+    return section_pattern(section).fullmatch(node_fqn) is not None
+
+
+def _flatten(values: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
+    """Nested mappings as rcl reads them: ``{a: {b: 1}}`` is the parameter ``a.b``."""
+    out: dict[str, Any] = {}
+    for key, value in values.items():
+        name = f"{prefix}{key}"
+        if isinstance(value, Mapping):
+            out.update(_flatten(value, name + "."))
+        else:
+            out[name] = value
+    return out
+
+
+def read_params_file(path: str | Path) -> dict[str, dict[str, Any]]:
+    """The sections of a params file: ``{section: {parameter: value}}`` (nested names flattened).
+
+    Raises
+    ------
+    ConfigError
+        One line naming the file if it is not a mapping of sections each holding a
+        ``ros__parameters`` mapping.
+    """
+    label = f"params file {str(path)!r}"
+    data = read_yaml(path, label)
+    if not isinstance(data, Mapping) or not data:
+        raise ConfigError(f"{label}: expected node sections, e.g. 'controller: {{ros__parameters: {{kp: [...]}}}}' "
+                          "or '/**: {ros__parameters: {...}}'")
+    sections: dict[str, dict[str, Any]] = {}
+    for section, block in data.items():
+        params = block.get("ros__parameters") if isinstance(block, Mapping) else None
+        if not isinstance(params, Mapping):
+            raise ConfigError(f"{label}: section {section!r} has no ros__parameters mapping")
+        extra = [k for k in block if k != "ros__parameters"]
+        if extra:
+            raise ConfigError(f"{label}: section {section!r}: unknown key {extra[0]!r} beside ros__parameters")
+        sections[str(section)] = _flatten(params)
+    return sections
+
+
+def node_parameters(path: str | Path, node_fqn: str, declared: Iterable[str], *,
+                    sections: Mapping[str, Mapping[str, Any]] | None = None) -> dict[str, Any]:
+    """The parameters a params file gives the node ``node_fqn``, as rcl merges them (later
+    sections override earlier ones), checked against the names the node ``declared``.
+
+    Raises
+    ------
+    ConfigError
+        If no section applies to the node, or a section that does holds a key the node does not
+        declare (the closest declared name suggested).
+    """
+    label = f"params file {str(path)!r}"
+    sections = read_params_file(path) if sections is None else sections
+    declared = list(declared)
+    matching = [name for name in sections if section_matches(name, node_fqn)]
+    if not matching:
+        name = node_fqn.rsplit("/", 1)[-1]
+        raise ConfigError(f"{label}: no section for node {node_fqn!r} (sections: {', '.join(map(repr, sections))}; "
+                          f"use '{name}:' or '/**:' for every node)")
+    merged: dict[str, Any] = {}
+    for section in matching:
+        for key, value in sections[section].items():
+            if not is_declared(key, declared):
+                raise ConfigError(f"{label}: section {section!r}: {unknown_parameter(key, declared)} for node "
+                                  f"{node_fqn!r}")
+            merged[key] = value
+    return merged
+
+
+def params_files_in(args: Iterable[str]) -> list[str]:
+    """The files of every ``--params-file FILE`` among a process's ROS arguments."""
+    args = list(args)
+    return [args[i + 1] for i, arg in enumerate(args[:-1]) if arg == "--params-file"]
