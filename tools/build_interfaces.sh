@@ -38,6 +38,7 @@ if [ -f "$STAMP" ] && [ "$(cat "$STAMP")" = "$WANT" ]; then
     [ -f "$VENV/share/ament_index/resource_index/packages/$pkg" ] || { WANT_REBUILD=1; break; }
   done
   if [ -z "${WANT_REBUILD:-}" ]; then
+    touch "$STAMP"  # newer than its inputs again, for make
     echo "build_interfaces: ${PACKAGES[*]} up to date"
     exit 0
   fi
