@@ -81,6 +81,9 @@ class MujocoDriverNode:
         self.busy_wait = declare_busy_wait(node)
         if not isinstance(robot, str):
             raise ConfigError(f"parameter robot must be a name or a .urdf path, got {robot!r}")
+        if order not in JOINT_STATE_ORDERS:  # before the (slower) model is built
+            raise ConfigError(f"parameter joint_state_order must be one of {', '.join(JOINT_STATE_ORDERS)}, "
+                              f"got {order!r}")
         try:
             robot = resolve_robot(robot)
         except ConfigError as exc:

@@ -69,14 +69,14 @@ class MujocoDriver:
         self.command_timeout = float(command_timeout)
         q = np.asarray(q0, dtype=float)
         if q.shape != (arm.n,) or not np.all(np.isfinite(q)):
-            raise InvalidInputError(f"initial positions must be {arm.n} finite angles (rad), got {q.tolist()}")
+            raise InvalidInputError(f"initial_positions must be {arm.n} finite angles (rad), got {q.tolist()}")
         set_state(arm, self.data, q)
         k = len(arm.passive_joint_names)
         if k:
             passive = np.zeros(0) if passive0 is None else np.asarray(passive0, dtype=float)
             if passive.shape != (k,) or not np.all(np.isfinite(passive)):
-                raise InvalidInputError(f"the passive joints {list(arm.passive_joint_names)} need {k} finite "
-                                        f"initial angles, got {passive.tolist()}")
+                raise InvalidInputError(f"initial_positions: the passive joints {list(arm.passive_joint_names)} "
+                                        f"need {k} finite angles closing the loop, got {passive.tolist()}")
             self.data.qpos[arm.qpos[arm.n:]] = passive
         self._mujoco.mj_forward(arm.model, self.data)
         self.timestep = float(arm.model.opt.timestep)
