@@ -1,0 +1,108 @@
+"""Wrong settings refused in one line: params files (sections, keys), check-gains per law, tune -> check-gains."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+import yaml
+
+from pdsmc_ros.errors import ConfigError
+from pdsmc_ros.settings import CONTROLLER_PARAMETERS, node_parameters, section_matches, unknown_parameter
+
+
+def pdsmc(*args: str, timeout: float = 600) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "pdsmc_ros.cli", *args], capture_output=True, text=True,
+                          timeout=timeout)
+
+
+def write(path: Path, data: object) -> Path:
+    path.write_text(yaml.safe_dump(data))
+    return path
+
+
+@pytest.mark.parametrize(("section", "node", "applies"), [
+    ("/**", "/controller", True), ("controller", "/controller", True), ("/controller", "/controller", True),
+    ("/*/controller", "/arm/controller", True), ("/**/controller", "/a/b/controller", True),
+    ("plant", "/controller", False), ("/*", "/arm/controller", False), ("contr*", "/controller", True),
+])
+def test_sections_apply_as_rcl_applies_them(section: str, node: str, applies: bool) -> None:
+    assert section_matches(section, node) is applies
+
+
+def test_unknown_key_names_the_closest_declared_one(tmp_path: Path) -> None:
+    path = write(tmp_path / "p.yaml", {"controller": {"ros__parameters": {"kpp": [1.0, 2.0]}}})
+    with pytest.raises(ConfigError) as info:
+        node_parameters(path, "/controller", CONTROLLER_PARAMETERS)
+    assert "unknown parameter 'kpp' (did you mean 'kp'?)" in str(info.value) and str(path) in str(info.value)
+    assert unknown_parameter("typ", ["type", "rate"]) == "unknown parameter 'typ' (did you mean 'type'?)"
+
+
+def test_a_file_without_a_section_for_the_node_is_refused(tmp_path: Path) -> None:
+    path = write(tmp_path / "p.yaml", {"my_controller": {"ros__parameters": {"kp": [1.0]}}})
+    with pytest.raises(ConfigError, match=r"no section for node '/controller'.*'my_controller'.*'/\*\*:'"):
+        node_parameters(path, "/controller", CONTROLLER_PARAMETERS)
+
+
+def test_sections_merge_in_file_order(tmp_path: Path) -> None:
+    path = write(tmp_path / "p.yaml", {"/**": {"ros__parameters": {"rate": 1000.0, "type": "pd"}},
+                                       "controller": {"ros__parameters": {"rate": 2000.0, "kp": [1.0]}},
+                                       "plant": {"ros__parameters": {"rate": 3.0}}})
+    assert node_parameters(path, "/controller", CONTROLLER_PARAMETERS) == {"rate": 2000.0, "type": "pd", "kp": [1.0]}
+
+
+@pytest.mark.parametrize(("content", "message"), [
+    ({"controller": {"ros__parameters": {"robot": "parallel_5r", "kpp": [230.0, 260.0], "kd": [24.0, 36.0]}}},
+     "unknown parameter 'kpp' (did you mean 'kp'?)"),
+    ({"controler": {"ros__parameters": {"kp": [230.0, 260.0], "kd": [24.0, 36.0]}}},
+     "no section for node '/controller'"),
+    ({"controller": {"ros__parameters": {"type": "smc", "kp": [230.0, 260.0], "kd": [24.0, 36.0]}}},
+     "sets type: smc but --controller is pd"),
+])
+def test_cli_params_file_errors_are_one_line(tmp_path: Path, content: dict, message: str) -> None:
+    path = write(tmp_path / "p.yaml", content)
+    proc = pdsmc("simulate", "--robot", "parallel_5r", "--contour", "circle", "--controller", "pd",
+                 "--params-file", str(path))
+    assert proc.returncode == 2, proc.stderr
+    assert len(proc.stderr.strip().splitlines()) == 1 and message in proc.stderr, proc.stderr
+
+
+def test_check_gains_for_pd_shows_no_smc_conditions() -> None:
+    proc = pdsmc("check-gains", "--robot", "parallel_5r", "--contour", "circle", "--controller", "pd")
+    assert proc.returncode == 0, proc.stderr
+    assert "Ks_" not in proc.stdout and "lambda" not in proc.stdout and "FAILS" not in proc.stdout
+    assert "no conditions of it for pd" in proc.stdout
+    assert "realtime (zero-order hold + 1 period of delay) holds" in proc.stdout and "x2 required" in proc.stdout
+    pdsmc_check = pdsmc("check-gains", "--robot", "parallel_5r", "--contour", "circle", "--controller", "pdsmc")
+    assert "Ks_1 > max |tau_d,1|" in pdsmc_check.stdout
+
+
+def test_check_gains_fails_below_the_margin() -> None:
+    args = ["check-gains", "--robot", "serial_3r", "--contour", "circle", "--controller", "pd"]
+    realtime = pdsmc(*args)  # the thesis's gains at its 10 kHz: x0.59 with one period of delay
+    assert realtime.returncode == 1 and "FAILS" in realtime.stdout and "margin x0.59" in realtime.stdout
+    lockstep = pdsmc(*args, "--mode", "lockstep")  # x1.19 without delay: the thesis's runs go on
+    assert lockstep.returncode == 0 and "margin x1.19 (x1 required" in lockstep.stdout
+    strict = pdsmc(*args, "--mode", "lockstep", "--margin", "1.5")
+    assert strict.returncode == 1
+    delayed = pdsmc(*args, "--mode", "lockstep", "--delay-periods", "1")  # lockstep + 1 declared = real time
+    assert "zero-order hold + 1 period of delay" in delayed.stdout and "margin x0.59" in delayed.stdout
+
+
+@pytest.mark.timeout(900)
+def test_tune_output_passes_check_gains_and_runs_in_simulate(tmp_path: Path) -> None:
+    out = tmp_path / "five_bar.yaml"
+    tuned = pdsmc("tune", "--robot", "parallel_5r", "--contour", "circle", "--controller", "pdsmc", "--rounds", "1",
+                  "--rate", "10000", "--quiet", "--out", str(out))
+    assert tuned.returncode == 0, tuned.stderr
+    data = yaml.safe_load(out.read_text())
+    assert set(data["/**"]["ros__parameters"]) == {"robot", "contour", "type", "rate"}
+    assert set(data["controller"]["ros__parameters"]) == {"kp", "kd", "ks", "lam", "phi"}
+    base = ["--robot", "parallel_5r", "--contour", "circle", "--controller", "pdsmc", "--params-file", str(out)]
+    check = pdsmc("check-gains", *base)  # the file's rate (10 kHz), real time, margin x2
+    assert check.returncode == 0, check.stdout + check.stderr
+    assert "at 10000 Hz in realtime" in check.stdout and "FAILS" not in check.stdout
+    sim = pdsmc("simulate", *base)
+    assert sim.returncode == 0 and "at 10000 Hz control" in sim.stdout, sim.stderr
