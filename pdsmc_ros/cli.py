@@ -114,6 +114,20 @@ def _add_payload_reading(p: argparse.ArgumentParser) -> None:
                    "default) or link_com (on the last link's centre of mass, the SMC's model rebuilt for it)")
 
 
+def whole_number_from_zero(text: str) -> int:
+    return whole_number(text, 0)
+
+
+def _add_loop_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--mode", choices=("realtime", "lockstep"), default="realtime",
+                   help="the loop the gains must hold in: realtime (default: zero-order hold plus one period of "
+                   "delay, as on a robot) or lockstep (zero-order hold, no delay)")
+    p.add_argument("--delay-periods", type=whole_number_from_zero, default=0,
+                   help="periods of delay beyond the mode's own (a driver's, a network's; default 0)")
+    p.add_argument("--margin", type=positive_float, default=None,
+                   help="required rate / lowest stable rate (default 2 in realtime, 1 in lockstep)")
+
+
 def _add_run_arguments(p: argparse.ArgumentParser) -> None:
     # robots and laws are checked against their registries when the run is built (importing them here
     # would load numba for every command, --help included)
@@ -186,8 +200,10 @@ def build_parser() -> argparse.ArgumentParser:
     swp.add_argument("--values", type=value_list, default=None,
                      help="comma-separated values instead of the thesis's (e.g. 1,10,100)")
 
-    chk = sub.add_parser("check-gains", help="discrete-rate stability of a run's gains")
+    chk = sub.add_parser("check-gains",
+                         help="discrete-rate stability (with the loop's delay) and Eq. 3.19 of a run's gains")
     _add_run_arguments(chk)
+    _add_loop_arguments(chk)
 
     mc = sub.add_parser("montecarlo", help="robustness: the controllers against a spread of plants (Dask)")
     mc.add_argument("--robot", required=True, help="serial_3r or parallel_5r (their link and motor parameters vary)")
@@ -212,26 +228,41 @@ def build_parser() -> argparse.ArgumentParser:
                      help="the params file to write (default: <robot>_<contour>_<controller>.yaml here)")
     tun.add_argument("--quiet", action="store_true", help="no line per candidate")
     tun.add_argument("--scheduler", default=None, help="run each gain's candidates on a Dask cluster, tcp://HOST:PORT")
+    _add_loop_arguments(tun)
     rt_check.add_parser(sub, COMMANDS)  # pdsmc rt-check (pdsmc_ros/rt_check.py)
     return parser
+
+
+FILE_SETTINGS = {"robot": "--robot", "contour": "--contour", "type": "--controller", "scenario": "--scenario"}
+"""Run parameters of a params file that a flag also sets: they must agree."""
 
 
 def _spec_from_args(args: argparse.Namespace):  # noqa: ANN202
     from .presets import make_run, smc_reading
 
     gains = None
+    rate = args.rate
     if args.params_file:
         from .robots import ROBOTS
         from .robots.catalog import resolve_robot
-        from .tuning import read_params_file
+        from .tuning import controller_parameters, read_params_file
 
+        given = controller_parameters(args.params_file)
+        flags = {"robot": args.robot, "contour": args.contour, "type": args.controller, "scenario": args.scenario}
+        for key, flag in FILE_SETTINGS.items():
+            same = given.get(key, flags[key]) == flags[key] or (key == "robot" and _same_robot(given[key], flags[key]))
+            if not same:
+                raise ConfigError(f"params file {args.params_file!r} sets {key}: {given[key]} but {flag} is "
+                                  f"{flags[key]}: give the same, or leave one out")
+        if rate is None and given.get("rate"):  # the rate the file's gains were chosen for
+            rate = positive_float(str(given["rate"]))
         gains = read_params_file(args.params_file, ROBOTS[resolve_robot(args.robot)].n, args.controller)
     return make_run(
         args.robot,
         args.contour,
         args.controller,
         scenario=args.scenario,
-        rate=args.rate,
+        rate=rate,
         smc_model=smc_reading(args.smc_reading) if args.controller == "smc" else None,
         ellipse_error=args.ellipse_error,
         waypoints_file=args.waypoints,
@@ -239,6 +270,16 @@ def _spec_from_args(args: argparse.Namespace):  # noqa: ANN202
         payload_reading=args.payload_reading,
         gains=gains,
     )
+
+
+def _same_robot(a: object, b: str) -> bool:
+    """Two spellings of one arm (a URDF file by two paths, a name and its registration)."""
+    from .robots.catalog import resolve_robot
+
+    try:
+        return resolve_robot(str(a)) == resolve_robot(b)
+    except PdsmcError:
+        return False
 
 
 def format_metrics(metrics: dict, robot_n: int) -> str:
@@ -307,28 +348,31 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
 
 
 def cmd_check_gains(args: argparse.Namespace) -> int:
-    from .control.lyapunov import theorem_conditions
-    from .control.stability import rate_margin
+    from .control.stability import THEOREM_LAWS, check_gains, describe_loop
 
     spec = _spec_from_args(args)
     print(f"{spec.robot} / {spec.contour} / {spec.controller} / {spec.scenario}: gains "
           + ", ".join(f"{k}={v}" for k, v in spec.gains.as_dict().items()))
-    if spec.controller != "pdsmc":
-        print("note: Eq. 3.19 is the theorem for the PD-SMC law; shown for these gains anyway")
-    print("Lyapunov conditions of Eq. 3.19 along the desired motion (worst instant):")
-    ok = True
-    for c in theorem_conditions(spec):
-        ok &= c.holds
+    result = check_gains(spec, mode=args.mode, delay_periods=args.delay_periods, margin=args.margin)
+    if result.conditions:
+        print("Lyapunov conditions of Eq. 3.19 along the desired motion (worst instant):")
+    else:
+        print(f"Eq. 3.19 is the theorem of the {', '.join(THEOREM_LAWS)} law: no conditions of it for "
+              f"{spec.controller}; the discrete-rate condition only")
+    for c in result.conditions:
         margin = "inf" if c.margin == float("inf") else f"x{c.margin:.3g}"
         print(f"  {'holds' if c.holds else 'FAILS':5s}  {c.name:52s} {c.lhs:12.5g} > {c.rhs:<12.5g} margin {margin}")
-    check = rate_margin(spec, spec.reference())
-    ok &= check.stable
-    print(
-        f"discrete-rate condition at {spec.rate:g} Hz {'holds' if check.stable else 'FAILS'}: largest "
-        f"pole radius {check.spectral_radius:.4f} (joint {check.worst_joint}); lowest stable rate "
-        f"{check.lowest_stable_rate:,.0f} Hz (margin x{spec.rate / check.lowest_stable_rate:.2f})"
-    )
-    return 0 if ok else EXIT_FAILURE
+    check = result.rate
+    if not np.isfinite(check.lowest_stable_rate):
+        print(f"discrete-rate condition: not checked ({spec.controller} has no linear gains)")
+    else:
+        print(
+            f"discrete-rate condition at {spec.rate:g} Hz in {describe_loop(check)} "
+            f"{'holds' if check.passes else 'FAILS'}: largest pole radius {check.spectral_radius:.4f} "
+            f"(joint {check.worst_joint}); lowest stable rate {check.lowest_stable_rate:,.0f} Hz, margin "
+            f"x{check.margin:.2f} (x{check.required_margin:g} required, --margin)"
+        )
+    return 0 if result.passes else EXIT_FAILURE
 
 
 def cmd_analyze(args: argparse.Namespace) -> int:
@@ -426,7 +470,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
 
 
 def cmd_tune(args: argparse.Namespace) -> int:
-    from .tuning import Candidate, tune, write_params_file
+    from .tuning import Candidate, Requirement, tune, write_params_file
 
     def progress(candidate: Candidate) -> None:
         error = "-" if candidate.contour_mean is None else f"{candidate.contour_mean:.4e} m"
@@ -441,19 +485,20 @@ def cmd_tune(args: argparse.Namespace) -> int:
         out.parent.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise ConfigError(f"--out {str(out)!r}: cannot create {str(out.parent)!r} ({exc.strerror})") from None
+    requirement = Requirement(args.mode, args.delay_periods, args.margin)
     result = tune(args.robot, args.contour, args.controller, rate=args.rate, rounds=args.rounds,
-                  progress=None if args.quiet else progress, scheduler=args.scheduler)
+                  progress=None if args.quiet else progress, scheduler=args.scheduler, requirement=requirement)
     spec = result.spec
     try:
         write_params_file(out, result.best.gains, controller=spec.controller, robot=spec.robot,
-                          contour=spec.contour, rate=spec.rate)
+                          contour=spec.contour, rate=spec.rate, requirement=requirement)
     except OSError as exc:
         raise ConfigError(f"--out {str(out)!r}: cannot write it ({exc.strerror}); the best gains: "
                           f"{result.best.gains.as_dict()}") from None
     tried = len(result.tried)
     refused = sum(not c.ok for c in result.tried)
     print(f"{spec.robot}/{spec.contour}/{spec.controller} at {spec.rate:g} Hz: contour error mean "
-          f"{result.best.contour_mean:.4e} m (start {result.tried[0].contour_mean:.4e} m) after {tried} runs "
+          f"{result.best.contour_mean:.4e} m (start {result.start.contour_mean:.4e} m) after {tried} runs "
           f"({refused} refused); wrote {out}")
     return 0
 

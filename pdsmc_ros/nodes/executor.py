@@ -39,6 +39,7 @@ from .lifecycle import (
     EXIT_OK,
     arm_teardown_watch,
 )
+from .overrides import check_overrides
 from .params import BUSY_WAIT_S
 from .realtime_params import LoopReport, apply_settings, loop_reports, publish_reports
 
@@ -89,6 +90,7 @@ def run_nodes(
             for factory in factories:
                 wrappers.append(factory())
                 reports += loop_reports(wrappers[-1])
+            check_overrides([w.node for w in wrappers], args)  # undeclared -p: a warning; params files: errors
             if domain is not None:
                 domain.bind()
         except (InvalidInputError, ParameterException, InvalidParameterTypeException, ValueError,
