@@ -9,6 +9,11 @@ file with a kernel and, when the hash is not the one the cache was built from,
 removes the package's cached kernels (they recompile on first use) and records the
 new hash. It runs once, when :mod:`pdsmc_ros.robots` is imported, before any kernel
 is called.
+
+The hash is recorded in the directory numba will write to even when that directory does
+not exist yet (numba creates it on the first compile): otherwise the first run after a
+fresh install leaves no mark, and the second finds the first one's kernels unmarked and
+deletes them -- two cold starts instead of one (issue 25).
 """
 
 from __future__ import annotations
@@ -36,18 +41,36 @@ def digest(sources: list[Path]) -> str:
     return h.hexdigest()[:16]
 
 
-def cache_dirs(sources: list[Path]) -> set[Path]:
-    """Where numba keeps these files' kernels: ``__pycache__`` beside them, or under
-    ``NUMBA_CACHE_DIR`` in numba's per-directory subfolders."""
-    dirs = {path.parent / "__pycache__" for path in sources}
-    from numba.core import caching, config
+def _probe() -> None:
+    """A stand-in function for numba's cache locators (they read only its first line number)."""
 
-    cache_dir = getattr(config, "CACHE_DIR", "")
-    # numba names the class UserProvidedCacheLocator (older releases: with a leading underscore)
-    locator = getattr(caching, "UserProvidedCacheLocator", None) or getattr(caching, "_UserProvidedCacheLocator", None)
-    if cache_dir and locator is not None:
-        dirs |= {Path(cache_dir) / locator.get_suitable_cache_subpath(str(path)) for path in sources}
-    return dirs
+
+def numba_cache_dir(source: Path) -> Path | None:
+    """The directory numba caches ``source``'s kernels in, created as numba creates it.
+
+    numba tries its locators in order -- ``NUMBA_CACHE_DIR`` (per-directory subfolders), a
+    writable ``__pycache__`` beside the file, the user-wide cache -- and takes the first whose
+    directory it can create and write to; asking them the same question gives the same answer.
+    ``None`` when numba could not cache this file at all.
+    """
+    from numba.core import caching
+
+    # numba's own ordered list (CacheImpl; _CacheImpl in older releases), else its three
+    # file-backed locators in the order numba has always tried them
+    impl = getattr(caching, "CacheImpl", None) or getattr(caching, "_CacheImpl", None)
+    locator_classes = getattr(impl, "_locator_classes", None) or [
+        getattr(caching, name) for name in ("UserProvidedCacheLocator", "InTreeCacheLocator", "UserWideCacheLocator")
+        if hasattr(caching, name)]
+    for locator_class in locator_classes:
+        locator = locator_class.from_function(_probe, str(source))
+        if locator is not None:
+            return Path(locator.get_cache_path())
+    return None
+
+
+def cache_dirs(sources: list[Path]) -> set[Path]:
+    """Where numba keeps these files' kernels (existing or created now, see :func:`numba_cache_dir`)."""
+    return {directory for directory in map(numba_cache_dir, sources) if directory is not None}
 
 
 def refresh() -> None:
@@ -59,15 +82,21 @@ def refresh() -> None:
     try:
         sources = kernel_sources()
         marker = MARKER_PREFIX + digest(sources)
-        stems = {path.stem for path in sources}
-        for directory in cache_dirs(sources):
-            if not directory.is_dir() or (directory / marker).exists():
+        directories = cache_dirs(sources)
+    except OSError:
+        # sources unreadable: nothing to compare against, leave the cache to numba
+        return
+    stems = {path.stem for path in sources}
+    for directory in directories:
+        try:
+            directory.mkdir(parents=True, exist_ok=True)
+            if (directory / marker).exists():
                 continue
             for entry in directory.iterdir():
                 stale_kernel = entry.suffix in (".nbi", ".nbc") and entry.name.split(".", 1)[0] in stems
                 if stale_kernel or entry.name.startswith(MARKER_PREFIX):
                     entry.unlink(missing_ok=True)
             (directory / marker).touch()
-    except OSError:
-        # a read-only install: numba cannot write its cache there either, nothing is stale
-        return
+        except OSError:
+            # a read-only directory: numba cannot write its cache there either, nothing is stale
+            continue
