@@ -6,8 +6,8 @@
 # control_msgs has no PyPI wheel. The venv's rosidl generators (requirements-build.txt), CMake
 # and the machine's C/C++ compiler build its C and Python type support; it is installed into
 # the venv prefix, where the wheels' bootstrap already puts <venv>/lib on the library path.
-# A stamp in the venv holds a hash of the definitions and of this script: an unchanged input
-# is not rebuilt.
+# A stamp in the venv holds a hash of the definitions, this script and the pins (the generators'
+# and the message packages' versions): unchanged inputs are not rebuilt.
 set -euo pipefail
 
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -27,10 +27,11 @@ done
 [ -d "$VENV/share/rosidl_default_generators" ] && [ -d "$VENV/share/ament_cmake" ] || \
   fail "the rosidl generators are not in $VENV: pip install -r requirements-build.txt -c constraints.txt"
 
-# what the build depends on: every file of the packages, this script, the generator pins
+# what the build depends on: every file of the packages, this script, the pins of the generators
+# and of the message packages the definitions use (constraints.txt)
 hash_inputs() {
   (cd "$ROOT" && find "${PACKAGES[@]/#/interfaces/}" -type f -print0 | sort -z | xargs -0 sha256sum
-   sha256sum tools/build_interfaces.sh requirements-build.txt) | sha256sum | cut -d' ' -f1
+   sha256sum tools/build_interfaces.sh requirements-build.txt constraints.txt) | sha256sum | cut -d' ' -f1
 }
 WANT="$(hash_inputs)"
 if [ -f "$STAMP" ] && [ "$(cat "$STAMP")" = "$WANT" ]; then
