@@ -366,7 +366,7 @@ def run_spec_from_parameters(node: Node, *, needs_gains: bool = True) -> RunSpec
                               f"{p['contour']}; give them (-p {missing[0]}:=[...], one per joint) or a params file "
                               "(pdsmc tune writes one)")
         # the other nodes never use the gains: placeholders where none are given
-        gains = Gains.from_mapping({**{g: [0.0] * n for g in missing}, **given}, n, p["type"])
+        gains = Gains.from_mapping({**{g: [1.0 if g == "phi" else 0.0] * n for g in missing}, **given}, n, p["type"])
         spec = make_run(p["robot"], p["contour"], p["type"], gains=gains, **options)
     except ConfigError as exc:
         raise ConfigError(f"parameters: {exc}") from None

@@ -1,0 +1,113 @@
+"""The nodes' settings: gains scaled by the scenario as in-process, gains needed by the controller only,
+undeclared overrides warned about, bad params files refused, the controller's rate advice as a parameter."""
+
+from __future__ import annotations
+
+import subprocess
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+import yaml
+from conftest import next_domain
+
+from pdsmc_ros.errors import ConfigError
+from pdsmc_ros.presets import make_run, scenario_names
+
+rclpy = pytest.importorskip("rclpy")
+from rclpy.parameter import Parameter  # noqa: E402
+
+from pdsmc_ros.control import Gains  # noqa: E402
+from pdsmc_ros.nodes.params import declare_run_parameters, run_spec_from_parameters  # noqa: E402
+
+GIVEN = {"kp": [300.0, 200.0], "kd": [20.0, 30.0], "ks": [1.5, 2.0], "lam": [10.0, 12.0], "phi": [0.4, 0.5]}
+
+
+@pytest.fixture
+def context() -> Iterator[object]:
+    ctx = rclpy.context.Context()
+    rclpy.init(context=ctx)
+    try:
+        yield ctx
+    finally:
+        rclpy.shutdown(context=ctx)
+
+
+def node_spec(context: object, overrides: dict, *, needs_gains: bool = True):  # noqa: ANN201
+    node = rclpy.create_node("controller", context=context,
+                             parameter_overrides=[Parameter(k, value=v) for k, v in overrides.items()])
+    try:
+        declare_run_parameters(node, gains=needs_gains)
+        return run_spec_from_parameters(node, needs_gains=needs_gains)
+    finally:
+        node.destroy_node()
+
+
+@pytest.mark.parametrize("scenario", scenario_names())
+def test_given_gains_are_scaled_by_the_scenario_as_in_process(context: object, scenario: str) -> None:
+    run = {"robot": "parallel_5r", "contour": "circle", "type": "pdsmc", "scenario": scenario}
+    spec = node_spec(context, {**run, **GIVEN})
+    given = Gains.from_mapping(GIVEN, 2, "pdsmc")
+    expected = make_run("parallel_5r", "circle", "pdsmc", scenario=scenario, gains=given)
+    assert spec.gains == expected.gains  # pdsmc simulate --params-file builds exactly this
+    partial = node_spec(context, {**run, "kp": GIVEN["kp"]})  # one gain given, the others the preset's
+    preset = make_run("parallel_5r", "circle", "pdsmc").gains.as_dict()
+    unscaled = make_run("parallel_5r", "circle", "pdsmc", gains=Gains.from_mapping({**preset, "kp": GIVEN["kp"]}, 2,
+                                                                                  "pdsmc"), scenario=scenario)
+    assert partial.gains == unscaled.gains
+    if scenario == "high_pd":
+        assert spec.gains.kp == (450.0, 300.0) and spec.gains.ks == tuple(GIVEN["ks"])
+
+
+def test_only_the_controller_needs_gains(context: object) -> None:
+    run = {"robot": "ur3", "contour": "circle", "type": "pdsmc"}  # no preset gains for the UR3
+    plant = node_spec(context, run, needs_gains=False)
+    assert plant.robot == "ur3" and len(plant.gains.kp) == 6
+    with pytest.raises(ConfigError, match=r"pdsmc needs gains kp, kd, ks, lam, phi: this arm has no preset.*tune"):
+        node_spec(context, run)
+    gains = {k: [v[0]] * 6 for k, v in GIVEN.items()}
+    assert node_spec(context, {**run, **gains}).gains == Gains.from_mapping(gains, 6, "pdsmc")
+
+
+def ros2_run(ros_env: dict, node: str, *args: str, timeout: float = 120) -> subprocess.CompletedProcess:
+    """Start ``node`` and stop it with SIGINT after ``timeout`` s if it has not ended (a node that
+    starts runs on: its warnings are read from what it printed)."""
+    env = {**ros_env, "ROS_DOMAIN_ID": str(next_domain())}
+    return subprocess.run(["timeout", "-s", "INT", str(timeout), "ros2", "run", "pdsmc_ros", node, "--ros-args", *args],
+                          env=env, capture_output=True, text=True, timeout=timeout + 30)
+
+
+@pytest.mark.timeout(200)
+def test_an_undeclared_override_is_warned_about_naming_the_closest(ros_env: dict) -> None:
+    proc = ros2_run(ros_env, "trajectory", "-p", "robot:=parallel_5r", "-p", "typ:=pd", timeout=25)
+    assert "unknown parameter 'typ' (did you mean 'type'?)" in proc.stderr, proc.stderr
+
+
+@pytest.mark.timeout(300)
+@pytest.mark.parametrize(("content", "message"), [
+    ({"controller": {"ros__parameters": {"robot": "parallel_5r"}}},
+     "params file '{}': no section for node '/trajectory' (sections: 'controller'; use 'trajectory:' or '/**:'"),
+    ({"/**": {"ros__parameters": {"robot": "parallel_5r", "kpp": [1.0, 2.0]}}},
+     "params file '{}': section '/**': unknown parameter 'kpp' (did you mean 'kp'?) for node '/trajectory'"),
+])
+def test_a_bad_params_file_is_one_line_and_exit_2(ros_env: dict, tmp_path: Path, content: dict, message: str) -> None:
+    path = tmp_path / "params.yaml"
+    path.write_text(yaml.safe_dump(content))
+    proc = ros2_run(ros_env, "trajectory", "--params-file", str(path), timeout=60)
+    assert proc.returncode == 2, proc.stderr
+    errors = [line for line in proc.stderr.splitlines() if "error" in line]
+    assert errors == [f"trajectory: error: {message.format(path)}" + errors[0].split(message.format(path))[1]]
+
+
+@pytest.mark.timeout(300)
+def test_the_controller_refuses_gains_unstable_in_real_time_advising_the_parameter(ros_env: dict) -> None:
+    # the UR5's old shipped gains: x1.04 without delay, unstable with the real-time loop's period of delay
+    old = {"kp": [179700.0, 514400.0, 136400.0, 38820.0, 40500.0, 2742.0],
+           "kd": [28.08, 80.37, 21.31, 6.066, 6.329, 0.4284], "ks": [112.3, 321.5, 85.22, 24.26, 25.31, 1.714],
+           "lam": [1600.0] * 6, "phi": [0.25] * 6}
+    gains = [arg for k, v in old.items() for arg in ("-p", f"{k}:={v}")]
+    proc = ros2_run(ros_env, "controller", "-p", "robot:=ur5", "-p", "mode:=realtime", *gains, timeout=120)
+    assert proc.returncode == 2, proc.stderr
+    errors = [line for line in proc.stderr.splitlines() if "error" in line]
+    assert len(errors) == 1 and "realtime (zero-order hold + 1 period of delay)" in errors[0], proc.stderr
+    assert "-p rate:=" in errors[0] and "--rate" not in errors[0]
