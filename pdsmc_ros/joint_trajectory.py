@@ -40,7 +40,7 @@ RawPoint = tuple[Sequence[float], Sequence[float], Sequence[float], int, int]
 """A decoded point: positions, velocities, accelerations, ``time_from_start`` (sec, nanosec)."""
 
 
-def _segment(t: float, duration: float, p0: FloatArray, v0: FloatArray | None, a0: FloatArray | None,
+def _segment(t: float | FloatArray, duration: float, p0: FloatArray, v0: FloatArray | None, a0: FloatArray | None,
              p1: FloatArray, v1: FloatArray | None, a1: FloatArray | None
              ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Position, velocity and acceleration ``t`` s into a segment of ``duration`` s."""
@@ -155,6 +155,27 @@ class JointTrajectoryReference:
                           "(header.stamp in the past?)")
         return cls(times, positions, velocities, accelerations, now,
                    np.asarray(q, dtype=float).copy(), np.asarray(qd, dtype=float).copy()), ""
+
+    def segment_samples(self, k: int, count: int) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """``(t, q, qd)`` at ``count`` instants evenly spread over the segment that ends at point ``k``
+        (its end included, its start not): ``t`` (count,) from receipt, ``q`` and ``qd`` (count, n).
+        One vectorised evaluation of the segment's polynomial (the limit check of a long goal)."""
+        times, v, a = self.times, self.velocities, self.accelerations
+        p0: FloatArray
+        v0: FloatArray | None
+        a0: FloatArray | None
+        if k == 0:
+            t0 = min(0.0, float(times[0]))
+            p0, v0, a0 = self.start_q, self.start_qd, None
+        else:
+            t0 = float(times[k - 1])
+            p0, v0, a0 = self.positions[k - 1], v[k - 1], a[k - 1]
+        duration = float(times[k]) - t0
+        t = np.linspace(t0, float(times[k]), count + 1)[1:]
+        # a0 None for k == 0: the segment from the state at receipt is cubic at most (sample())
+        q, qd, _ = _segment((t - t0)[:, None], duration, p0, v0, a0 if k else None,
+                            self.positions[k], v[k], a[k] if k else None)
+        return t, np.broadcast_to(q, (count, len(p0))), np.broadcast_to(qd, (count, len(p0)))
 
     def sample(self, t: float) -> tuple[FloatArray, FloatArray, FloatArray]:
         """Reference ``(q, qd, qdd)`` at time ``t`` (seconds on the controller's clock)."""

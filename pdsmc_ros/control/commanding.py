@@ -12,6 +12,7 @@ import numpy as np
 
 from ..bag.stamps import stamp_step
 from ..robots.base import FloatArray
+from ..runtime.hold import Hold
 from .safety import Staleness, limit_torque
 
 MAX_STEP = 2**32 - 1  # an effort command's layout.data_offset is a uint32
@@ -145,6 +146,11 @@ def _every(count: int, text: str) -> str:
 class LatestInputs:
     """Real time: the latest state and reference, and whether they are fresh enough to command.
 
+    Whichever source spoke last drives: the reference stream, a trajectory (topic or
+    goal), or a hold (:class:`~pdsmc_ros.runtime.hold.Hold`). With none yet (after
+    :meth:`activate`), the first complete state is held, as joint_trajectory_controller
+    holds the position it finds on activation.
+
     Parameters
     ----------
     stale_s : float
@@ -154,33 +160,52 @@ class LatestInputs:
     def __init__(self, stale_s: float) -> None:
         self.staleness = Staleness(stale_s)
         self.state: tuple[FloatArray, FloatArray] | None = None  # None: the latest state was incomplete
+        self.last_q: FloatArray | None = None  # the latest complete state's position (where a hold holds)
         self.reference: Reference | None = None
         self.trajectory: TrajectorySource | None = None
         self.source: str | None = None  # "reference" or "trajectory": whichever spoke last
         self.state_time = self.reference_time = 0.0
 
+    def activate(self) -> None:
+        """Forget what drove before: hold the first complete state that comes from now on."""
+        self.source, self.trajectory, self.state, self.state_time = None, None, None, 0.0
+
     def add_state(self, q: FloatArray, qd: FloatArray, now: float) -> None:
-        self.state, self.state_time = (q, qd), now
+        self.state, self.state_time, self.last_q = (q, qd), now, q
 
     def add_reference(self, ref: Reference, now: float) -> None:
         self.reference, self.reference_time, self.source = ref, now, "reference"
 
     def drive(self, trajectory: TrajectorySource) -> None:
-        self.trajectory, self.source = trajectory, "trajectory"
+        # the trajectory first: a tick between the two stores samples the old one once, never None
+        self.trajectory = trajectory
+        self.source = "trajectory"
+
+    def hold(self, why: str) -> bool:
+        """Hold the latest complete state's position from now on (whether there is one)."""
+        if self.last_q is None:
+            return False
+        self.drive(Hold(self.last_q, why))
+        return True
 
     def take(self, now: float, clock: Callable[[], float]
-             ) -> tuple[tuple[FloatArray, FloatArray, Reference] | None, str]:
-        """``((q, qd, reference) or None, change)``: what to command from now (None: nothing; a
-        trajectory is sampled at ``clock()``), and ``"stale"`` / ``"fresh"`` when the inputs just
-        became so."""
-        if self.source is None or self.state_time == 0.0:
+             ) -> tuple[tuple[FloatArray, FloatArray, Reference, float] | None, str]:
+        """``((q, qd, reference, t) or None, change)``: what to command from now (None: nothing;
+        a trajectory is sampled at ``t = clock()``, the time the command is computed), and
+        ``"stale"`` / ``"fresh"`` when the inputs just became so."""
+        if self.state_time == 0.0:
             return None, ""
+        if self.source is None:
+            if self.state is None:
+                return None, ""
+            self.hold("activation")
         from_stream = self.source == "reference"
         change = self.staleness.update(now, self.state_time, self.reference_time if from_stream else None)
         if self.staleness.stale or self.state is None:
             return None, change
-        ref = self.reference if from_stream else self.trajectory.sample(clock())  # type: ignore[union-attr]
-        return (*self.state, ref), change  # type: ignore[return-value]
+        t = clock()
+        ref = self.reference if from_stream else self.trajectory.sample(t)  # type: ignore[union-attr]
+        return (*self.state, ref, t), change  # type: ignore[return-value]
 
 
 class TickTiming:

@@ -1,15 +1,17 @@
 """Controller node: PD, SMC or PD-SMC (any registered law), selected with ``-p type:=pdsmc``.
 
 A managed (lifecycle) node, configured and activated at start unless ``autostart:=false``.
-In: ``/joint_states`` (JointState) and two reference sources, ``/reference`` (one point per
-step) and ``~/joint_trajectory`` (JointTrajectory goals, as joint_trajectory_controller);
-whichever spoke last drives. Joints by name (``joints``): any order, extra ones ignored.
-Out: torques on ``/effort_controller/commands`` as ros2_control's forward command controller
-(Float64MultiArray, ``data[i]`` for ``joints[i]``, ``layout.data_offset`` the lockstep step),
-the run description on ``/pdsmc/run_description`` (latched) and input problems on
-``/diagnostics``. Lockstep pairs the state and the reference of each step (sim-time stamps);
-real time commands at the rate from the latest ones (:mod:`pdsmc_ros.control.commanding`).
-Stopping (signal, lifecycle, stale inputs) publishes one zero command.
+In: ``/joint_states`` and three reference sources, ``/reference`` (one point per step),
+``~/joint_trajectory`` (JointTrajectory, as joint_trajectory_controller) and the action
+``~/follow_joint_trajectory`` (:mod:`.follow_joint_trajectory`, served by a node of its own
+in a thread of its own); whichever spoke last drives. Real time: on activation, and after
+a goal is canceled or aborted, the controller holds the position it measures (through the
+chosen law); a trajectory's time is the node clock (``header.stamp``, or the reception
+time when zero). Joints by name (``joints``, any order, mapped onto the robot's). Out:
+torques on ``/effort_controller/commands`` (``data[i]`` for ``joints[i]``, clamped to the
+arm's effort limits), ``~/controller_state``, ``/pdsmc/run_description`` (latched) and
+``/diagnostics``. Lockstep pairs the state and the reference of each step (no hold: the
+plant waits for its command). Stopping (signal, lifecycle, stale inputs) publishes one zero command.
 """
 
 from __future__ import annotations
@@ -19,7 +21,7 @@ import time
 from collections.abc import Sequence
 
 from rclpy.duration import Duration
-from rclpy.lifecycle import LifecycleNode
+from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 from trajectory_msgs.msg import JointTrajectory
@@ -27,43 +29,56 @@ from trajectory_msgs.msg import JointTrajectory
 from ..control import ControlLaw, Gains
 from ..control.commanding import LatestInputs, LockstepPairing, Paired, TickTiming, TorqueGuard
 from ..control.stability import check_rate
-from ..joint_trajectory import JointTrajectoryReference
 from ..joints import JointSelector
 from ..presets import control_steps
+from ..runtime.goal import GoalSlot
+from ..runtime.hold import Hold
+from ..runtime.limits import JointLimits
+from ..runtime.warm import warm_up
 from . import topics
+from .controller_params import OrderedGainUpdates, declare_controller_parameters, gains_in_robot_order
 from .diagnostics import Diagnostics, InputReport
 from .executor import run_node
+from .follow_joint_trajectory import FollowJointTrajectoryServer, topic_trajectory
 from .io import EffortOutput, Inputs, RowBatches
 from .lifecycle import EXIT_OK, CommandingEntity, end_when_plant_leaves
-from .params import GainUpdates, declare_controller_parameters, declare_node_run, description_json
+from .params import declare_node_run, description_json
 
 GOAL_BATCH_S = 0.002  # ~/joint_trajectory is looked at every 2 ms
 STOP_ACK_S = 0.5  # how long a stopping controller waits for its zero command to be acknowledged
 
 
 class ControllerNode(CommandingEntity):
-    """Wiring around :class:`~pdsmc_ros.control.ControlLaw` and :mod:`~pdsmc_ros.control.commanding`."""
+    """Wiring around :class:`~pdsmc_ros.control.ControlLaw`, :mod:`~pdsmc_ros.control.commanding`
+    and :mod:`~pdsmc_ros.runtime` (hold, goals, limits)."""
 
     def __init__(self) -> None:
         self.node = node = LifecycleNode("controller")
         run = declare_node_run(node, gains=True)
-        self.spec = spec = run.spec
         self.mode, self.busy_wait, self.lockstep = run.mode, run.busy_wait, run.mode == "lockstep"
-        robot = spec.robot_model()
+        self.robot = robot = run.spec.robot_model()
         self.params = params = declare_controller_parameters(node, robot)
-        self.selector = JointSelector(params.joints)
+        self.joint_map = params.joint_map
+        self.spec = spec = gains_in_robot_order(node, run.spec, self.joint_map)
+        self.selector = JointSelector(robot.joint_names)  # the law's vectors stay in robot order
+        self.limits = JointLimits.of(robot, robot.joint_names) if params.enforce_limits else None
         self.reference = spec.reference()
         check_rate(spec, self.reference)  # refuse gains unstable at this rate
         # gains: the on-set callback checks a change is stable at the running rate, the post-set one applies it
-        self.gain_updates = GainUpdates(node, spec, lambda new: check_rate(new, self.reference), self.apply_gains)
+        self.gain_updates = OrderedGainUpdates(node, spec, lambda new: check_rate(new, self.reference),
+                                               self.apply_gains)
+        self.gain_updates.joint_map = self.joint_map
         self.pairing = LockstepPairing(spec.rate, control_steps(spec.contour_model().duration, spec.rate))
         self.latest = LatestInputs(params.stale_periods / spec.rate)
+        self.goals = GoalSlot(self.pairing.drive if self.lockstep else self.latest.drive, self.hold)
         self.law: ControlLaw | None = None
         self.active = self.done = False  # commanding; the run is over
         self.exit_code, self.states_received = EXIT_OK, 0
         self.last_state: tuple[int, object, object] | None = None  # where a trajectory goal starts
+        self.snapshot: tuple | None = None  # the latest period's (t, q, qd, reference, torque), robot order
 
-        self.effort = EffortOutput(node, topics.TOPIC_EFFORT, robot.n, TorqueGuard(params.torque_limit))
+        self.guard = TorqueGuard(params.torque_limit)
+        self.effort = EffortOutput(node, topics.TOPIC_EFFORT, robot.n, self.guard)
         self.report_input = InputReport(Diagnostics(node, "controller: inputs", spec.robot,
                                                     values=lambda: {"joints": ",".join(self.params.joints)}))
         self.inputs = Inputs(node, self.mode)
@@ -71,7 +86,8 @@ class ControllerNode(CommandingEntity):
         self.inputs.subscribe(JointTrajectory, topics.TOPIC_REFERENCE, self.on_reference)
         # off the loop's path: a goal is rare, and an input taken at every pass of the loop costs a take per pass
         goals = self.observed_inputs = Inputs(node, self.mode, batch_s=GOAL_BATCH_S, suffix="_goals")
-        goals.subscribe(JointTrajectory, topics.TOPIC_JOINT_TRAJECTORY, self.on_goals, topics.TRAJECTORY_QOS)
+        goals.subscribe(JointTrajectory, topics.TOPIC_JOINT_TRAJECTORY, self.on_goals, topics.TRAJECTORY_QOS,
+                        with_receipt=True)
         description = String(data=description_json(spec, self.mode))
         node.create_publisher(String, topics.TOPIC_DESCRIPTION, topics.LATCHED_QOS).publish(description)
         if not self.lockstep:
@@ -80,6 +96,8 @@ class ControllerNode(CommandingEntity):
             self.timing_rows = RowBatches(node, topics.TOPIC_TIMING, ("tick", "field"), TickTiming.FIELDS, batch=50)
             self.plant_watch = end_when_plant_leaves(self, lambda: self.states_received)
         node.add_managed_entity(self)
+        # the action server: a node of its own spun by a thread of its own, never by the loop's executor
+        self.action = FollowJointTrajectoryServer(self)
         if params.autostart:
             node.trigger_configure()
             node.trigger_activate()
@@ -87,9 +105,20 @@ class ControllerNode(CommandingEntity):
         node.get_logger().info(f"{spec.controller} controller for {spec.robot}/{spec.contour}, {self.mode}, "
                                f"{spec.rate:g} Hz, joints {list(params.joints)}{waiting}")
 
-    def configure(self) -> None:  # the law, loaded now: not on the first tick (numba loads it)
+    def configure(self) -> None:
+        """Everything a first state, trajectory or goal needs, loaded and run once now (numba
+        loads the law's kernel on its first call): never on the first tick."""
         start = self.reference.sample([0.0])
         self.law = ControlLaw.from_spec(self.spec).warm_up(start.q[0], start.qd[0])
+        warm_up(self.law, self.selector, self.limits, start.q[0], self.guard, self.joint_map)
+
+    def on_activate(self, state: LifecycleState) -> TransitionCallbackReturn:
+        self.latest.activate()  # real time: hold the first state that comes from now on
+        return super().on_activate(state)
+
+    def on_deactivate(self, state: LifecycleState) -> TransitionCallbackReturn:
+        self.goals.end("Current goal cancelled during deactivate transition.")  # as joint_trajectory_controller
+        return super().on_deactivate(state)
 
     def cleanup(self) -> None:
         self.law = None
@@ -99,6 +128,15 @@ class ControllerNode(CommandingEntity):
         if self.law is not None:
             self.law = ControlLaw.from_spec(self.spec)  # one attribute store: a tick uses the old or the new
         self.node.get_logger().info(f"gains changed: {gains.as_dict()}")
+
+    def hold(self, why: str) -> None:
+        """Hold the latest measured position from now on (a cancel, an abort)."""
+        if self.lockstep:
+            if self.last_state is not None:
+                self.pairing.drive(Hold(self.last_state[1], why))  # type: ignore[arg-type]
+        elif not self.latest.hold(why):
+            return
+        self.node.get_logger().info(f"holding the measured position ({why})")
 
     # -- inputs --------------------------------------------------------------- #
     def on_state(self, data: bytes) -> None:
@@ -137,18 +175,10 @@ class ControllerNode(CommandingEntity):
             return (0 if self.last_state is None else self.last_state[0]) / self.spec.rate
         return self.node.get_clock().now().nanoseconds * 1e-9
 
-    def on_goals(self, batch: list[bytes]) -> None:
+    def on_goals(self, batch: list[tuple[bytes, float | None]]) -> None:
         """Trajectory goals taken in a batch: each replaces the previous one, in order."""
-        topic, log = self.node.resolve_topic_name(topics.TOPIC_JOINT_TRAJECTORY), self.node.get_logger()
-        for data in batch:
-            state = self.last_state and self.last_state[1:]
-            reference, problem = JointTrajectoryReference.from_serialized(self.selector, data, self.now(), state)
-            if reference is None:
-                log.error(f"{topic}: trajectory refused: {problem}")
-                continue
-            (self.pairing if self.lockstep else self.latest).drive(reference)
-            log.info(f"{topic}: {len(reference.times)} points until t = {reference.end_time:.3f} s; driving from it")
-            if self.lockstep:
+        for data, received in batch:
+            if topic_trajectory(self, data, received) and self.lockstep:
                 self.compute(self.pairing.take())
 
     def compute(self, paired: Paired | None) -> None:
@@ -157,15 +187,19 @@ class ControllerNode(CommandingEntity):
             step, q, qd, ref = paired
             law = self.law
             if self.active and law is not None:
-                self.effort.publish(law.torque(q, qd, *ref), step)
+                if self.goals.active is not None and self.goals.check(step / self.spec.rate, q, qd, ref)[1]:
+                    ref = self.pairing.trajectory.sample(0.0)  # type: ignore[union-attr]  # aborted: held now
+                tau = law.torque(q, qd, *ref)
+                self.snapshot = (step / self.spec.rate, q, qd, ref, tau)
+                self.effort.publish(self.joint_map.to_user(tau), step)
             self.done = self.pairing.finished
 
     def stop_commanding(self, why: str) -> bool:
         return self.effort.stop(why, self.pairing.stop_step if self.lockstep else 0)
 
     def tick(self, lateness: float) -> None:
-        """Real time: a torque from the latest inputs, its timing recorded; then (rarely) a look
-        at whether the plant is there."""
+        """Real time: a torque from the latest inputs (a goal checked against its tolerances),
+        its timing recorded; then (rarely) a look at whether the plant is there."""
         now = self.timing.start(lateness)
         law = self.law
         if self.active and law is not None:
@@ -176,17 +210,24 @@ class ControllerNode(CommandingEntity):
             elif change == "fresh":
                 self.node.get_logger().info("fresh state and reference again: output resumed")
             if inputs is not None:
-                tau = law.torque(*inputs[:2], *inputs[2])
+                q, qd, ref, t = inputs
+                if self.goals.active is not None and self.goals.check(t, q, qd, ref)[1]:
+                    ref = self.latest.trajectory.sample(t)  # type: ignore[union-attr]  # aborted: held from now
+                tau = law.torque(q, qd, *ref)
+                self.snapshot = (t, q, qd, ref, tau)
                 with self.effort.lock:
                     if self.active:
-                        self.effort.publish(tau, 0)
+                        self.effort.publish(self.joint_map.to_user(tau), 0)
                 self.timing_rows.add(self.timing.row(now, lateness))
         self.plant_watch.poll()
 
     def close(self) -> None:
         """Stopping (signal, end of run): a zero command unless the lockstep run is complete."""
+        self.action.stop()
         if not self.lockstep:
             self.timing_rows.flush()
+        if self.guard.clamped:
+            self.node.get_logger().warn(f"torque clamped to the limits in {self.guard.clamped} periods")
         if not self.pairing.finished and self.stop_commanding("stopping"):  # complete: the plant has ended
             self.effort.pub.publisher.wait_for_all_acked(Duration(nanoseconds=int(STOP_ACK_S * 1e9)))
 

@@ -108,7 +108,13 @@ class Inputs:
         self.local: list[tuple[deque, Callable[[bytes], None]]] = []
 
     def subscribe(self, msg_type: Any, topic: str, handler: Callable[[bytes], None],
-                  qos: QoSProfile | None = None) -> None:
+                  qos: QoSProfile | None = None, *, with_receipt: bool = False) -> None:
+        """Hand ``topic``'s messages to ``handler``. ``with_receipt`` (observers): each message of a
+        batch comes as ``(data, received)``, ``received`` the middleware's reception time (s, system
+        clock; None on the intra-process path), so the time a message is taken never stands in
+        for the time it arrived."""
+        if with_receipt:
+            handler = WithReceipt(handler)
         if qos is None:
             qos = LOCKSTEP_QOS if self.mode == "lockstep" else LATEST_QOS
         domain = intra.current()
@@ -136,6 +142,16 @@ class Inputs:
         if self.io_node is not None:
             self.io_node.destroy_node()
             self.io_node = None
+
+
+class WithReceipt:
+    """An observer's handler that receives ``(data, received_s)`` pairs (see :meth:`Inputs.subscribe`)."""
+
+    def __init__(self, handler: Callable[[list[tuple[bytes, float | None]]], None]) -> None:
+        self.handler = handler
+
+    def __call__(self, batch: list[Any]) -> None:
+        self.handler([item if type(item) is tuple else (item, None) for item in batch])
 
 
 def _taken_by_wait_set(_msg: bytes) -> None:  # pragma: no cover - never called
@@ -179,12 +195,15 @@ def take_batches(inputs: Sequence[tuple[Any, Any, Callable[[list[bytes]], None]]
     took = False
     for handle, msg_type, handler in inputs:
         limit = BOUNDED_BATCH if time.perf_counter() >= until else -1
-        batch = []
+        batch: list[Any] = []
+        receipt = type(handler) is WithReceipt
         while len(batch) != limit:
             taken = handle.take_message(msg_type, True)
             if taken is None:
                 break
-            batch.append(taken[0])
+            # (a middleware that gives no reception time gives 0: then None, "taken now")
+            batch.append((taken[0], (taken[1].get("received_timestamp") or 0) * 1e-9 or None)
+                         if receipt else taken[0])
         if batch:
             handler(batch)
             took = True
