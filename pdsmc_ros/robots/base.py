@@ -108,6 +108,11 @@ class RobotParams:
         ``L5`` of the five-bar (m); unused by the serial arm.
     gravity : float
         Gravity along -y (m/s^2).
+    effort_limit, velocity_limit : tuple of float
+        Per actuated joint: the largest torque (N m) and rate (rad/s); empty: unknown (unlimited).
+    position_limit : tuple of (float, float)
+        Per actuated joint: lower and upper angle (rad); empty: unlimited (the planar arms'
+        joints turn freely).
     """
 
     links: tuple[LinkParams, ...]
@@ -115,6 +120,9 @@ class RobotParams:
     motor_damping: float
     base_length: float = 0.0
     gravity: float = GRAVITY
+    effort_limit: tuple[float, ...] = ()
+    velocity_limit: tuple[float, ...] = ()
+    position_limit: tuple[tuple[float, float], ...] = ()
 
     @classmethod
     def from_mapping(cls, data: Mapping[str, Any], *, name: str = "robot") -> RobotParams:
@@ -129,14 +137,18 @@ class RobotParams:
                 )
                 for link in data["links"]
             )
+            limits = data.get("limits") or {}
             return cls(
                 links=links,
                 motor_inertia=float(data["motor_inertia"]),
                 motor_damping=float(data["motor_damping"]),
                 base_length=float(data.get("base_length", 0.0)),
                 gravity=float(data.get("gravity", GRAVITY)),
+                effort_limit=tuple(float(v) for v in limits.get("effort") or ()),
+                velocity_limit=tuple(float(v) for v in limits.get("velocity") or ()),
+                position_limit=tuple((float(lo), float(hi)) for lo, hi in limits.get("position") or ()),
             )
-        except (KeyError, TypeError, ValueError) as exc:
+        except (KeyError, TypeError, ValueError, AttributeError) as exc:
             raise InvalidInputError(f"{name}: malformed robot parameters ({exc})") from exc
 
 
@@ -167,12 +179,19 @@ class Manipulator:
     payload: float
     J: FloatArray
     B: FloatArray
+    effort_limits: FloatArray
+    """Largest torque (N m) of each actuated joint, robot order; ``inf`` where unknown."""
+    velocity_limits: FloatArray
+    """Largest rate (rad/s) of each actuated joint; ``inf`` where unknown."""
+    position_limits: FloatArray
+    """``(n, 2)`` lower and upper angle (rad) of each actuated joint; ``-inf``/``inf`` if unlimited."""
 
     def __init__(self, payload: float = 0.0, *, params: RobotParams) -> None:
         self.params = params
         self.payload = float(payload)
         self.J = motor_array(params.motor_inertia, self.n)
         self.B = motor_array(params.motor_damping, self.n)
+        self.effort_limits, self.velocity_limits, self.position_limits = joint_limits(params, self.n, self.name)
 
     @classmethod
     def create(cls, payload: float = 0.0, *, params: RobotParams | None = None) -> Manipulator:
@@ -306,6 +325,35 @@ class Manipulator:
         """Angles and rates of unactuated joints (none for a serial arm)."""
         shape = q.shape[:-1] + (0,)
         return np.zeros(shape), np.zeros(shape)
+
+
+def joint_limits(params: RobotParams, n: int, name: str) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """``(effort, velocity, position)`` limits of ``params`` for ``n`` actuated joints (unknown: infinite).
+
+    Raises
+    ------
+    InvalidInputError
+        If a limit list does not have ``n`` entries, a magnitude is not > 0, or a lower
+        position limit is not below its upper one.
+    """
+    effort = np.full(n, np.inf)
+    velocity = np.full(n, np.inf)
+    position = np.tile([-np.inf, np.inf], (n, 1))
+    for label, given, out in (("effort", params.effort_limit, effort), ("velocity", params.velocity_limit, velocity)):
+        if not given:
+            continue
+        values = np.asarray(given, dtype=float)
+        if values.shape != (n,) or np.any(np.isnan(values)) or np.any(values <= 0.0):
+            raise InvalidInputError(f"{name}: limits.{label} needs {n} values > 0 (one per actuated joint), "
+                                    f"got {list(given)}")
+        out[:] = values
+    if params.position_limit:
+        pairs = np.asarray(params.position_limit, dtype=float)
+        if pairs.shape != (n, 2) or np.any(np.isnan(pairs)) or np.any(pairs[:, 0] >= pairs[:, 1]):
+            raise InvalidInputError(f"{name}: limits.position needs {n} pairs [lower, upper] with lower < upper "
+                                    f"(rad), got {[list(p) for p in params.position_limit]}")
+        position[:] = pairs
+    return effort, velocity, position
 
 
 def motor_array(value: float | FloatArray, n: int) -> FloatArray:

@@ -4,9 +4,10 @@
 ``config/urdf_arms.yaml`` loads that arm from the example-robot-data wheel; a path
 to a ``.urdf`` file loads it, with the options of a YAML file of the same name
 beside it (``arm.urdf`` -> ``arm.yaml``: ``armature``, ``ee_frame``,
-``locked_joints``, ``home``, ``plane``, ``orientation``, the run settings of
-``config/robots.yaml`` and ``contour_size``, ``contours``, ``gains``). Either is
-registered once, under the name it was asked by.
+``locked_joints``, ``home``, ``plane``, ``orientation``, ``effort_limits``,
+``velocity_limits``, ``position_limits``, the run settings of ``config/robots.yaml``
+and ``contour_size``, ``contours``, ``gains``; each checked, one line naming the file
+and the key). Either is registered once, under the name it was asked by.
 """
 
 from __future__ import annotations
@@ -33,7 +34,8 @@ element, when a pdsmc_ros plant published it, carries the arm's task options and
 DEFAULT_SETTINGS = {"control_rate": 1000.0, "sample_rate": 500.0, "contour_bound": 1.0e-3, "contour_size": 0.3}
 """Run settings of a URDF arm that does not give its own."""
 
-OPTION_KEYS = ("armature", "ee_frame", "locked_joints", "home", "plane", "orientation")
+OPTION_KEYS = ("armature", "ee_frame", "locked_joints", "home", "plane", "orientation", "effort_limits",
+               "velocity_limits", "position_limits")
 SETTING_KEYS = ("control_rate", "sample_rate", "contour_bound", "contour_size", "contours", "gains")
 
 
@@ -130,21 +132,57 @@ def register_description(xml: str, *, name: str = ROBOT_DESCRIPTION) -> str:
 
 
 def _register(name: str, source: Path | str, entry: Mapping[str, Any], where: str) -> type[UrdfRobot]:
-    unknown = sorted(set(entry) - set(OPTION_KEYS) - set(SETTING_KEYS))
-    if unknown:
-        raise ConfigError(f"{where}: unknown key(s) {unknown}; allowed: {', '.join(OPTION_KEYS + SETTING_KEYS)}")
-    options = {k: entry[k] for k in OPTION_KEYS if k in entry}
+    check_entry(entry, where)
+    options = {k: entry[k] for k in OPTION_KEYS if k in entry and entry[k] is not None}
     if "plane" in options:
-        plane = options["plane"]
-        if not isinstance(plane, dict) or set(plane) != {"origin", "u", "v"}:
-            raise ConfigError(f"{where}: plane must give origin, u and v (3 numbers each)")
-        options["plane"] = TaskPlane(**plane)
+        try:
+            options["plane"] = TaskPlane(**options["plane"])
+        except (InvalidInputError, TypeError, ValueError) as exc:
+            raise ConfigError(f"{where}: plane: {exc}") from None
     if "locked_joints" in options:
         options["locked_joints"] = tuple(options["locked_joints"])
     settings = {**DEFAULT_SETTINGS, **{k: entry[k] for k in SETTING_KEYS if k in entry}}
     try:
-        cls = urdf_robot_class(source, name=name, settings=settings, **options)
+        cls = urdf_robot_class(source, name=name, settings=settings, options_label=where, **options)
     except InvalidInputError as exc:
         raise ConfigError(f"robot {name!r}: {exc}") from None
     register_robot(cls, config=settings)
     return cls
+
+
+def _number(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def check_entry(entry: Mapping[str, Any], where: str) -> None:
+    """The keys and types of an arm's options (lengths against the joints: :func:`.urdf_robot_class`).
+
+    Raises
+    ------
+    ConfigError
+        One line naming ``where`` (the options file) and the key: an unknown key (the
+        allowed ones listed), or a value of the wrong type.
+    """
+    unknown = sorted(set(entry) - set(OPTION_KEYS) - set(SETTING_KEYS))
+    if unknown:
+        raise ConfigError(f"{where}: unknown key(s) {unknown}; allowed: {', '.join(OPTION_KEYS + SETTING_KEYS)}")
+    for key in ("ee_frame", "orientation", "contours"):
+        if entry.get(key) is not None and not isinstance(entry[key], str):
+            raise ConfigError(f"{where}: {key} must be a name (a string), got {entry[key]!r}")
+    locked = entry.get("locked_joints")
+    if locked is not None and (not isinstance(locked, list) or not all(isinstance(j, str) for j in locked)):
+        raise ConfigError(f"{where}: locked_joints must be a list of joint names, got {locked!r}")
+    plane = entry.get("plane")
+    if plane is not None and (not isinstance(plane, dict) or set(plane) != {"origin", "u", "v"} or not all(
+            isinstance(v, list) and len(v) == 3 and all(map(_number, v)) for v in plane.values())):
+        raise ConfigError(f"{where}: plane must give origin, u and v (3 numbers each), got {plane!r}")
+    for key in ("control_rate", "sample_rate", "contour_bound"):
+        if key in entry and not (_number(entry[key]) and 0.0 < entry[key] < float("inf")):
+            raise ConfigError(f"{where}: {key} must be a number > 0, got {entry[key]!r}")
+    size = entry.get("contour_size")
+    if size is not None and not (_number(size) and 0.0 < size < float("inf")):
+        raise ConfigError(f"{where}: contour_size must be a number > 0 (m) or null, got {size!r}")
+    gains = entry.get("gains")
+    if gains is not None and not isinstance(gains, (str, dict)):
+        raise ConfigError(f"{where}: gains must name a table of config/gains.yaml or give one (contour group -> "
+                          f"controller -> kp, kd, ...), got {gains!r}")

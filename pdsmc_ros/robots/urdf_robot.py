@@ -7,8 +7,10 @@ registered URDF arm runs wherever ``serial_3r`` does; :func:`from_urdf` returns 
 instance. Conventions (issue 16): URDF ``<dynamics damping>`` is the motor damping
 ``B`` (Pinocchio reads it, its ``aba`` does not apply it, so Eq. (4.1) adds it here);
 ``armature`` is the motor inertia ``J`` (URDF has no element for it), added to the
-mass matrix's diagonal; ``<limit effort velocity>`` are :attr:`UrdfRobot.torque_limit`
-and :attr:`UrdfRobot.velocity_limit`; gravity is URDF's, along -z.
+mass matrix's diagonal; ``<limit effort velocity lower upper>`` are the arm's
+:attr:`~.base.Manipulator.effort_limits`, ``velocity_limits`` and ``position_limits``
+(Pinocchio's ``effortLimit``, ``velocityLimit``, ``lower/upperPositionLimit``), each
+overridable by the options beside the URDF; gravity is URDF's, along -z.
 
 Task space: the thesis's planar contours run in a :class:`~.task.TaskPlane`. A task
 point is ``(u, v, pose)``: the end effector's plane coordinates and its rotation about
@@ -134,11 +136,15 @@ def load_model(source: str | Path, *, locked_joints: Sequence[str] = ()) -> tupl
         model = pin.buildReducedModel(model, ids, pin.neutral(model))
     if model.nv == 0:
         raise InvalidInputError(f"{label}: no movable joint")
-    kinds = {model.joints[i].shortname() for i in range(1, model.njoints)}
-    unsupported = sorted(k for k in kinds if not k.startswith(("JointModelR", "JointModelP")) or "UB" in k)
-    if unsupported or model.nq != model.nv:
-        raise InvalidInputError(f"{label}: only revolute and prismatic joints are supported, found "
-                                f"{unsupported or sorted(kinds)} (continuous joints: give them limits)")
+    for i in range(1, model.njoints):
+        kind = model.joints[i].shortname()
+        if "UB" in kind:  # Pinocchio's unbounded revolute: (cos, sin) coordinates, nq = 2 nv
+            raise InvalidInputError(f"{label}: joint {model.names[i]!r} is continuous; only revolute and "
+                                    "prismatic joints are supported (make it type=\"revolute\" with <limit lower= "
+                                    "upper=>, or lock it with locked_joints)")
+        if not kind.startswith(("JointModelR", "JointModelP")):
+            raise InvalidInputError(f"{label}: joint {model.names[i]!r} is neither revolute nor prismatic "
+                                    f"({kind.removeprefix('JointModel')}); only those are supported")
     branching = [model.names[i] for i in range(2, model.njoints) if model.parents[i] != i - 1]
     if branching:
         raise InvalidInputError(f"{label}: not a serial chain: joint {branching[0]!r} branches off "
@@ -165,6 +171,7 @@ class UrdfRobot(Manipulator):
     armature: ClassVar[FloatArray]
     damping: ClassVar[FloatArray]
     torque_limit: ClassVar[FloatArray]
+    """The same array as ``effort_limits`` (its name before the limits were on every robot)."""
     velocity_limit: ClassVar[FloatArray]
     lower_limit: ClassVar[FloatArray]
     upper_limit: ClassVar[FloatArray]
@@ -427,6 +434,10 @@ def urdf_robot_class(
     plane: TaskPlane | None = None,
     orientation: str | None = None,
     settings: Mapping[str, Any] | None = None,
+    effort_limits: ArrayLike | None = None,
+    velocity_limits: ArrayLike | None = None,
+    position_limits: ArrayLike | None = None,
+    options_label: str | None = None,
 ) -> type[UrdfRobot]:
     """A robot class for the arm of a URDF file or text.
 
@@ -452,12 +463,19 @@ def urdf_robot_class(
     settings : mapping, optional
         Run settings and presets (``control_rate``, ``sample_rate``, ``contour_bound``,
         ``contour_size``, ``contours``, ``gains``), as a robot's entry of a catalog.
+    effort_limits, velocity_limits : array_like, optional
+        Per joint (or one for all), N m and rad/s, > 0 (``.inf``: unlimited); by default the
+        URDF's ``<limit effort velocity>``.
+    position_limits : array_like, optional
+        ``(n, 2)`` lower and upper limits (rad or m); by default the URDF's ``<limit lower upper>``.
+    options_label : str, optional
+        What the options' errors name (the options file); by default the URDF.
 
     Raises
     ------
     InvalidInputError
         One line naming the file and the problem (:func:`load_model`), an unknown
-        end-effector frame, a wrong armature or home.
+        end-effector frame, a wrong armature, home or limit.
     """
     pin = _pinocchio()
     model, label, xml = load_model(source, locked_joints=locked_joints)
@@ -465,12 +483,19 @@ def urdf_robot_class(
     if not model.existFrame(frame):
         raise InvalidInputError(f"{label}: no frame {frame!r} (frames: {[f.name for f in model.frames][1:]})")
     n = model.nv
-    j = np.broadcast_to(np.asarray(0.0 if armature is None else armature, dtype=float), (n,)).copy()
-    if not np.all(np.isfinite(j)) or np.any(j < 0.0):
-        raise InvalidInputError(f"{label}: armature must be {n} finite values >= 0, got {j.tolist()}")
-    q_home = np.zeros(n) if home is None else np.asarray(home, dtype=float)
-    if q_home.shape != (n,) or not np.all(np.isfinite(q_home)):
-        raise InvalidInputError(f"{label}: home must be {n} finite joint values, got {np.asarray(home).tolist()}")
+    where = options_label or label
+    names = tuple(model.names[i] for i in range(1, model.njoints))
+    j = per_joint(0.0 if armature is None else armature, names, "armature", where, lowest=0.0, finite=True)
+    q_home = np.zeros(n) if home is None else per_joint(home, names, "home", where, finite=True, single=False)
+    effort = per_joint(model.effortLimit if effort_limits is None else effort_limits, names, "effort_limits",
+                       where, above=0.0)
+    velocity = per_joint(model.velocityLimit if velocity_limits is None else velocity_limits, names,
+                         "velocity_limits", where, above=0.0)
+    if position_limits is None:
+        position = np.stack([np.asarray(model.lowerPositionLimit, dtype=float),
+                             np.asarray(model.upperPositionLimit, dtype=float)], axis=-1)
+    else:
+        position = position_pairs(position_limits, names, where)
     damping = np.asarray(model.damping, dtype=float).copy()
     model.armature[:] = 0.0  # J is added by the robot, as for the built-in ones (Mbar = M + J)
     data = model.createData()
@@ -497,17 +522,20 @@ def urdf_robot_class(
     attrs = {
         "name": robot_name,
         "n": n,
-        "joint_names": tuple(model.names[i] for i in range(1, model.njoints)),
+        "joint_names": names,
         "model": model,
         "urdf": xml,
         "source": str(source) if not str(source).lstrip().startswith("<") else "",
         "ee_frame": frame,
         "armature": j,
         "damping": damping,
-        "torque_limit": np.asarray(model.effortLimit, dtype=float).copy(),
-        "velocity_limit": np.asarray(model.velocityLimit, dtype=float).copy(),
-        "lower_limit": np.asarray(model.lowerPositionLimit, dtype=float).copy(),
-        "upper_limit": np.asarray(model.upperPositionLimit, dtype=float).copy(),
+        "effort_limits": effort,
+        "velocity_limits": velocity,
+        "position_limits": position,
+        "torque_limit": effort,
+        "velocity_limit": velocity,
+        "lower_limit": position[:, 0].copy(),
+        "upper_limit": position[:, 1].copy(),
         "home": q_home,
         "plane": placed,
         "orientation": mode,
@@ -517,9 +545,71 @@ def urdf_robot_class(
         "options": {
             "armature": j.tolist(), "ee_frame": frame, "locked_joints": list(locked_joints),
             "home": q_home.tolist(), "plane": placed.describe(), "orientation": mode,
+            **({} if effort_limits is None else {"effort_limits": effort.tolist()}),
+            **({} if velocity_limits is None else {"velocity_limits": velocity.tolist()}),
+            **({} if position_limits is None else {"position_limits": position.tolist()}),
         },
     }
     return type(f"UrdfRobot[{robot_name}]", (UrdfRobot,), attrs)
+
+
+def per_joint(value: Any, names: Sequence[str], key: str, where: str, *, lowest: float | None = None,
+              above: float | None = None, finite: bool = False, single: bool = True) -> FloatArray:
+    """``value`` as one float per joint of ``names`` (one number for all when ``single``).
+
+    Raises
+    ------
+    InvalidInputError
+        One line naming ``where``, ``key``, the joint count and what was given.
+    """
+    n = len(names)
+    wanted = f"{n} numbers (one per joint: {', '.join(names)})" + (" or one number for all" if single else "")
+    if isinstance(value, (bool, str, Mapping)) or value is None:
+        raise InvalidInputError(f"{where}: {key} needs {wanted}, got {value!r}")
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise InvalidInputError(f"{where}: {key} needs {wanted}, got {value!r}") from None
+    if arr.ndim == 0 and single:
+        arr = np.full(n, float(arr))
+    if arr.shape != (n,):
+        got = f"{arr.size} values" if arr.ndim == 1 else repr(value)
+        raise InvalidInputError(f"{where}: {key} needs {wanted}, got {got}")
+    bad = np.isnan(arr) | (~np.isfinite(arr) if finite else False)
+    if lowest is not None:
+        bad |= arr < lowest
+    if above is not None:
+        bad |= arr <= above
+    if np.any(bad):
+        i = int(np.argmax(bad))
+        rule = "finite" if finite else "a number"
+        rule += f" >= {lowest:g}" if lowest is not None else f" > {above:g}" if above is not None else ""
+        raise InvalidInputError(f"{where}: {key} of joint {names[i]!r} must be {rule}, got {float(arr[i])!r}")
+    return arr
+
+
+def position_pairs(value: Any, names: Sequence[str], where: str) -> FloatArray:
+    """``position_limits``: one ``[lower, upper]`` pair per joint, lower < upper.
+
+    Raises
+    ------
+    InvalidInputError
+        One line naming ``where``, the key, the joint count or the joint whose pair is wrong.
+    """
+    n = len(names)
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        arr = np.empty(0)
+    if isinstance(value, (bool, str, Mapping)) or arr.shape != (n, 2):
+        raise InvalidInputError(f"{where}: position_limits needs {n} pairs [lower, upper] (one per joint: "
+                                f"{', '.join(names)}), got {value!r}")
+    bad = np.isnan(arr).any(axis=1) | (arr[:, 0] >= arr[:, 1])
+    if np.any(bad):
+        i = int(np.argmax(bad))
+        raise InvalidInputError(f"{where}: position_limits of joint {names[i]!r} must be [lower, upper] with "
+                                f"lower < upper, got {list(value[i])!r}")
+    return arr
 
 
 def from_urdf(source: str | Path, *, armature: ArrayLike | None = None, ee_frame: str | None = None,

@@ -142,7 +142,7 @@ def test_bad_urdfs_are_one_line_naming_the_problem(tmp_path: Path) -> None:
     massless = robot_urdf("serial_3r", PARAMS).replace('<mass value="0.5"/>', '<mass value="0.0"/>')
     with pytest.raises(InvalidInputError, match=r"no mass"):
         from_urdf(massless)
-    with pytest.raises(InvalidInputError, match="armature must be 3 finite values"):
+    with pytest.raises(InvalidInputError, match="armature of joint 'joint1' must be finite >= 0, got -1.0"):
         from_urdf(robot_urdf("serial_3r", PARAMS), armature=[-1.0, 0.0, 0.0])
     tree = robot_urdf("parallel_5r", robot_params("parallel_5r"))  # the five-bar's open tree
     with pytest.raises(InvalidInputError, match="not a serial chain: joint 'joint2' branches off"):
