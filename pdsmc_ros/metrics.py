@@ -5,12 +5,14 @@ One implementation serves the in-process simulator and the bag analysis
 errors over the sampled instants; axial errors per actuated joint
 (``e = q_d - q``); task-space |x error|, |y error| and the error magnitude;
 contour error (Eqs. 2.9 / 2.10); share of samples within the contour bound;
-maximum |torque| per actuated joint.
+maximum |torque| per actuated joint; and (not a thesis statistic) the control periods
+in which each joint's torque was clamped to its limit.
 """
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass, field
 from typing import Any
 
 import numpy as np
@@ -36,6 +38,9 @@ class Metrics:
     # S.D. of the SIGNED task-space errors (x, y): not a thesis statistic, but the thesis's
     # PD-SMC x-axis S.D. column matches it on every arm and contour (docs/REPRODUCTION.md)
     task_sd_signed: dict[str, float]
+    # control periods (all of them, not only the sampled instants) in which each joint's torque
+    # was clamped to its effort limit
+    saturated_periods: list[int] = field(default_factory=list)
 
     def as_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -60,8 +65,9 @@ def sample_times(duration: float, sample_rate: float) -> FloatArray:
     return np.arange(count + 1) / sample_rate
 
 
-def compute_metrics(samples: Samples, bound: float) -> Metrics:
-    """Thesis-style statistics of sampled signals (NOTES.md section 4).
+def compute_metrics(samples: Samples, bound: float, *, saturated: Sequence[int] = ()) -> Metrics:
+    """Thesis-style statistics of sampled signals (NOTES.md section 4); ``saturated``: the
+    clamped periods of each joint, counted by the loop (every period, not only the samples).
 
     Raises
     ------
@@ -88,4 +94,5 @@ def compute_metrics(samples: Samples, bound: float) -> Metrics:
         samples=int(len(samples.t)),
         task_sd_signed={"x": float(np.std(samples.xy_ref[:, 0] - samples.xy[:, 0])),
                         "y": float(np.std(samples.xy_ref[:, 1] - samples.xy[:, 1]))},
+        saturated_periods=[int(c) for c in saturated],
     )

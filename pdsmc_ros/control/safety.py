@@ -5,7 +5,11 @@
 * :func:`safe_torque` -- the plant's safe mode when no effort arrives in time:
   ``damp`` (no drive torque, only braking ``-D qd``) or ``hold`` (stiff hold of
   the configuration where the controller was lost, ``Kp (q_hold - q) - Kd qd``).
-* :func:`limit_torque` -- optional per-joint saturation of the controller output.
+* :func:`limit_torque` -- per-joint saturation of the controller output.
+* :class:`DivergenceCheck` -- a run whose state is not finite or has run away (beyond
+  bounds derived from the arm's limits) is stopped; :func:`watch` is its compiled test,
+  shared by the in-process loop and the plant node, which also records the first step
+  each joint was beyond its position or velocity limit (the plant's warnings).
 """
 
 from __future__ import annotations
@@ -14,9 +18,11 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
+from numpy.typing import NDArray
 
 from ..errors import InvalidInputError
-from ..robots.base import FloatArray
+from ..robots.base import FloatArray, Manipulator
 
 SAFE_MODES = ("damp", "hold")
 ON_LOSS = ("resume", "end")
@@ -24,6 +30,15 @@ ON_LOSS = ("resume", "end")
 # above any useful value, low enough that the safe torque stays finite.
 MAX_SAFE_DAMPING = 1.0e6  # N m s/rad
 MAX_SAFE_STIFFNESS = 1.0e7  # N m/rad
+
+# Divergence bounds (DivergenceCheck): a state this far beyond the arm's limits is no longer
+# a tracking error but a loop that has run away (no physical arm gets there)
+RUNAWAY_VELOCITY_FACTOR = 10.0
+"""A joint rate beyond this many times its velocity limit has run away."""
+RUNAWAY_VELOCITY_UNKNOWN = 1.0e3
+"""rad/s (or m/s): the runaway rate of a joint whose velocity limit is unknown (about 10,000 rpm)."""
+RUNAWAY_POSITION_MARGIN = 2.0 * math.pi
+"""rad (or m): a joint a whole turn beyond a finite position limit has run away (no stop holds it)."""
 
 
 @dataclass(frozen=True)
@@ -202,3 +217,141 @@ class Staleness:
             return ""
         self.stale = stale
         return "stale" if stale else "fresh"
+
+
+# --------------------------------------------------------------------------- #
+# Joint limits and divergence
+# --------------------------------------------------------------------------- #
+BOUND_ROWS = 6
+"""Rows of :attr:`DivergenceCheck.bounds`: position limits (lower, upper), velocity limit,
+runaway bounds (lower, upper position, rate)."""
+
+
+@njit(cache=True)  # numba types the kernel when it compiles it
+def watch(q: FloatArray, qd: FloatArray, step: int, bounds: FloatArray, first: NDArray[np.int64],
+          at: FloatArray) -> int:
+    """Check one state: whether it diverged, and record the first limit crossing of each joint.
+
+    Parameters
+    ----------
+    q, qd : ndarray, shape (n,)
+        Joint angles and rates.
+    step : int
+        The state's control step.
+    bounds : ndarray, shape (6, n)
+        :attr:`DivergenceCheck.bounds`.
+    first : ndarray of int64, shape (2, n)
+        First step each joint was beyond its position (row 0) or velocity (row 1) limit, -1 if
+        never; updated in place.
+    at : ndarray, shape (4, n)
+        The angle (row 0) or rate (row 1) at that step; updated in place (rows 2, 3: the
+        diverged state, written by the loop that stops).
+
+    Returns
+    -------
+    int
+        The first joint whose state is not finite or beyond its runaway bound (>= 0); else -2
+        if a joint crossed a limit for the first time at this step, else -1.
+    """
+    n = q.shape[0]
+    new = False
+    for i in range(n):
+        x = q[i]
+        v = qd[i]
+        # written so that NaN fails every test (its comparisons are all false)
+        if not (bounds[3, i] <= x <= bounds[4, i] and abs(v) <= bounds[5, i]) or not (
+                math.isfinite(x) and math.isfinite(v)):
+            return i
+        if first[0, i] < 0 and not (bounds[0, i] <= x <= bounds[1, i]):
+            first[0, i] = step
+            at[0, i] = x
+            new = True
+        if first[1, i] < 0 and abs(v) > bounds[2, i]:
+            first[1, i] = step
+            at[1, i] = v
+            new = True
+    return -2 if new else -1
+
+
+class DivergenceCheck:
+    """When a run has diverged, from the arm's limits; and its position and velocity limit warnings.
+
+    A state has diverged when a joint's angle or rate is not finite, its rate exceeds
+    :data:`RUNAWAY_VELOCITY_FACTOR` times its velocity limit (:data:`RUNAWAY_VELOCITY_UNKNOWN`
+    where the limit is unknown), or its angle lies more than :data:`RUNAWAY_POSITION_MARGIN`
+    beyond a finite position limit. Crossing a limit itself is only a warning (the plant
+    reports the first crossing of each joint).
+
+    Parameters
+    ----------
+    names : sequence of str
+        Actuated joints, robot order.
+    position_limits : ndarray, shape (n, 2)
+        Lower and upper limits (rad; infinite if none).
+    velocity_limits : ndarray, shape (n,)
+        Largest rates (rad/s; infinite if unknown).
+    """
+
+    def __init__(self, names: tuple[str, ...] | list[str], position_limits: FloatArray,
+                 velocity_limits: FloatArray) -> None:
+        n = len(names)
+        self.names = tuple(names)
+        lower = np.asarray(position_limits, dtype=float)[:, 0]
+        upper = np.asarray(position_limits, dtype=float)[:, 1]
+        velocity = np.asarray(velocity_limits, dtype=float)
+        self.bounds = np.empty((BOUND_ROWS, n))
+        """``(6, n)``: lower, upper position limit, velocity limit, runaway lower, upper, rate."""
+        self.bounds[0] = lower
+        self.bounds[1] = upper
+        self.bounds[2] = velocity
+        self.bounds[3] = lower - RUNAWAY_POSITION_MARGIN
+        self.bounds[4] = upper + RUNAWAY_POSITION_MARGIN
+        self.bounds[5] = np.where(np.isfinite(velocity), RUNAWAY_VELOCITY_FACTOR * velocity,
+                                  RUNAWAY_VELOCITY_UNKNOWN)
+        self.first: NDArray[np.int64] = np.full((2, n), -1, dtype=np.int64)
+        self.at = np.zeros((4, n))
+        """Rows 0, 1: the angle and rate of each joint's first limit crossing; rows 2, 3: the
+        state a loop stopped at (a diverged run)."""
+        self.reported = np.zeros((2, n), dtype=bool)
+
+    @classmethod
+    def for_robot(cls, robot: Manipulator) -> DivergenceCheck:
+        """The check of ``robot``'s actuated joints (its ``position_limits`` and ``velocity_limits``)."""
+        return cls(robot.joint_names, robot.position_limits, robot.velocity_limits)
+
+    def check(self, q: FloatArray, qd: FloatArray, step: int) -> int:
+        """:func:`watch` of one state: the diverged joint (>= 0), -2 for a new limit crossing, else -1."""
+        return int(watch(q, qd, step, self.bounds, self.first, self.at))
+
+    def diverged(self, joint: int, q: FloatArray, qd: FloatArray, t: float) -> str:
+        """One line on why the state of ``joint`` counts as diverged at time ``t``."""
+        name, x, v = self.names[joint], float(q[joint]), float(qd[joint])
+        if not (math.isfinite(x) and math.isfinite(v)):
+            return f"diverged at t = {t:.6g} s: joint {name!r} state is not finite (position {x:.6g}, rate {v:.6g})"
+        if abs(v) > self.bounds[5, joint]:
+            limit = self.bounds[2, joint]
+            basis = (f"{RUNAWAY_VELOCITY_FACTOR:g} x its velocity limit {limit:.6g} rad/s" if math.isfinite(limit)
+                     else f"{RUNAWAY_VELOCITY_UNKNOWN:g} rad/s (its velocity limit is unknown)")
+            return f"diverged at t = {t:.6g} s: joint {name!r} rate {v:.6g} rad/s is beyond {basis}"
+        return (f"diverged at t = {t:.6g} s: joint {name!r} position {x:.6g} rad is beyond its limits "
+                f"[{self.bounds[0, joint]:.6g}, {self.bounds[1, joint]:.6g}] by more than "
+                f"{RUNAWAY_POSITION_MARGIN:.4g} rad")
+
+    def new_warnings(self, rate: float) -> list[str]:
+        """Lines for the limit crossings recorded since the last call: one per joint and limit
+        in a run, naming the joint, the value, the limit and the time (steps at ``rate``)."""
+        lines = []
+        for kind in (0, 1):
+            for i in np.flatnonzero((self.first[kind] >= 0) & ~self.reported[kind]):
+                self.reported[kind, i] = True
+                lines.append(self.limit_line(kind, int(i), float(self.at[kind, i]), self.first[kind, i] / rate))
+        return lines
+
+    def limit_line(self, kind: int, joint: int, value: float, t: float) -> str:
+        """``kind`` 0: position, 1: velocity: joint ``joint`` at ``value`` at time ``t``."""
+        name = self.names[joint]
+        if kind == 0:
+            return (f"joint {name!r} position {value:.6g} rad beyond its limits [{self.bounds[0, joint]:.6g}, "
+                    f"{self.bounds[1, joint]:.6g}] at t = {t:.6g} s (warned once per joint and run)")
+        return (f"joint {name!r} rate {value:.6g} rad/s beyond its velocity limit {self.bounds[2, joint]:.6g} "
+                f"rad/s at t = {t:.6g} s (warned once per joint and run)")

@@ -13,6 +13,11 @@ Lockstep: state ``k`` is published, the plant waits for the effort of step
 publishes state ``k + 1``. Real time: a wall-clock timer integrates with the
 latest effort at the control rate.
 
+Limits (issue 29): the applied torque is clamped to the arm's effort limits (a drive
+saturates; ``enforce_limits:=false`` opts out), the first crossing of each joint's position and
+velocity limit is a warning, and a diverged state (not finite, or beyond the bounds of
+:class:`~pdsmc_ros.control.safety.DivergenceCheck`) ends the node with an error and exit status 1.
+
 ``/robot_description`` (``std_msgs/String``, transient local, as
 robot_state_publisher publishes it): the URDF of the arm, generated from
 ``config/robots.yaml`` (:mod:`pdsmc_ros.urdf`: the arms in the x-z plane, z up).
@@ -27,6 +32,7 @@ from collections.abc import Sequence
 import numpy as np
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import PointStamped
+from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
@@ -40,14 +46,14 @@ from ..bag.cdr import (
 )
 from ..bag.stamps import step_stamp
 from ..control.safety import Watchdog
-from ..errors import CdrError
+from ..errors import CdrError, ConfigError
 from ..presets import control_steps
 from ..sim.plant import PlantStepper
 from ..sim.supervised import SupervisedPlant
 from .diagnostics import Diagnostics
 from .executor import run_node
 from .io import GuardedPublisher, Inputs
-from .lifecycle import EXIT_OK
+from .lifecycle import EXIT_FAILURE, EXIT_OK
 from .params import (
     decimation,
     declare_int_parameter,
@@ -84,6 +90,12 @@ class PlantNode:
             node, "expected_subscribers", 3,
             "subscribers of /joint_states to wait for (trajectory, controller, recorder)", lo=0, hi=100)
         declare_safety_parameters(node)
+        if not node.has_parameter("enforce_limits"):
+            node.declare_parameter("enforce_limits", True, ParameterDescriptor(
+                description="clamp the applied torque to the arm's effort limits (false: opt out)"))
+        enforce = node.get_parameter("enforce_limits").value
+        if not isinstance(enforce, bool):
+            raise ConfigError(f"parameter enforce_limits must be true or false, got {enforce!r}")
         node.add_on_set_parameters_callback(refuse_run_changes)
         reference = spec.reference()
         robot = spec.robot_model()
@@ -95,7 +107,6 @@ class PlantNode:
         self.clock_every = decimation(spec.rate, node.get_parameter("clock_rate").value)
         self.ee_every = spec.sample_every
         self.throttle_every = decimation(spec.rate, THROTTLE_RATE)
-        self.exit_code = EXIT_OK
 
         self.pub_state = GuardedPublisher(node.create_publisher(JointState, TOPIC_JOINT_STATES, STREAM_QOS), node)
         self.pub_ee = GuardedPublisher(node.create_publisher(PointStamped, TOPIC_EE_ACTUAL, STREAM_QOS), node)
@@ -112,7 +123,8 @@ class PlantNode:
                               periods=int(node.get_parameter("watchdog_periods").value),
                               time_scale=float(node.get_parameter("safe_time_scale").value)),
             safety=safety_from_parameters(node), lockstep=self.mode == "lockstep",
-            publish_state=self.publish_state, report=self.diagnostics.report)
+            publish_state=self.publish_state, report=self.diagnostics.report,
+            limit=robot.effort_limits if enforce else None)
         self.inputs = Inputs(node, self.mode)
         self.inputs.subscribe(Float64MultiArray, TOPIC_EFFORT, self.on_effort)
 
@@ -124,6 +136,11 @@ class PlantNode:
             self.period = 1.0 / spec.rate  # run_node paces tick() at this period
         node.get_logger().info(f"{spec.robot} plant, {self.mode}, {spec.rate:g} Hz, {self.plant.last_step} steps, "
                                f"payload {spec.payload:g} kg")
+
+    @property
+    def exit_code(self) -> int:
+        """1 once the arm diverged (the error is in the log and on /diagnostics)."""
+        return EXIT_FAILURE if self.plant.failure else EXIT_OK
 
     @property
     def done(self) -> bool:
@@ -139,7 +156,7 @@ class PlantNode:
 
     def status(self) -> dict[str, str]:
         return {"step": str(self.stepper.steps), "safe_mode": self.plant.safe_mode,
-                "rejected_commands": str(self.plant.rejected)}
+                "rejected_commands": str(self.plant.rejected), "diverged": self.plant.failure or "no"}
 
     def publish_state(self) -> None:
         step = self.stepper.steps

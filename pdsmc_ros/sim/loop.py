@@ -9,11 +9,15 @@ forms; the numpy loop, the same steps, otherwise.
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
+
 import numpy as np
 from numba import njit
+from numpy.typing import NDArray
 
 from ..control.law import ControlLaw
 from ..control.laws import law_torque
+from ..control.safety import DivergenceCheck, watch
 from ..robots import compiled as robot_compiled
 from ..robots.base import FloatArray, Manipulator
 from ..robots.parallel_5r_kernels import PARALLEL_5R
@@ -24,23 +28,23 @@ from .rk4 import carve, rk4_advance, rk4_step
 
 @njit(cache=True)
 def _closed_loop_serial_3r(p, code, gains, smc_model, model_kind, model_p, q0, qd0, refs, h, sample_every,  # noqa: ANN001, ANN202, PLR0913
-                           out_q, out_qd, out_tau, work):
+                           limit, bounds, first, at, counts, out_q, out_qd, out_tau, work):
     _loop(SERIAL_3R, p, code, gains, smc_model, model_kind, model_p, q0, qd0, refs, h, sample_every,
-          out_q, out_qd, out_tau, work)
+          limit, bounds, first, at, counts, out_q, out_qd, out_tau, work)
 
 
 @njit(cache=True)
 def _closed_loop_parallel_5r(p, code, gains, smc_model, model_kind, model_p, q0, qd0, refs, h, sample_every,  # noqa: ANN001, ANN202, PLR0913
-                             out_q, out_qd, out_tau, work):
+                             limit, bounds, first, at, counts, out_q, out_qd, out_tau, work):
     _loop(PARALLEL_5R, p, code, gains, smc_model, model_kind, model_p, q0, qd0, refs, h, sample_every,
-          out_q, out_qd, out_tau, work)
+          limit, bounds, first, at, counts, out_q, out_qd, out_tau, work)
 
 
 @njit(cache=True)
 def _closed_loop_serial_chain(p, code, gains, smc_model, model_kind, model_p, q0, qd0, refs, h, sample_every,  # noqa: ANN001, ANN202, PLR0913
-                              out_q, out_qd, out_tau, work):
+                              limit, bounds, first, at, counts, out_q, out_qd, out_tau, work):
     _loop(SERIAL_CHAIN, p, code, gains, smc_model, model_kind, model_p, q0, qd0, refs, h, sample_every,
-          out_q, out_qd, out_tau, work)
+          limit, bounds, first, at, counts, out_q, out_qd, out_tau, work)
 
 
 # one compiled loop per robot code, its dynamics inlined: a process compiles (or loads) only the robots it runs
@@ -52,7 +56,7 @@ _CLOSED_LOOPS = {SERIAL_3R: _closed_loop_serial_3r, PARALLEL_5R: _closed_loop_pa
 @njit(cache=True, inline="always")
 def _loop(  # noqa: ANN202, PLR0913
     kind, p, code, gains, smc_model, model_kind, model_p, q0, qd0, refs, h, sample_every,
-    out_q, out_qd, out_tau, work,
+    limit, bounds, first, at, counts, out_q, out_qd, out_tau, work,
 ):  # noqa: ANN001
     n = robot_compiled.size(kind, q0.shape[0])
     steps = refs.shape[0] - 1
@@ -61,8 +65,24 @@ def _loop(  # noqa: ANN202, PLR0913
     qd = qd0.copy()
     tau = np.empty(n)
     for k in range(steps + 1):
+        hit = watch(q, qd, k, bounds, first, at)
+        if hit >= 0:  # diverged: stop before the law or the plant sees the state
+            counts[n] = k
+            counts[n + 1] = hit
+            for i in range(n):
+                at[2, i] = q[i]
+                at[3, i] = qd[i]
+            return
         law_torque(code, gains, smc_model, model_kind, model_p, q, qd, refs[k, 0], refs[k, 1], refs[k, 2], tau,
                    work, n)
+        # np.clip(tau, -limit, limit) written out; a period counts as saturated when it is applied
+        for i in range(n):
+            if tau[i] > limit[i]:
+                tau[i] = limit[i]
+                counts[i] += k < steps
+            elif tau[i] < -limit[i]:
+                tau[i] = -limit[i]
+                counts[i] += k < steps
         if k % sample_every == 0:
             j = k // sample_every
             for i in range(n):
@@ -73,9 +93,40 @@ def _loop(  # noqa: ANN202, PLR0913
             rk4_advance(kind, p, q, qd, tau, h, stages, rest)
 
 
+@dataclass
+class LoopOutcome:
+    """What a closed loop reports besides its samples.
+
+    Attributes
+    ----------
+    saturated : list of int
+        Applied periods in which each joint's torque was clamped to its limit.
+    diverged : str
+        Why the run stopped early (:meth:`DivergenceCheck.diverged`), or ``""``.
+    diverged_step : int
+        The control step of the diverged state, or -1.
+    warnings : list of str
+        The first crossing of each joint's position and velocity limit.
+    """
+
+    saturated: list[int]
+    diverged: str = ""
+    diverged_step: int = -1
+    warnings: list[str] = field(default_factory=list)
+
+
 def closed_loop(
     plant: Manipulator, law: ControlLaw, q0: FloatArray, refs: FloatArray, h: float, sample_every: int
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """:func:`run_loop` without a torque limit: the samples only."""
+    q, qd, tau, _ = run_loop(plant, law, q0, refs, h, sample_every)
+    return q, qd, tau
+
+
+def run_loop(
+    plant: Manipulator, law: ControlLaw, q0: FloatArray, refs: FloatArray, h: float, sample_every: int,
+    torque_limit: FloatArray | None = None, check: DivergenceCheck | None = None,
+) -> tuple[FloatArray, FloatArray, FloatArray, LoopOutcome]:
     """Run the loop from rest at ``q0``; the state and torque at every ``sample_every``-th instant.
 
     Parameters
@@ -92,30 +143,68 @@ def closed_loop(
         Control period (s).
     sample_every : int
         Sampling of the outputs, in control steps.
+    torque_limit : ndarray, shape (n,), optional
+        The law's torque is clamped to ``np.clip(tau, -limit, limit)`` at every step (the
+        controller node's clamp); None: not clamped.
+    check : DivergenceCheck, optional
+        Stops the run at the first diverged state and records limit crossings; by default
+        :meth:`DivergenceCheck.for_robot` of ``plant``.
 
     Returns
     -------
     q, qd, tau : ndarray, shape (N // sample_every + 1, n)
+        NaN from the first sample at or after a divergence.
+    outcome : LoopOutcome
     """
     n = plant.n
     count = (refs.shape[0] - 1) // sample_every + 1
     out_q = np.empty((count, n))
     out_qd = np.empty((count, n))
     out_tau = np.empty((count, n))
+    limit = np.full(n, np.inf) if torque_limit is None else np.asarray(torque_limit, dtype=float)
+    check = check or DivergenceCheck.for_robot(plant)
+    counts = np.zeros(n + 2, dtype=np.int64)
+    counts[n] = -1
     if law.compiled and plant.kernel is not None:
         kind, p = robot_compiled.pack(plant)
         _CLOSED_LOOPS[kind](p, law.code, law.gains, law.smc_model, law.model_kind, law.model_params,
-                              np.array(q0, dtype=float), np.zeros(n), refs, h, sample_every, out_q, out_qd, out_tau,
-                              robot_compiled.workspace(n))
-        return out_q, out_qd, out_tau
+                              np.array(q0, dtype=float), np.zeros(n), refs, h, sample_every, limit, check.bounds,
+                              check.first, check.at, counts, out_q, out_qd, out_tau, robot_compiled.workspace(n))
+    else:
+        _numpy_loop(plant, law, q0, refs, h, sample_every, limit, check, counts, (out_q, out_qd, out_tau))
+    outcome = LoopOutcome(counts[:n].tolist(), warnings=check.new_warnings(1.0 / h))
+    if counts[n] >= 0:
+        step = int(counts[n])
+        first_missing = -(-step // sample_every)  # the samples at or after the diverged step
+        for out in (out_q, out_qd, out_tau):
+            out[first_missing:] = np.nan
+        outcome.diverged_step = step
+        joint = int(counts[n + 1])
+        outcome.diverged = check.diverged(joint, check.at[2], check.at[3], step * h)
+    return out_q, out_qd, out_tau, outcome
+
+
+def _numpy_loop(plant: Manipulator, law: ControlLaw, q0: FloatArray, refs: FloatArray, h: float,
+                sample_every: int, limit: FloatArray, check: DivergenceCheck, counts: NDArray[np.int64],
+                outs: tuple[FloatArray, FloatArray, FloatArray]) -> None:
+    """The compiled loop's steps in numpy (a robot or law without a compiled form)."""
+    out_q, out_qd, out_tau = outs
+    n = plant.n
     q = np.array(q0, dtype=float)
     qd = np.zeros(n)
     steps = refs.shape[0] - 1
     for k in range(steps + 1):
-        tau = law.torque(q, qd, refs[k, 0], refs[k, 1], refs[k, 2])
+        hit = check.check(q, qd, k)
+        if hit >= 0:
+            counts[n], counts[n + 1] = k, hit
+            check.at[2], check.at[3] = q, qd
+            return
+        raw = law.torque(q, qd, refs[k, 0], refs[k, 1], refs[k, 2])
+        tau = np.clip(raw, -limit, limit)
+        if k < steps:
+            counts[:n] += tau != raw
         if k % sample_every == 0:
             j = k // sample_every
             out_q[j], out_qd[j], out_tau[j] = q, qd, tau
         if k < steps:
             q, qd = rk4_step(plant, q, qd, tau, h)
-    return out_q, out_qd, out_tau

@@ -23,7 +23,7 @@ from ..presets import RunSpec, control_steps
 from ..robots import ROBOTS
 from ..robots.base import FloatArray, Manipulator
 from ..trajectories import JointReference
-from .loop import closed_loop
+from .loop import run_loop
 
 
 @dataclass(frozen=True)
@@ -35,12 +35,18 @@ class RunResult:
     metrics: Metrics
     steps: int
     wall_s: float
+    diverged: str = ""
+    """Why the run stopped early (a non-finite or runaway state: :class:`DivergenceCheck`), or ``""``."""
+    limit_warnings: tuple[str, ...] = ()
+    """The first crossing of each joint's position and velocity limit (the plant's warnings)."""
 
     def as_dict(self) -> dict[str, object]:
         out: dict[str, object] = dict(self.metrics.as_dict())
         out["run"] = self.spec.describe()
         out["steps"] = self.steps
         out["wall_s"] = self.wall_s
+        out["diverged"] = self.diverged
+        out["limit_warnings"] = list(self.limit_warnings)
         return out
 
 
@@ -60,6 +66,11 @@ def simulate(spec: RunSpec, *, check_stability: bool = True, plant: Manipulator 
     initial_error : array_like, optional
         Added to the joint angles the run starts from (the reference's first point), rad.
 
+    The law's torque is clamped to the arm's effort limits (``robot.effort_limits``) at every
+    step unless ``spec.enforce_limits`` is False; the metrics count the saturated periods. A run
+    whose state diverges (:class:`~pdsmc_ros.control.safety.DivergenceCheck`) stops there: its
+    samples from then on are NaN (so are the statistics) and :attr:`RunResult.diverged` says why.
+
     Raises
     ------
     UnstableRateError
@@ -75,11 +86,14 @@ def simulate(spec: RunSpec, *, check_stability: bool = True, plant: Manipulator 
     steps = refs.shape[0] - 1
     every = spec.sample_every
     q0 = refs[0, 0] if initial_error is None else refs[0, 0] + np.asarray(initial_error, dtype=float)
-    out_q, _, out_tau = closed_loop(robot, ControlLaw.from_spec(spec), q0, refs, 1.0 / spec.rate, every)
+    limit = robot.effort_limits if spec.enforce_limits else None
+    out_q, _, out_tau, outcome = run_loop(robot, ControlLaw.from_spec(spec), q0, refs, 1.0 / spec.rate, every,
+                                          limit)
     t = (np.arange(steps + 1) / spec.rate)[::every]
     samples = build_samples(robot, reference.contour, t, out_q, refs[::every, 0], out_tau)
-    metrics = compute_metrics(samples, spec.bound)
-    return RunResult(spec, samples, metrics, steps, time.perf_counter() - start)
+    metrics = compute_metrics(samples, spec.bound, saturated=outcome.saturated)
+    return RunResult(spec, samples, metrics, steps, time.perf_counter() - start, outcome.diverged,
+                     tuple(outcome.warnings))
 
 
 def _reference_key(spec: RunSpec) -> tuple[object, ...]:

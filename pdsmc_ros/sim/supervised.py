@@ -5,7 +5,11 @@ lockstep the plant steps once per effort command of the current step; in real
 time it steps at the control rate with the latest effort. When its controller
 is lost (:class:`~pdsmc_ros.control.safety.Watchdog`) it applies the safe torque
 (:func:`~pdsmc_ros.control.safety.safe_torque`) until a controller answers
-again, or ends the run (``on_loss == "end"``).
+again, or ends the run (``on_loss == "end"``). The torque it applies is clamped to the arm's
+effort limits (``limit``: a drive saturates; None opts out). After every step it checks the
+state (:class:`~pdsmc_ros.control.safety.DivergenceCheck`): the first crossing of each joint's
+position and velocity limit is a warning; a non-finite or runaway state ends the run with
+:attr:`SupervisedPlant.failure` set (nothing more is integrated).
 """
 
 from __future__ import annotations
@@ -14,7 +18,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from ..control.safety import SafetyConfig, Watchdog, check_effort, safe_torque
+from ..control.safety import DivergenceCheck, SafetyConfig, Watchdog, check_effort, safe_torque
 from ..robots.base import FloatArray
 from .plant import PlantStepper
 
@@ -47,10 +51,16 @@ class SupervisedPlant:
         Publishes the current state (the node's encoder).
     report : callable
         :data:`Report`.
+    limit : ndarray, optional
+        Effort limit of each joint (N m): the applied torque is ``np.clip(tau, -limit, limit)``;
+        None: not clamped.
+    check : DivergenceCheck, optional
+        The state's checks; by default :meth:`DivergenceCheck.for_robot` of the stepper's robot.
     """
 
     def __init__(self, stepper: PlantStepper, *, last_step: int, watchdog: Watchdog, safety: SafetyConfig,
-                 lockstep: bool, publish_state: Callable[[], None], report: Report) -> None:
+                 lockstep: bool, publish_state: Callable[[], None], report: Report,
+                 limit: FloatArray | None = None, check: DivergenceCheck | None = None) -> None:
         self.stepper = stepper
         self.last_step = last_step
         self.watch = watchdog
@@ -67,6 +77,11 @@ class SupervisedPlant:
         self.done = False
         self.rejected = 0
         self.rejected_reasons: dict[str, int] = {}
+        self.limit = limit
+        self.check = check or DivergenceCheck.for_robot(stepper.robot)
+        self.failure = ""
+        """Why the run was stopped (a diverged state), or ``""``."""
+        self.inspect()  # the initial state too (a run that starts beyond a limit says so)
 
     @property
     def step(self) -> int:
@@ -89,6 +104,8 @@ class SupervisedPlant:
 
     def effort(self, step: int, values: object, now: float) -> None:
         """An effort command (``step`` from its ``layout.data_offset``) arrived at ``now``."""
+        if self.failure:
+            return  # diverged: nothing more is integrated
         tau, reason = check_effort(values, self.n)
         if tau is None:
             self.reject(reason)
@@ -112,10 +129,29 @@ class SupervisedPlant:
         self.advance(tau)
 
     def advance(self, tau: FloatArray) -> None:
-        """Integrate one period with ``tau`` held and publish the new state."""
-        self.stepper.step(tau)
-        self.applied = tau
+        """Integrate one period with ``tau`` held (clamped) and publish the new state."""
+        self.integrate(tau)
         self.publish_state()
+
+    def integrate(self, tau: FloatArray) -> None:
+        """One period with ``tau`` (clamped to :attr:`limit`) held, then the state's checks."""
+        self.applied = tau if self.limit is None else np.clip(tau, -self.limit, self.limit)
+        self.stepper.step(self.applied)
+        self.inspect()
+
+    def inspect(self) -> None:
+        """Check the state now: warn on a joint's first limit crossing; end the run if it diverged."""
+        stepper = self.stepper
+        hit = self.check.check(stepper.q, stepper.qd, stepper.steps)
+        if hit == -1:
+            return
+        if hit == -2:
+            for line in self.check.new_warnings(1.0 / stepper.period):
+                self.report("warn", line)
+            return
+        self.failure = self.check.diverged(hit, stepper.q, stepper.qd, stepper.steps * stepper.period)
+        self.report("error", f"the arm {self.failure}; the plant stops (nothing more is integrated)")
+        self.done = True
 
     # -- watchdog and safe mode ---------------------------------------------- #
     def start(self, now: float) -> None:
@@ -181,5 +217,6 @@ class SupervisedPlant:
                 self.lost(f"no effort for {self.watch.periods} periods", now)
                 if self.done:
                     return
-            self.applied = self.safe_torque() if self.watch.safe else self.latest_effort
-            self.stepper.step(self.applied)
+            self.integrate(self.safe_torque() if self.watch.safe else self.latest_effort)
+            if self.done:
+                return
