@@ -63,9 +63,9 @@ class ControllerNode(CommandingEntity):
         self.selector = JointSelector(robot.joint_names)  # the law's vectors stay in robot order
         self.limits = JointLimits.of(robot, robot.joint_names) if params.enforce_limits else None
         self.reference = spec.reference()
-        check_rate(spec, self.reference)  # refuse gains unstable at this rate
+        check_rate(spec, self.reference, **run.stability)  # refuse gains that fail in this mode (and delay)
         # gains: the on-set callback checks a change is stable at the running rate, the post-set one applies it
-        self.gain_updates = OrderedGainUpdates(node, spec, lambda new: check_rate(new, self.reference),
+        self.gain_updates = OrderedGainUpdates(node, spec, lambda new: check_rate(new, self.reference, **run.stability),
                                                self.apply_gains)
         self.gain_updates.joint_map = self.joint_map
         self.pairing = LockstepPairing(spec.rate, control_steps(spec.contour_model().duration, spec.rate))
