@@ -21,12 +21,6 @@ BUILD="$ROOT/build/interfaces"
 fail() { echo "build_interfaces: $*" >&2; exit 1; }
 
 [ -x "$PY" ] || fail "no Python at $PY (run make setup)"
-for tool in cmake cc c++; do
-  command -v "$tool" >/dev/null || fail "'$tool' not found: generating control_msgs needs CMake (>= 3.10) and a C/C++ compiler (Debian: apt-get install cmake g++)"
-done
-[ -d "$VENV/share/rosidl_default_generators" ] && [ -d "$VENV/share/ament_cmake" ] || \
-  fail "the rosidl generators are not in $VENV: pip install -r requirements-build.txt -c constraints.txt"
-
 # what the build depends on: every file of the packages, this script, the pins of the generators
 # and of the message packages the definitions use (constraints.txt)
 hash_inputs() {
@@ -44,6 +38,13 @@ if [ -f "$STAMP" ] && [ "$(cat "$STAMP")" = "$WANT" ]; then
     exit 0
   fi
 fi
+
+# needed only when something is (re)built
+for tool in cmake cc c++; do
+  command -v "$tool" >/dev/null || fail "'$tool' not found: generating control_msgs needs CMake (>= 3.10) and a C/C++ compiler (Debian: apt-get install cmake g++)"
+done
+[ -d "$VENV/share/rosidl_default_generators" ] && [ -d "$VENV/share/ament_cmake" ] || \
+  fail "the rosidl generators are not in $VENV: pip install -r requirements-build.txt -c constraints.txt"
 
 # The type-support lookup reads the ament index from AMENT_PREFIX_PATH at configure time.
 export AMENT_PREFIX_PATH="$VENV"
