@@ -212,6 +212,8 @@ def build_parser() -> argparse.ArgumentParser:
                     help="comma-separated control laws (default pd,smc,pdsmc)")
     mc.add_argument("--runs", type=run_count, required=True, help="plants drawn (each runs every controller)")
     mc.add_argument("--seed", type=seed_value, default=0, help="run i draws from default_rng([seed, i]) (default 0)")
+    mc.add_argument("--params-file", default=None,
+                    help="gains of the file's controller from a ROS 2 params file (pdsmc tune writes one)")
     mc.add_argument("--uncertainty", default=None,
                     help="YAML of parameter spreads (default: config/uncertainty.yaml)")
     _add_engine_arguments(mc)
@@ -270,6 +272,22 @@ def _spec_from_args(args: argparse.Namespace):  # noqa: ANN202
         payload_reading=args.payload_reading,
         gains=gains,
     )
+
+
+_RUN_DEFAULTS = {"scenario": "nominal", "rate": None, "smc_reading": "literal", "ellipse_error": "nearest",
+                 "waypoints": None, "segment_duration": 2.0, "payload_reading": "tip", "no_enforce_limits": False}
+"""The run arguments montecarlo does not take (its runs are nominal, at the robot's rate)."""
+
+
+def _file_controller(path: str, controllers: list[str]) -> str:
+    """The law whose gains a params file holds (its ``type``), one of ``controllers``."""
+    from .tuning import controller_parameters
+
+    controller = controller_parameters(path).get("type")
+    if controller not in controllers:
+        raise ConfigError(f"params file {path!r} holds gains for type {controller!r}; --controllers is "
+                          f"{','.join(controllers)}: name it there (or add type: to the file)")
+    return str(controller)
 
 
 def _same_robot(a: object, b: str) -> bool:
@@ -513,6 +531,10 @@ def cmd_montecarlo(args: argparse.Namespace) -> int:
         law(controller)
     spreads = load_uncertainty(args.uncertainty)
     specs = base_specs(args.robot, args.contour, args.controllers)
+    if args.params_file:  # the file's controller runs the file's gains (scaled as simulate scales them)
+        specs = [_spec_from_args(argparse.Namespace(**{**_RUN_DEFAULTS, **vars(args), "controller": spec.controller}))
+                 if spec.controller == _file_controller(args.params_file, args.controllers) else spec
+                 for spec in specs]
     for spec in specs:  # the nominal gains must be stable at the rate; a drawn plant may still diverge
         check_rate(spec, spec.reference())
     out = Path(args.out)
