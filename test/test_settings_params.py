@@ -106,3 +106,14 @@ def test_tune_output_passes_check_gains_and_runs_in_simulate(tmp_path: Path) -> 
     assert "at 10000 Hz in realtime" in check.stdout and "FAILS" not in check.stdout
     sim = pdsmc("simulate", *base)
     assert sim.returncode == 0 and "at 10000 Hz control" in sim.stdout, sim.stderr
+
+
+def test_montecarlo_params_file_must_name_one_of_its_controllers(tmp_path: Path) -> None:
+    path = write(tmp_path / "p.yaml", {"/**": {"ros__parameters": {"type": "smc"}},
+                                       "controller": {"ros__parameters": {"ks": [1.0, 2.0]}}})
+    proc = pdsmc("montecarlo", "--robot", "parallel_5r", "--contour", "circle", "--controllers", "pd", "--runs", "1",
+                 "--params-file", str(path), "--out", str(tmp_path / "mc"))
+    assert proc.returncode == 2, proc.stderr
+    expected = (f"pdsmc montecarlo: error: params file {str(path)!r} holds gains for type 'smc'; --controllers is "
+                "pd: name it there (or add type: to the file)")
+    assert proc.stderr.strip().splitlines() == [expected]
