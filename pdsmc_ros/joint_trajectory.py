@@ -172,6 +172,10 @@ class JointTrajectoryReference:
             p0, v0, a0 = self.positions[k - 1], v[k - 1], a[k - 1]
         duration = float(times[k]) - t0
         t = np.linspace(t0, float(times[k]), count + 1)[1:]
+        if duration <= 0.0:  # a first point at receipt: no segment leads to it, only the point
+            n = len(p0)
+            velocity = np.zeros(n) if v[k] is None else v[k]
+            return t, np.broadcast_to(self.positions[k], (count, n)), np.broadcast_to(velocity, (count, n))
         # a0 None for k == 0: the segment from the state at receipt is cubic at most (sample())
         q, qd, _ = _segment((t - t0)[:, None], duration, p0, v0, a0 if k else None,
                             self.positions[k], v[k], a[k] if k else None)

@@ -66,7 +66,8 @@ def test_outside_the_goal_tolerance_fails_only_after_goal_time_tolerance() -> No
     assert run.update(101.0, off, ZERO, end) is None
     assert run.update(101.49, off, ZERO, end) is None  # still within goal_time_tolerance
     outcome = run.update(101.51, off, ZERO, end)
-    assert outcome is not None and outcome.error_code == g.GOAL_TOLERANCE_VIOLATED and "'joint1'" in outcome.error_string
+    assert outcome is not None and outcome.error_code == g.GOAL_TOLERANCE_VIOLATED
+    assert "'joint1'" in outcome.error_string
     # goal_time 0 (the default): it waits as long as it takes, as joint_trajectory_controller
     patient = execution(tolerances(goal=0.01))
     assert patient.update(200.0, off, ZERO, end) is None
