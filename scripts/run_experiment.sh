@@ -10,7 +10,8 @@
 #
 # Starts the four nodes (each with `ros2 run pdsmc_ros ...`; with --composed, all four in one
 # process; with --compose plant,controller, those in one process and the others apart), waits
-# for the end of the trajectory, and exits non-zero naming any node that failed. On timeout or Ctrl-C it
+# for the end of the trajectory, and exits non-zero naming any node that failed (a plant whose arm
+# diverged -- a non-finite or runaway state -- fails, and the script says so). On timeout or Ctrl-C it
 # stops the nodes it started, by PID, recorder last. Node logs go to OUT.logs/.
 # When a node dies the others get 3 s (the plant's watchdog acts and the recorder records it)
 # before they are stopped; with --keep-going they run on. --respawn controller restarts the
@@ -267,8 +268,11 @@ while :; do
   sleep 0.05
 done
 
-if [[ ${#FAILED[@]} -gt 0 ]]; then
-  echo "run_experiment.sh: failed nodes: ${FAILED[*]} (logs in $LOGS/)" >&2
+# a diverged arm (non-finite or runaway state: the plant stops with an error) fails the run
+DIVERGED="$(grep -h -o -m 1 'diverged at t = .*' "$LOGS/plant.log" "$LOGS/composed.log" 2>/dev/null | head -n 1)"
+[[ -n "$DIVERGED" ]] && echo "run_experiment.sh: the run $DIVERGED" >&2
+if [[ ${#FAILED[@]} -gt 0 || -n "$DIVERGED" ]]; then
+  echo "run_experiment.sh: failed nodes: ${FAILED[*]:-none} (logs in $LOGS/)" >&2
   exit 1
 fi
 echo "run_experiment.sh: $ROBOT/$CONTOUR/$CONTROLLER ($MODE) recorded to $OUT in $((SECONDS - START)) s"

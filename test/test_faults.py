@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import re
 import signal
@@ -19,7 +20,7 @@ from hypothesis import strategies as st
 from pdsmc_ros.bag.mcapscan import scan
 from pdsmc_ros.bag.reader import read_run
 from pdsmc_ros.control import ControlLaw, Gains
-from pdsmc_ros.control.safety import SafetyConfig, check_effort, limit_torque, safe_torque
+from pdsmc_ros.control.safety import DivergenceCheck, SafetyConfig, check_effort, limit_torque, safe_torque
 from pdsmc_ros.errors import InvalidInputError
 from pdsmc_ros.sim import PlantStepper, simulate
 
@@ -79,6 +80,88 @@ def test_torque_limit() -> None:
     tau, clamped = limit_torque(np.array([3.0, -9.0]), np.array([5.0, 5.0]))
     assert clamped and tau.tolist() == [3.0, -5.0]
     assert limit_torque(np.array([1.0]), None) == (pytest.approx(np.array([1.0])), False)
+
+
+# --------------------------------------------------------------------------- #
+# Divergence caught (issue 29 item 3)
+# --------------------------------------------------------------------------- #
+def check_of_two() -> DivergenceCheck:
+    return DivergenceCheck(("a", "b"), np.array([[-1.0, 1.0], [-np.inf, np.inf]]), np.array([2.0, np.inf]))
+
+
+def test_divergence_check_bounds_come_from_the_limits() -> None:
+    check = check_of_two()
+    calm = np.zeros(2)
+    assert check.check(calm, calm, 0) == -1
+    assert check.check(np.array([1.5, 0.0]), calm, 3) == -2  # beyond a limit: a warning, once
+    assert check.check(np.array([1.5, 0.0]), calm, 4) == -1
+    assert check.new_warnings(1000.0) == [("joint 'a' position 1.5 rad beyond its limits [-1, 1] at t = 0.003 s "
+                                           "(warned once per joint and run)")]
+    assert check.new_warnings(1000.0) == []
+    assert check.check(np.array([1.0 + 2 * np.pi + 0.1, 0.0]), calm, 5) == 0  # a turn past the stop
+    assert check.check(calm, np.array([19.0, 0.0]), 6) == -2  # 9.5 x its velocity limit: a warning
+    assert check.check(calm, np.array([21.0, 0.0]), 7) == 0  # 10.5 x: runaway
+    assert check.check(calm, np.array([0.0, 999.0]), 8) == -1  # no velocity limit: 1000 rad/s
+    assert check.check(calm, np.array([0.0, 1001.0]), 9) == 1
+    assert check.check(np.array([0.0, np.nan]), calm, 10) == 1
+    assert check.diverged(1, np.array([0.0, np.nan]), calm, 0.01) == (
+        "diverged at t = 0.01 s: joint 'b' state is not finite (position nan, rate 0)")
+    assert "rate 21 rad/s is beyond 10 x its velocity limit 2 rad/s" in check.diverged(
+        0, calm, np.array([21.0, 0.0]), 0.0)
+
+
+def test_a_recorded_runaway_torque_or_state_is_found() -> None:
+    check = check_of_two()
+    rows = np.zeros((5, 2))
+    limit = np.array([10.0, np.inf])
+    assert check.recorded(rows, rows, rows, limit, 100.0) == ""
+    missing = rows.copy()
+    missing[2] = np.nan  # a step not recorded is not a divergence
+    assert check.recorded(missing, missing, missing, limit, 100.0) == ""
+    tau = rows.copy()
+    tau[3, 0] = 1.0e6
+    assert check.recorded(rows, rows, tau, limit, 100.0) == (
+        "diverged at t = 0.03 s: joint 'a' torque 1e+06 N m is beyond 100 x its effort limit 10 N m")
+    qd = rows.copy()
+    qd[1, 1] = np.inf
+    assert check.recorded(rows, qd, tau, limit, 100.0).startswith("diverged at t = 0.01 s: joint 'b' state is not")
+
+
+def unstable_serial_run():  # noqa: ANN201
+    """The serial arm's PD with gains x300 at 1 kHz: far past the stability check (opted out)."""
+    from pdsmc_ros.presets import make_run
+
+    spec = make_run("serial_3r", "circle", "pd", rate=1000.0)
+    return dataclasses.replace(spec, gains=spec.gains.scaled({"kp": 300.0, "kd": 300.0}))
+
+
+def test_the_in_process_simulator_stops_a_diverged_run() -> None:
+    spec = unstable_serial_run()
+    free = simulate(dataclasses.replace(spec, enforce_limits=False), check_stability=False)
+    assert free.diverged.startswith("diverged at t = ") and "joint 'joint" in free.diverged
+    assert np.isnan(free.metrics.contour_mean)  # stopped: the samples from then on are NaN
+    stop = int(np.argmax(np.isnan(free.samples.q[:, 0])))
+    assert 0 < stop < 10 and np.all(np.isnan(free.samples.q[stop:]))
+    assert np.all(np.isfinite(free.samples.q[:stop]))
+    # with the clamp the same gains chatter at the limits but stay bounded
+    clamped = simulate(spec, check_stability=False)
+    assert not clamped.diverged and min(clamped.metrics.saturated_periods) > 1000
+
+
+def test_pdsmc_simulate_exits_1_in_one_line_when_the_run_diverges(monkeypatch: pytest.MonkeyPatch,
+                                                                   capsys: pytest.CaptureFixture[str]) -> None:
+    from pdsmc_ros import cli
+    from pdsmc_ros.sim import simulator
+
+    spec = unstable_serial_run()
+    monkeypatch.setattr(cli, "_spec_from_args", lambda _args: spec)  # the gains injected
+    monkeypatch.setattr(simulator, "check_rate", lambda *_a, **_k: None)  # past the stability check
+    code = cli.main(["simulate", "--robot", "serial_3r", "--contour", "circle", "--controller", "pd",
+                     "--no-enforce-limits"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 1
+    assert [line for line in err if "error" in line] == [err[-1]]
+    assert err[-1].startswith("pdsmc simulate: error: the run diverged at t = ") and err[-1].endswith("stopped there")
 
 
 # --------------------------------------------------------------------------- #

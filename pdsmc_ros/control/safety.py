@@ -39,6 +39,9 @@ RUNAWAY_VELOCITY_UNKNOWN = 1.0e3
 """rad/s (or m/s): the runaway rate of a joint whose velocity limit is unknown (about 10,000 rpm)."""
 RUNAWAY_POSITION_MARGIN = 2.0 * math.pi
 """rad (or m): a joint a whole turn beyond a finite position limit has run away (no stop holds it)."""
+RUNAWAY_TORQUE_FACTOR = 100.0
+"""A recorded torque beyond this many times a finite effort limit has run away (a run with the clamp
+opted out; no drive delivers it)."""
 
 
 @dataclass(frozen=True)
@@ -355,3 +358,27 @@ class DivergenceCheck:
                     f"{self.bounds[1, joint]:.6g}] at t = {t:.6g} s (warned once per joint and run)")
         return (f"joint {name!r} rate {value:.6g} rad/s beyond its velocity limit {self.bounds[2, joint]:.6g} "
                 f"rad/s at t = {t:.6g} s (warned once per joint and run)")
+
+    def recorded(self, q: FloatArray, qd: FloatArray, tau: FloatArray, effort_limits: FloatArray,
+                 rate: float) -> str:
+        """Why a recorded run (rows = control steps at ``rate``; NaN rows: not recorded) counts as
+        diverged, or ``""``: an infinite value, a runaway state, or a torque beyond
+        :data:`RUNAWAY_TORQUE_FACTOR` times a finite effort limit -- the first such step.
+        """
+        b = self.bounds
+        with np.errstate(invalid="ignore"):
+            state = np.isinf(q) | np.isinf(qd) | (q < b[3]) | (q > b[4]) | (np.abs(qd) > b[5])
+            torque = np.isinf(tau) | (np.abs(tau) > RUNAWAY_TORQUE_FACTOR * np.asarray(effort_limits, dtype=float))
+        bad_state = np.flatnonzero(state.any(axis=1))
+        bad_torque = np.flatnonzero(torque.any(axis=1))
+        first_state = int(bad_state[0]) if bad_state.size else len(q)
+        first_torque = int(bad_torque[0]) if bad_torque.size else len(q)
+        if first_state == first_torque == len(q):
+            return ""
+        if first_state <= first_torque:
+            k = first_state
+            return self.diverged(int(np.argmax(state[k])), q[k], qd[k], k / rate)
+        k = first_torque
+        j = int(np.argmax(torque[k]))
+        return (f"diverged at t = {k / rate:.6g} s: joint {self.names[j]!r} torque {tau[k, j]:.6g} N m is beyond "
+                f"{RUNAWAY_TORQUE_FACTOR:g} x its effort limit {float(effort_limits[j]):.6g} N m")

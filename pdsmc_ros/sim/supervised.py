@@ -218,5 +218,7 @@ class SupervisedPlant:
                 if self.done:
                     return
             self.integrate(self.safe_torque() if self.watch.safe else self.latest_effort)
+            if self.failure:
+                self.publish_state()  # the diverged state, for the record
             if self.done:
                 return

@@ -7,6 +7,7 @@ Every statistic comes from :mod:`pdsmc_ros.metrics` through
 from __future__ import annotations
 
 import csv
+import dataclasses
 import json
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -17,6 +18,7 @@ import numpy as np
 
 from ..bag.reader import RecordedRun, read_run, run_metrics
 from ..control import LAWS
+from ..control.safety import DivergenceCheck
 from ..errors import BagError, InvalidInputError
 from ..metrics import Metrics
 from ..runtime.statistics import loop_report_lines
@@ -68,11 +70,15 @@ class AnalyzedBag:
     run: RecordedRun
     metrics: Metrics
     timing: dict[str, float] | None
+    diverged: str = ""
+    """Why the run counts as diverged (:meth:`DivergenceCheck.recorded`), or ``""``: such a run is
+    left out of the comparisons and of the comparison figures' scales."""
 
     @property
     def label(self) -> str:
         d = self.run.description
-        return f"{LAWS[d['controller']].label if d['controller'] in LAWS else d['controller']} ({self.path.name})"
+        name = LAWS[d['controller']].label if d['controller'] in LAWS else d['controller']
+        return f"{name} ({self.path.name}){' DIVERGED' if self.diverged else ''}"
 
     def as_dict(self) -> dict[str, Any]:
         out = self.metrics.as_dict()
@@ -80,6 +86,7 @@ class AnalyzedBag:
         out["run"] = self.run.description
         out["complete"] = self.run.complete
         out["missing_steps"] = self.run.missing
+        out["diverged"] = self.diverged
         if self.timing is not None:
             out["controller_timing"] = self.timing
         return out
@@ -130,7 +137,16 @@ def analyze_bag(path: str | Path) -> AnalyzedBag:
     timing = None
     if run.description.get("mode") == "realtime":
         timing = controller_timing(path, 1.0 / run.spec.rate)
-    return AnalyzedBag(path, run, metrics, timing)
+    robot = run.spec.robot_model()
+    n = robot.n
+    applied = run.tau[:-1, :n]  # the last step's command closes the run; it is not applied
+    limit = robot.effort_limits if run.spec.enforce_limits else np.full(n, np.inf)
+    with np.errstate(invalid="ignore"):
+        saturated = (np.abs(applied) >= limit).sum(axis=0)
+    metrics = dataclasses.replace(metrics, saturated_periods=[int(c) for c in saturated])
+    diverged = DivergenceCheck.for_robot(robot).recorded(run.q[:, :n], run.qd[:, :n], run.tau[:, :n],
+                                                         robot.effort_limits, run.spec.rate)
+    return AnalyzedBag(path, run, metrics, timing, diverged)
 
 
 def comparison_table(bags: Sequence[AnalyzedBag]) -> str:
@@ -165,6 +181,13 @@ def comparison_table(bags: Sequence[AnalyzedBag]) -> str:
             [b.metrics.max_torque[i] if i < len(b.metrics.max_torque) else float("nan") for b in bags],
             "{:.4g}",
         )
+    for i in range(n):
+        row(f"saturated periods {i + 1}",
+            [b.metrics.saturated_periods[i] if i < len(b.metrics.saturated_periods) else float("nan")
+             for b in bags], "{:.0f}")
+    for b in bags:
+        if b.diverged:
+            lines.append(f"{b.label}: {b.diverged}; left out of the comparisons")
     for b in bags:
         if b.timing:
             t = b.timing
@@ -179,11 +202,12 @@ def comparison_table(bags: Sequence[AnalyzedBag]) -> str:
 
 
 def improvements(bags: Sequence[AnalyzedBag]) -> list[str]:
-    """Sentences like the thesis's: "PD-SMC: 16.8 % smaller mean contour error than PD"."""
+    """Sentences like the thesis's: "PD-SMC: 16.8 % smaller mean contour error than PD" (diverged
+    runs compared with none)."""
     out = []
     for a in bags:
         for b in bags:
-            if a is b:
+            if a is b or a.diverged or b.diverged:
                 continue
             ma, mb = a.metrics.contour_mean, b.metrics.contour_mean
             if ma < mb:
