@@ -74,7 +74,7 @@ def test_check_gains_for_pd_shows_no_smc_conditions() -> None:
     assert proc.returncode == 0, proc.stderr
     assert "Ks_" not in proc.stdout and "lambda" not in proc.stdout and "FAILS" not in proc.stdout
     assert "no conditions of it for pd" in proc.stdout
-    assert "realtime (zero-order hold + 1 period of delay) holds" in proc.stdout and "x2 required" in proc.stdout
+    assert "holds in realtime (zero-order hold + 1 period of delay)" in proc.stdout and "x2 required" in proc.stdout
     pdsmc_check = pdsmc("check-gains", "--robot", "parallel_5r", "--contour", "circle", "--controller", "pdsmc")
     assert "Ks_1 > max |tau_d,1|" in pdsmc_check.stdout
 
@@ -103,7 +103,7 @@ def test_tune_output_passes_check_gains_and_runs_in_simulate(tmp_path: Path) -> 
     base = ["--robot", "parallel_5r", "--contour", "circle", "--controller", "pdsmc", "--params-file", str(out)]
     check = pdsmc("check-gains", *base)  # the file's rate (10 kHz), real time, margin x2
     assert check.returncode == 0, check.stdout + check.stderr
-    assert "at 10000 Hz in realtime" in check.stdout and "FAILS" not in check.stdout
+    assert "at 10000 Hz holds in realtime" in check.stdout and "FAILS" not in check.stdout
     sim = pdsmc("simulate", *base)
     assert sim.returncode == 0 and "at 10000 Hz control" in sim.stdout, sim.stderr
 

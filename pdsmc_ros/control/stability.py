@@ -238,16 +238,16 @@ def check_rate(spec: RunSpec, reference: JointReference, *, mode: str = "lockste
     else:
         rate_advice, margin_name = f"--rate {suggestion:g}", "--margin "
     if result.stable:
-        problem = (f"has a margin of only x{result.margin:.2f} (lowest stable rate about "
+        problem = (f"margin only x{result.margin:.2f} in {describe_loop(result)} (lowest stable rate about "
                    f"{result.lowest_stable_rate:,.0f} Hz, joint {result.worst_joint} the closest to the edge; "
-                   f"{result.required_margin:g}x required, {margin_name}sets it)")
+                   f"x{result.required_margin:g} required, {margin_name}sets it)")
     else:
-        problem = (f"cannot be stable: joint {result.worst_joint} diverges (discrete pole radius "
+        problem = (f"joint {result.worst_joint} diverges in {describe_loop(result)} (discrete pole radius "
                    f"{result.spectral_radius:.3f} > 1); the lowest stable rate is about "
                    f"{result.lowest_stable_rate:,.0f} Hz")
     raise UnstableRateError(
-        f"{spec.controller} gains for {spec.robot}/{spec.contour} at {spec.rate:g} Hz in "
-        f"{describe_loop(result)} {problem}; use {rate_advice} or higher, or gentler gains"
+        f"{spec.controller} gains for {spec.robot}/{spec.contour} at {spec.rate:g} Hz: {problem}; "
+        f"use {rate_advice} or higher, or gentler gains"
     )
 
 
