@@ -385,8 +385,8 @@ def cmd_check_gains(args: argparse.Namespace) -> int:
         print(f"discrete-rate condition: not checked ({spec.controller} has no linear gains)")
     else:
         print(
-            f"discrete-rate condition at {spec.rate:g} Hz in {describe_loop(check)} "
-            f"{'holds' if check.passes else 'FAILS'}: largest pole radius {check.spectral_radius:.4f} "
+            f"discrete-rate condition at {spec.rate:g} Hz {'holds' if check.passes else 'FAILS'} in "
+            f"{describe_loop(check)}: largest pole radius {check.spectral_radius:.4f} "
             f"(joint {check.worst_joint}); lowest stable rate {check.lowest_stable_rate:,.0f} Hz, margin "
             f"x{check.margin:.2f} (x{check.required_margin:g} required, --margin)"
         )
