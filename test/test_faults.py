@@ -541,3 +541,63 @@ def test_orchestration_warns_about_a_teardown_hang_but_fails_a_failure(
     else:
         assert proc.returncode == 1
         assert "node 'trajectory' failed (exit 1)" in proc.stderr and "failed nodes: trajectory" in proc.stderr
+
+
+PUSHER = r"""
+import sys, time
+import rclpy
+from rclpy.node import Node
+from std_msgs.msg import Float64MultiArray
+rclpy.init()
+node = Node("pusher")
+pub = node.create_publisher(Float64MultiArray, "effort_controller/commands", 10)
+end = time.monotonic() + float(sys.argv[1])
+while time.monotonic() < end:
+    pub.publish(Float64MultiArray(data=[1.0e5, -1.0e5]))  # far past any arm's limits
+    rclpy.spin_once(node, timeout_sec=0.001)
+"""
+
+REALTIME_FIVE_BAR = ("--robot", "parallel_5r", "--contour", "ellipse_vertical", "--controller", "pd",
+                     "--rate", "250", "--param", "sample_rate:=250.0",
+                     "--param", "kp:=[40.0, 45.0]", "--param", "kd:=[3.0, 4.0]")
+
+
+@pytest.mark.timeout(400)
+def test_a_diverging_arm_fails_the_plant_the_script_and_is_marked_by_analyze(ros_env: dict, tmp_path: Path) -> None:
+    """Torques far past the limits pushed into a real-time run with the clamp opted out: the plant
+    stops with an error and exit 1, run_experiment.sh exits 1 saying so, analyze marks the bag."""
+    out = tmp_path / "diverged"
+    env = run_env(ros_env, out)
+    proc = subprocess.Popen(["bash", str(SCRIPT), *REALTIME_FIVE_BAR, "--mode", "realtime", "--duration-factor", "2",
+                             "--param", "enforce_limits:=false", "--out", str(out), "--timeout", "200"],
+                            env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    wait_steps(out, 20)  # the run is going: its bag will hold steps to analyse
+    pusher = subprocess.Popen([sys.executable, "-c", PUSHER, "60"], env=env, stdout=subprocess.PIPE,
+                              stderr=subprocess.PIPE, text=True, start_new_session=True)
+    try:
+        _, err = wait_finish(proc)
+    finally:
+        pusher.kill()  # only the process this test started
+        pusher.communicate(timeout=30)
+    assert proc.returncode == 1, err
+    assert "node 'plant' failed (exit 1)" in err
+    assert re.search(r"run_experiment.sh: the run diverged at t = [0-9.e-]+ s: joint 'joint[12]'", err), err
+    plant_log = (Path(f"{out}.logs") / "plant.log").read_text()
+    assert "the plant stops (nothing more is integrated)" in plant_log
+    # a run that went well, to compare with
+    good = tmp_path / "good"
+    proc = subprocess.Popen(["bash", str(SCRIPT), *REALTIME_FIVE_BAR, "--mode", "lockstep", "--duration-factor",
+                             "0.5", "--out", str(good),
+                             "--timeout", "200"], env=run_env(ros_env, good), stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, start_new_session=True)
+    _, err = wait_finish(proc)
+    assert proc.returncode == 0, err
+    analysis = subprocess.run([sys.executable, "-m", "pdsmc_ros.cli", "analyze", str(good), str(out), "--plots",
+                               "--out", str(tmp_path / "figures")], capture_output=True, text=True, timeout=300)
+    assert analysis.returncode == 1
+    assert f"pdsmc analyze: {out}: the run diverged at t = " in analysis.stderr
+    assert "marked diverged, left out of the comparisons and of the comparison figures' scales" in analysis.stderr
+    table = analysis.stdout
+    assert "(diverged) DIVERGED" in table and "smaller mean contour error" not in table
+    assert (tmp_path / "figures" / "contour_mean_comparison.png").is_file()
+
