@@ -9,6 +9,7 @@ PYTHON ?= python3
 VENV ?= .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.pdsmc-installed
+INTERFACES_STAMP := $(VENV)/.pdsmc-interfaces
 EXECUTABLES := plant trajectory controller recorder composed viewer analyze mujoco_driver
 
 # The ROS wheels set no AMENT_PREFIX_PATH; the venv is the install prefix.
@@ -17,12 +18,11 @@ export NUMBA_CACHE_DIR := $(abspath $(VENV))/numba-cache
 
 .PHONY: setup demo test reproduce bench figures clean
 
-setup: $(STAMP)
+setup: $(STAMP) $(INTERFACES_STAMP)
 
 SOURCES := setup.py setup.cfg package.xml $(wildcard config/*.yaml config/*.xml config/urdf/*) $(wildcard scripts/*.sh) \
 	$(wildcard pdsmc_ros/*.py pdsmc_ros/*/*.py)
 DEPS_STAMP := $(VENV)/.pdsmc-deps
-INTERFACES_STAMP := $(VENV)/.pdsmc-interfaces
 
 $(DEPS_STAMP): requirements.txt requirements-test.txt requirements-build.txt constraints.txt
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -38,8 +38,10 @@ $(INTERFACES_STAMP): $(DEPS_STAMP) tools/build_interfaces.sh $(shell find interf
 	tools/build_interfaces.sh $(VENV)
 
 # A regular (non-editable) install puts console scripts and share/ data into the venv prefix
-# exactly as a wheel would; it is redone whenever a source file changes.
-$(STAMP): $(DEPS_STAMP) $(INTERFACES_STAMP) $(SOURCES)
+# exactly as a wheel would; it is redone whenever a source file changes. The interfaces come
+# first (order only: their stamp being touched must not reinstall the package nor empty the
+# kernel cache).
+$(STAMP): $(DEPS_STAMP) $(SOURCES) | $(INTERFACES_STAMP)
 	$(PY) -m pip install --quiet --disable-pip-version-check --no-deps --no-build-isolation --force-reinstall .
 	@rm -rf build pdsmc_ros.egg-info
 	@# numba checks a cached kernel against its own file only, not the kernels it calls: a new
@@ -52,24 +54,24 @@ $(STAMP): $(DEPS_STAMP) $(INTERFACES_STAMP) $(SOURCES)
 	  printf '\n# pdsmc_ros: the venv is the ament prefix\nexport AMENT_PREFIX_PATH="%s"\n' "$(abspath $(VENV))" >> $(VENV)/bin/activate
 	@touch $(STAMP)
 
-demo: $(STAMP)
+demo: setup
 	$(PY) -m pdsmc_ros.demo
 
-test: $(STAMP)
+test: setup
 	$(PY) -m pytest -q test
 
 # the thesis-style comparison figures the README shows: the demo's three runs over DDS, analysed
-figures: $(STAMP)
+figures: setup
 	rm -rf bags/figures bags/figures-analysis
 	$(PY) -m pdsmc_ros.demo --out bags/figures
 	$(PY) -m pdsmc_ros.cli analyze bags/figures --plots --out bags/figures-analysis
 	mkdir -p docs/figures
 	cp bags/figures-analysis/serial_3r_circle_*.png docs/figures/
 
-reproduce: $(STAMP)
+reproduce: setup
 	$(PY) -m pdsmc_ros.cli reproduce --out docs
 
-bench: $(STAMP)
+bench: setup
 	$(PY) bench/reproduce.py
 	$(PY) bench/analysis.py
 	PATH="$(abspath $(VENV))/bin:$$PATH" $(PY) bench/lockstep.py
