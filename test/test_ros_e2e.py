@@ -381,6 +381,33 @@ def test_a_ur5_with_tuned_gains_over_dds_equals_in_process(ros_env: dict, tmp_pa
 
 
 @pytest.mark.timeout(300)
+def test_a_clamped_run_over_dds_equals_in_process(ros_env: dict, tmp_path: Path) -> None:
+    """Issue 29: a user's 4-joint URDF (effort limits 40, 40, 20, 6 N m, options beside it) whose
+    wrist needs more than its 6 N m: the controller clamps it over DDS as simulate does in-process."""
+    import sys
+
+    sys.path.insert(0, str(ROOT / "test" / "robots"))
+    from arm4 import EFFORT, write_arm
+
+    urdf, points = write_arm(tmp_path / "arm")
+    out = tmp_path / "clamped"
+    proc = run_experiment(ros_env, out, "--robot", str(urdf), "--contour", "joints", "--controller", "pd",
+                          "--param", f"waypoints_file:={points}")
+    assert proc.returncode == 0, proc.stderr
+    run = read_run(out)
+    assert run.complete and run.spec.enforce_limits
+    sim = simulate(run.spec)
+    assert sim.metrics.saturated_periods[3] > 100 and sim.metrics.max_torque[3] == EFFORT[3]  # clamping active
+    every = run.spec.sample_every
+    assert np.max(np.abs(run.q[::every] - sim.samples.q)) <= 1e-9
+    assert np.max(np.abs(run.tau[::every] - sim.samples.tau)) <= 1e-9
+    assert np.max(np.abs(run.tau[:, 3])) == EFFORT[3]
+    from pdsmc_ros.thesis.analysis import analyze_bag
+
+    assert analyze_bag(out).metrics.saturated_periods == sim.metrics.saturated_periods
+
+
+@pytest.mark.timeout(300)
 def test_nodes_take_the_arm_from_robot_description(ros_env: dict, tmp_path: Path) -> None:
     """Only the plant is told the arm (ur5); the others read /robot_description, and so does the
     analysis of the bag."""
