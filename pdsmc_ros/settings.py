@@ -30,9 +30,11 @@ CONTROLLER_PARAMETERS = (
     "ellipse_error", "waypoints_file", "segment_duration", "clock_rate", "busy_wait",
     # the gains (pdsmc_ros.control.registry.GAIN_NAMES)
     "kp", "kd", "ks", "lam", "phi",
-    # the controller's own
+    # the controller's own (pdsmc_ros.nodes.controller_params, nodes.params.STABILITY_PARAMETERS)
     "joints", "autostart", "torque_limit", "stale_periods", "enforce_limits", "stability_margin",
-    "delay_periods",
+    "delay_periods", "constraints.goal_time", "constraints.stopped_velocity_tolerance",
+    # every loop node's real-time settings (pdsmc_ros.nodes.realtime_params)
+    "thread_priority", "cpu_affinity", "lock_memory",
 )
 """What the controller node declares: the keys ``pdsmc simulate/check-gains --params-file`` accept
 (the CLI reads the controller's sections without starting ROS)."""

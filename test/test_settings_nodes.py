@@ -4,6 +4,7 @@ undeclared overrides warned about, bad params files refused, the controller's ra
 from __future__ import annotations
 
 import subprocess
+import sys
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -111,3 +112,24 @@ def test_the_controller_refuses_gains_unstable_in_real_time_advising_the_paramet
     errors = [line for line in proc.stderr.splitlines() if "error" in line]
     assert len(errors) == 1 and "realtime (zero-order hold + 1 period of delay)" in errors[0], proc.stderr
     assert "-p rate:=" in errors[0] and "--rate" not in errors[0]
+
+
+@pytest.mark.timeout(200)
+def test_the_cli_knows_every_parameter_the_controller_declares(ros_env: dict) -> None:
+    """settings.CONTROLLER_PARAMETERS (what pdsmc --params-file accepts without ROS) is the controller's list."""
+    from pdsmc_ros.settings import ALWAYS_DECLARED, CONTROLLER_PARAMETERS
+
+    env = {**ros_env, "ROS_DOMAIN_ID": str(next_domain())}
+    script = ("import sys, rclpy\n"
+              "from pdsmc_ros.nodes.controller import ControllerNode\n"
+              "from pdsmc_ros.nodes.realtime_params import declare_realtime_parameters\n"
+              "rclpy.init(args=['--ros-args', '-p', 'robot:=parallel_5r', '-p', 'autostart:=false'])\n"
+              "wrapper = ControllerNode()\n"
+              "declare_realtime_parameters(wrapper.node, 'realtime')\n"
+              "print(' '.join(wrapper.node.list_parameters([], 0).names))\n"
+              "wrapper.node.destroy_node()\n"
+              "rclpy.shutdown()\n")
+    proc = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True, timeout=150)
+    assert proc.returncode == 0, proc.stderr
+    declared = set(proc.stdout.split()) - set(ALWAYS_DECLARED)
+    assert declared == set(CONTROLLER_PARAMETERS)
