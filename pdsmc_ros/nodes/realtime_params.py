@@ -74,9 +74,9 @@ class LoopReport:
     every tick in ``stats`` and calls :meth:`publish` once a second and at the end.
     """
 
-    def __init__(self, wrapper: Any) -> None:
+    def __init__(self, wrapper: Any, mode: str) -> None:
         node: Node = wrapper.node
-        self.settings = declare_realtime_parameters(node, wrapper.mode)
+        self.settings = declare_realtime_parameters(node, mode)
         period = getattr(wrapper, "period", None)
         self.stats = LoopStatistics(period) if period else None
         self.diagnostics = None if self.stats is None else Diagnostics(
@@ -91,9 +91,12 @@ class LoopReport:
 
 
 def loop_reports(wrapper: Any) -> list[LoopReport]:
-    """``[LoopReport(wrapper)]`` for a node of the control loop (it has a ``mode``), else none
-    (the recorder and the viewer only observe)."""
-    return [LoopReport(wrapper)] if hasattr(wrapper, "mode") else []
+    """``[LoopReport]`` for a node of the control loop (it has a ``mode``: real-time defaults
+    in real time) or an observer that may be pinned (``observer = True``, the recorder:
+    normal scheduling by default, e.g. ``cpu_affinity`` away from the loop's core); else none."""
+    if hasattr(wrapper, "mode"):
+        return [LoopReport(wrapper, wrapper.mode)]
+    return [LoopReport(wrapper, "lockstep")] if getattr(wrapper, "observer", False) else []
 
 
 def apply_settings(reports: Sequence[LoopReport], node: Node) -> Applied:

@@ -81,6 +81,8 @@ STEPPED = (TOPIC_JOINT_STATES, TOPIC_REFERENCE, TOPIC_EFFORT, TOPIC_EE_DESIRED, 
 class RecorderNode:
     """Thin wrapper: raw subscriptions into a rosbags MCAP writer."""
 
+    observer = True  # takes the real-time parameters with normal scheduling by default (cpu_affinity)
+
     def __init__(self) -> None:
         self.node = Node("recorder")
         node = self.node

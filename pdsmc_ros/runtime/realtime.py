@@ -25,6 +25,7 @@ import dataclasses
 import gc
 import os
 import resource
+import threading
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -98,6 +99,7 @@ class Applied:
     affinity: tuple[int, ...] = ()
     memory_locked: bool = False
     warning: str = ""
+    helpers: list[int] = dataclasses.field(default_factory=list)  # threads raised by raise_helpers
 
     def summary(self) -> str:
         """One line for the node's log."""
@@ -140,6 +142,53 @@ def set_fifo(priority: int) -> str:
     return ""
 
 
+HELPER_PRIORITY = 1  # SCHED_FIFO priority of the process's other threads while the loop runs at FIFO
+
+
+def raise_helpers(priority: int = HELPER_PRIORITY) -> list[int]:
+    """The process's other threads (Fast DDS's, the executor's) to ``SCHED_FIFO`` at ``priority``,
+    below the loop's; the thread ids changed.
+
+    The loop thread waits for them: for the GIL (the executor thread) and for the DDS writer's
+    locks a publish takes (Fast DDS's event and receive threads). At normal priority, a
+    loaded machine preempts them for milliseconds while they hold one -- the FIFO loop then
+    waits as long (priority inversion). A FIFO thread is preempted only by higher priorities.
+    """
+    own = threading.get_native_id()
+    changed = []
+    for entry in os.listdir("/proc/self/task"):
+        tid = int(entry)
+        if tid == own or os.sched_getscheduler(tid) != os.SCHED_OTHER:
+            continue
+        try:
+            os.sched_setscheduler(tid, os.SCHED_FIFO, os.sched_param(priority))
+        except OSError:  # refused (as the loop's own) or the thread has ended
+            continue
+        changed.append(tid)
+    return changed
+
+
+def lower_helpers(tids: Sequence[int]) -> None:
+    """Undo :func:`raise_helpers`."""
+    for tid in tids:
+        try:
+            os.sched_setscheduler(tid, os.SCHED_OTHER, os.sched_param(0))
+        except OSError:  # the thread has ended
+            continue
+
+
+def pin_helpers(cores: Sequence[int]) -> None:
+    """The process's other threads on ``cores`` too: a message reaches the loop through Fast
+    DDS's receive thread, and a hand-off on one core is cheaper than across cores."""
+    own = threading.get_native_id()
+    for entry in os.listdir("/proc/self/task"):
+        if int(entry) != own:
+            try:
+                os.sched_setaffinity(int(entry), cores)
+            except OSError:  # the thread has ended
+                continue
+
+
 def apply(settings: RealtimeSettings) -> Applied:
     """Apply ``settings`` to the calling thread (and, for memory, the process).
 
@@ -152,6 +201,7 @@ def apply(settings: RealtimeSettings) -> Applied:
         try:
             os.sched_setaffinity(0, settings.cpu_affinity)
             applied.affinity = tuple(sorted(os.sched_getaffinity(0)))
+            pin_helpers(settings.cpu_affinity)
         except OSError as exc:
             refused.append(f"cpu_affinity {list(settings.cpu_affinity)} ({exc.strerror}): {AFFINITY_FIX}")
     if settings.lock_memory:
@@ -162,6 +212,8 @@ def apply(settings: RealtimeSettings) -> Applied:
     if settings.thread_priority > 0:
         why = set_fifo(settings.thread_priority)
         applied.fifo = not why
+        if applied.fifo and settings.thread_priority > HELPER_PRIORITY:
+            applied.helpers = raise_helpers()
         if why:
             refused.append(f"SCHED_FIFO priority {settings.thread_priority} ({why}): {FIFO_FIX}")
     if refused:
@@ -172,6 +224,7 @@ def apply(settings: RealtimeSettings) -> Applied:
 def restore(applied: Applied) -> None:
     """Undo :func:`apply` at the end of the loop: normal scheduling (tear-down at FIFO could
     starve the machine if it spun), memory unlocked. The affinity stays."""
+    lower_helpers(applied.helpers)
     if applied.fifo:
         set_fifo(0)
     if applied.memory_locked:

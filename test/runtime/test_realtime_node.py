@@ -115,6 +115,12 @@ def test_settings_hold_and_statistics_count_a_stalled_period(listener_env: tuple
         assert os.sched_getparam(proc.pid).sched_priority == 5
         assert os.sched_getaffinity(proc.pid) == {0}
         assert locked_kib(Path(f"/proc/{proc.pid}/status")) > 0  # lock_memory: on by default in real time
+        # the process's other threads (Fast DDS's, the executor's): FIFO below the loop, on its cores
+        helpers = [int(t) for t in os.listdir(f"/proc/{proc.pid}/task") if int(t) != proc.pid]
+        assert helpers
+        for tid in helpers:
+            assert os.sched_getscheduler(tid) == os.SCHED_FIFO and os.sched_getparam(tid).sched_priority == 1
+            assert os.sched_getaffinity(tid) == {0}
         before = first["missed"]
         os.kill(proc.pid, signal.SIGSTOP)  # a deliberately stalled period: 0.3 s without a tick
         time.sleep(0.3)
