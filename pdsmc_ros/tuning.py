@@ -147,18 +147,21 @@ def _inside_theorem(spec: RunSpec, values: dict[str, np.ndarray], needed: Sequen
 
 
 def evaluate(spec: RunSpec, gains: Gains, torque_limit: np.ndarray,
-             requirement: Requirement | None = None) -> Candidate:
-    """One candidate: refused if ``check-gains`` refuses it (:class:`Requirement`), else one
-    in-process run with ``gains``: its contour error, or why it is refused."""
+             requirement: Requirement | None = None, also: Sequence[RunSpec] = ()) -> Candidate:
+    """One candidate: refused if ``check-gains`` refuses it (:class:`Requirement`) for ``spec``
+    or any run of ``also`` (other contours the gains will serve), else one in-process run with
+    ``gains``: its contour error, or why it is refused."""
     from .sim import simulate  # numba: only when a run is made
 
     trial = dataclasses.replace(spec, gains=gains)
     requirement = requirement or Requirement()
     try:
-        check = check_gains(trial, mode=requirement.mode, delay_periods=requirement.delay_periods,
-                            margin=requirement.margin)
-        if not check.passes:
-            return Candidate(gains, None, (), f"refused: {check.failure()}")
+        for run in (trial, *(dataclasses.replace(other, gains=gains) for other in also)):
+            check = check_gains(run, mode=requirement.mode, delay_periods=requirement.delay_periods,
+                                margin=requirement.margin)
+            if not check.passes:
+                where = "" if run is trial else f" on {run.contour}"
+                return Candidate(gains, None, (), f"refused{where}: {check.failure()}")
         result = simulate(trial)
     except PdsmcError as exc:
         return Candidate(gains, None, (), f"refused: {exc}")
@@ -186,6 +189,7 @@ def tune(
     progress: Callable[[Candidate], None] | None = None,
     scheduler: str | None = None,
     requirement: Requirement | None = None,
+    also: Sequence[str] = (),
 ) -> TuneResult:
     """Gains for ``robot`` on ``contour`` with ``controller`` by the recipe of Section 4.2.3.
 
@@ -211,6 +215,9 @@ def tune(
         one period of delay, margin x2: the loop on a robot, whose gains also run in lockstep).
         A starting point refused by it is retried at half the bandwidth, up to
         :data:`SLOWER_STARTS` times.
+    also : sequence of str
+        Other contours the gains will serve (a gain group of config/gains.yaml): every candidate
+        must pass the check on them too.
 
     Raises
     ------
@@ -224,11 +231,12 @@ def tune(
     needed = law(controller).gains
     requirement = requirement or Requirement()
     spec = _spec(robot, contour, controller, rate)
+    others = tuple(_spec(robot, name, controller, rate) for name in also)
     limit = _torque_limit(spec)
     tried: list[Candidate] = []
     w = bandwidth(spec.rate)
     for _ in range(SLOWER_STARTS + 1):
-        best = evaluate(spec, start or starting_gains(spec, w), limit, requirement)
+        best = evaluate(spec, start or starting_gains(spec, w), limit, requirement, others)
         tried.append(best)
         if progress:
             progress(best)
@@ -238,7 +246,7 @@ def tune(
     if not best.ok:
         raise ConfigError(f"tune {robot}/{contour}/{controller}: the starting gains are {best.verdict}")
     swept = [name for name in SWEPT if name in needed]
-    with _evaluator(spec, limit, scheduler, requirement) as evaluate_all:
+    with _evaluator(spec, limit, scheduler, requirement, others) as evaluate_all:
         for _ in range(rounds):
             kept = False
             for name in swept:
@@ -257,18 +265,19 @@ def tune(
 
 
 @contextlib.contextmanager
-def _evaluator(spec: RunSpec, limit: np.ndarray, scheduler: str | None, requirement: Requirement
-               ) -> Iterator[Callable[[list[Gains]], list[Candidate]]]:
+def _evaluator(spec: RunSpec, limit: np.ndarray, scheduler: str | None, requirement: Requirement,
+               also: tuple[RunSpec, ...] = ()) -> Iterator[Callable[[list[Gains]], list[Candidate]]]:
     """Evaluate a batch of gains here, or as tasks on the Dask cluster of ``scheduler``."""
     if scheduler is None:
-        yield lambda batch: [evaluate(spec, gains, limit, requirement) for gains in batch]
+        yield lambda batch: [evaluate(spec, gains, limit, requirement, also) for gains in batch]
         return
     from .engine import dask_client, run_tasks
 
     with dask_client(scheduler) as client:
         def remote(batch: list[Gains]) -> list[Candidate]:
             out: list[Candidate | None] = [None] * len(batch)
-            for i, candidate in run_tasks(client, evaluate, [(spec, gains, limit, requirement) for gains in batch]):
+            tasks = [(spec, gains, limit, requirement, also) for gains in batch]
+            for i, candidate in run_tasks(client, evaluate, tasks):
                 out[i] = candidate
             return out  # type: ignore[return-value]
         yield remote
