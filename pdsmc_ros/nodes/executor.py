@@ -230,26 +230,18 @@ def _serve_loop(executor: SingleThreadedExecutor, group: Any,
                 busy_wait: float = BUSY_WAIT_S, reports: Sequence[LoopReport] = ()) -> None:
     """Take the loop's inputs with a wait set of their own; serve the rest beside them.
 
-    Every ready input of ``hot`` is drained (``take_message`` until empty) and
-    handed to its handler at every pass. Lockstep: every ``COLD_PERIOD_S`` the
-    executor gets one non-blocking turn (timers, parameters, ``/clock``). Real
-    time (a ``period``): the executor spins in a thread of its own instead -- one
-    of its turns builds a wait set of every entity of the node and took about
-    1 ms, a missed deadline each time -- and ``group.tick(lateness)`` runs on a
-    wall-clock schedule: the loop sleeps in the wait set until
-    ``busy_wait`` before the deadline and busy-waits the rest, because waking
-    from a sleep is late by tens of microseconds, and on this machine's VM now
-    and then by milliseconds (a plain Python loop that sleeps to 0.2 ms before
-    each 1 kHz tick: 0.4-0.8 % of periods off by > 100 us; spinning the last
-    0.8 ms: 0-2 in 5,000). Late ticks
-    run at once (no burst catch-up beyond one period); ``tick`` may count missed
-    deadlines from the lateness. The garbage collector is kept off the path (the
-    loop creates no reference cycles) and its young generation collected now and then
-    (real time: right after a tick, when the next is far enough away).
-
-    ``reports``: the loop nodes' real-time settings, applied to this thread once the
-    executor thread runs (it stays at normal priority), and their loop statistics,
-    published every ``STATISTICS_EVERY_S`` right after a tick and once at the end.
+    Every ready input of ``hot`` is drained (``take_message`` until empty) and handed to
+    its handler at every pass. Lockstep: every ``COLD_PERIOD_S`` the executor gets one
+    non-blocking turn (timers, parameters, ``/clock``). Real time (a ``period``): the
+    executor spins in a thread of its own (one of its turns took about 1 ms) and
+    ``group.tick(lateness)`` runs on a wall-clock schedule: the loop sleeps in the wait
+    set until ``busy_wait`` before the deadline and spins the rest (at normal priority a
+    wake-up is late by tens of microseconds, on this VM now and then by milliseconds).
+    Late ticks run at once (no catch-up beyond one period). The garbage collector is
+    kept off the path, its young generation collected now and then (real time: right
+    after a tick with time to spare). ``reports``: the nodes' real-time settings (applied
+    to this thread once the executor thread exists) and loop statistics (published every
+    ``STATISTICS_EVERY_S`` right after a tick, and at the end).
 
     ``observed`` are the inputs of observers (see :class:`Inputs`): once they
     have given messages, they are left alone for ``observe_every`` seconds, so
@@ -292,7 +284,8 @@ def _serve_loop(executor: SingleThreadedExecutor, group: Any,
 
         cold_thread = threading.Thread(target=spin_cold, name="executor", daemon=True)
         cold_thread.start()
-    applied = apply_settings(reports, guard_node)  # after the executor thread exists: per thread
+    # after the executor thread exists (scheduling is per thread); at FIFO, busy_wait may shrink
+    applied, busy_wait = apply_settings(reports, guard_node, period, busy_wait)
     next_report = clock() + STATISTICS_EVERY_S
     try:
         next_cold = float("inf") if period else 0.0

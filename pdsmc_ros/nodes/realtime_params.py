@@ -99,9 +99,19 @@ def loop_reports(wrapper: Any) -> list[LoopReport]:
     return [LoopReport(wrapper, "lockstep")] if getattr(wrapper, "observer", False) else []
 
 
-def apply_settings(reports: Sequence[LoopReport], node: Node) -> Applied:
+FIFO_BUSY_SHARE = 0.5  # at SCHED_FIFO: the share of a period the loop may spin at most
+
+
+def apply_settings(reports: Sequence[LoopReport], node: Node, period: float | None,
+                   busy_wait: float) -> tuple[Applied, float]:
     """Apply the loop nodes' settings (merged: one thread ticks them all) to the calling
-    thread; one info line of what holds and, if the system refused something, one warning."""
+    thread; one info line of what holds and, if the system refused something, one warning.
+    Returns what was applied and the busy-wait to use.
+
+    A SCHED_FIFO thread that never sleeps is stopped by the kernel's real-time throttling
+    (``sched_rt_runtime_us``: 50 ms of every second), and one at FIFO wakes on time anyway:
+    at FIFO the loop spins at most ``FIFO_BUSY_SHARE`` of each period.
+    """
     settings = RealtimeSettings.merged([r.settings for r in reports])
     applied = apply(settings)
     logger = node.get_logger()
@@ -109,7 +119,10 @@ def apply_settings(reports: Sequence[LoopReport], node: Node) -> Applied:
         logger.info(applied.summary())
     if applied.warning:
         logger.warn(applied.warning)
-    return applied
+    if applied.fifo and period and busy_wait > FIFO_BUSY_SHARE * period:
+        logger.info(f"busy_wait {busy_wait:g} s at SCHED_FIFO: spinning at most {FIFO_BUSY_SHARE:g} of each period")
+        busy_wait = FIFO_BUSY_SHARE * period
+    return applied, busy_wait
 
 
 def publish_reports(reports: Sequence[LoopReport], collector: Collector) -> None:
