@@ -261,15 +261,15 @@ def watch(q: FloatArray, qd: FloatArray, step: int, bounds: FloatArray, first: N
     for i in range(n):
         x = q[i]
         v = qd[i]
-        # written so that NaN fails every test (its comparisons are all false)
-        if not (bounds[3, i] <= x <= bounds[4, i] and abs(v) <= bounds[5, i]) or not (
-                math.isfinite(x) and math.isfinite(v)):
+        # every comparison with NaN is false, and bounds[5] is finite: NaN and an infinite rate fail
+        # here; x - x is 0 for every finite x (an infinite angle beyond an infinite limit fails too)
+        if not (bounds[3, i] <= x <= bounds[4, i] and abs(v) <= bounds[5, i] and x - x == 0.0):
             return i
-        if first[0, i] < 0 and not (bounds[0, i] <= x <= bounds[1, i]):
+        if not (bounds[0, i] <= x <= bounds[1, i]) and first[0, i] < 0:
             first[0, i] = step
             at[0, i] = x
             new = True
-        if first[1, i] < 0 and abs(v) > bounds[2, i]:
+        if abs(v) > bounds[2, i] and first[1, i] < 0:
             first[1, i] = step
             at[1, i] = v
             new = True
