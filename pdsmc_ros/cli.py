@@ -154,6 +154,9 @@ def _add_run_arguments(p: argparse.ArgumentParser) -> None:
                    help="seconds per segment of a CSV contour (default 2)")
     p.add_argument("--params-file", default=None,
                    help="gains from a ROS 2 params file (the controller's, e.g. written by pdsmc tune)")
+    p.add_argument("--no-enforce-limits", action="store_true",
+                   help="do not clamp the torque to the arm's effort limits (URDF <limit effort>, "
+                   "config/robots.yaml); the clamp is on by default")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -312,6 +315,8 @@ def format_metrics(metrics: dict, robot_n: int) -> str:
         f"  within {metrics['contour_bound']:g} m: {metrics['contour_within_pct']:.2f} %"),
         "max |torque|     (N m): " + "  ".join(f"{metrics['max_torque'][i]:.4g}" for i in axes),
     ]
+    if metrics.get("saturated_periods"):
+        lines.append("saturated periods      : " + "  ".join(str(c) for c in metrics["saturated_periods"]))
     return "\n".join(lines)
 
 
@@ -319,9 +324,25 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     from .sim import simulate
 
     spec = _spec_from_args(args)
+    if args.no_enforce_limits:
+        from dataclasses import replace
+
+        spec = replace(spec, enforce_limits=False)
     result = simulate(spec)
+    for line in result.limit_warnings:
+        print(f"pdsmc simulate: warning: {line}", file=sys.stderr)
+    saturated = result.metrics.saturated_periods
+    if any(saturated):
+        limits = spec.robot_model().effort_limits
+        print("pdsmc simulate: torque clamped to the effort limits in " + ", ".join(
+            f"{count} periods of joint {i + 1} (|tau| <= {limits[i]:.4g} N m)" for i, count in enumerate(saturated)
+            if count) + " (--no-enforce-limits to opt out)", file=sys.stderr)
     if args.json:
         print(json.dumps(result.as_dict()))
+    if result.diverged:
+        print(f"pdsmc simulate: error: the run {result.diverged}; stopped there", file=sys.stderr)
+        return EXIT_FAILURE
+    if args.json:
         return 0
     d = spec.describe()
     print(
@@ -414,12 +435,15 @@ def cmd_analyze(args: argparse.Namespace) -> int:
             samples = run_samples(b.run)
             written += plot_run(samples, b.run.spec.robot, b.path.name, out)
             spec = b.run.spec
-            groups.setdefault((spec.robot, spec.contour, spec.scenario), []).append((spec.controller, samples, spec))
+            if not b.diverged:  # a diverged run would set the comparison figures' scales
+                groups.setdefault((spec.robot, spec.contour, spec.scenario), []).append(
+                    (spec.controller, samples, spec))
         for (robot, contour, scenario), runs in groups.items():
             # the thesis's comparison figures: every controller of one robot, contour and scenario together
             name = f"{Path(robot).stem}_{contour}" + ("" if scenario == "nominal" else f"_{scenario}")
             written += plot_controllers([(c, s) for c, s, _ in runs], robot, name, runs[0][2].bound, out)
-        written.append(plot_comparison([b.label for b in bags], [b.metrics.contour_mean for b in bags],
+        compared = [b for b in bags if not b.diverged]
+        written.append(plot_comparison([b.label for b in compared], [b.metrics.contour_mean for b in compared],
                                        out / "contour_mean_comparison.png", "mean contour error"))
         print(f"wrote {len(written)} figures into {out}/", file=sys.stderr)
     if args.json:
@@ -444,7 +468,11 @@ def cmd_analyze(args: argparse.Namespace) -> int:
             print(f"pdsmc analyze: {b.path}: for {b.run.plant_torque_steps} steps the plant applied a "
                   "torque other than a recorded command (safe mode, see /diagnostics); the statistics "
                   "use the torque applied", file=sys.stderr)
-    if bad:
+    for b in bags:
+        if b.diverged:
+            print(f"pdsmc analyze: {b.path}: the run {b.diverged}: marked diverged, left out of the "
+                  "comparisons and of the comparison figures' scales", file=sys.stderr)
+    if bad or any(b.diverged for b in bags):
         return EXIT_FAILURE
     return 0
 
