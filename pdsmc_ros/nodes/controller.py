@@ -40,7 +40,7 @@ from .controller_params import OrderedGainUpdates, declare_controller_parameters
 from .diagnostics import Diagnostics, InputReport
 from .executor import run_node
 from .follow_joint_trajectory import FollowJointTrajectoryServer, topic_trajectory
-from .io import EffortOutput, Inputs, RowBatches
+from .io import EffortOutput, Inputs, RowBatches, Times
 from .lifecycle import EXIT_OK, CommandingEntity, end_when_plant_leaves
 from .params import declare_node_run, description_json
 
@@ -175,10 +175,10 @@ class ControllerNode(CommandingEntity):
             return (0 if self.last_state is None else self.last_state[0]) / self.spec.rate
         return self.node.get_clock().now().nanoseconds * 1e-9
 
-    def on_goals(self, batch: list[tuple[bytes, float | None]]) -> None:
+    def on_goals(self, batch: list[tuple[bytes, Times]]) -> None:
         """Trajectory goals taken in a batch: each replaces the previous one, in order."""
-        for data, received in batch:
-            if topic_trajectory(self, data, received) and self.lockstep:
+        for data, times in batch:
+            if topic_trajectory(self, data, times) and self.lockstep:
                 self.compute(self.pairing.take())
 
     def compute(self, paired: Paired | None) -> None:

@@ -29,11 +29,13 @@ from trajectory_msgs.msg import JointTrajectoryPoint
 from ..joint_trajectory import JointTrajectoryReference
 from ..runtime.goal import INVALID_GOAL, GoalExecution, Outcome, resolve_tolerances, validate_goal
 from .diagnostics import Diagnostics
+from .io import Times
 
 if TYPE_CHECKING:
     from .controller import ControllerNode
 
 FEEDBACK_HZ = 20.0  # feedback and ~/controller_state (joint_trajectory_controller's action monitor rate)
+SOURCE_SKEW_S = 5.0  # a zero-stamped trajectory starts at its source time if that is at most this old
 CANCEL_STATE_WAIT_S = 1.0  # longest wait for rclpy to mark a canceled goal's handle canceling
 SATURATION_EVERY_S = 1.0  # a diagnostic when the clamp count has grown, at most this often
 
@@ -53,14 +55,23 @@ def _point(controller: ControllerNode, q: Any, qd: Any, qdd: Any = None) -> Join
     return point
 
 
-def topic_trajectory(controller: ControllerNode, data: bytes, received: float | None) -> bool:
+def topic_trajectory(controller: ControllerNode, data: bytes, times: Times) -> bool:
     """A ``~/joint_trajectory`` message: refused (logged) or driving from now on (whether it drives).
 
-    Real time: a zero ``header.stamp`` starts at ``received``, the middleware's reception
-    time, so however long the message waited to be taken it does not shift the trajectory."""
+    Real time: a zero ``header.stamp`` starts when the message was sent (``times``: the
+    middleware's source and reception times; the reception time if the source time is
+    implausible, e.g. another machine's clock off by more than :data:`SOURCE_SKEW_S`), so no
+    wait -- the controller still starting, DDS repairing a sample its reader dropped before it
+    knew the writer -- shifts the trajectory."""
     log = controller.node.get_logger()
     topic = controller.node.resolve_topic_name("~/joint_trajectory")
-    now = received if received is not None and not controller.lockstep else controller.now()
+    now = controller.now()
+    if not controller.lockstep:
+        sent, received = times
+        if sent is not None and now - SOURCE_SKEW_S <= sent <= now:
+            now = sent
+        elif received is not None and received <= now:
+            now = received
     state = controller.last_state[1:] if controller.last_state is not None else None
     reference, problem = JointTrajectoryReference.from_serialized(controller.selector, data, now, state)
     if reference is not None and controller.limits is not None:

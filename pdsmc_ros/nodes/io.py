@@ -110,9 +110,9 @@ class Inputs:
     def subscribe(self, msg_type: Any, topic: str, handler: Callable[[bytes], None],
                   qos: QoSProfile | None = None, *, with_receipt: bool = False) -> None:
         """Hand ``topic``'s messages to ``handler``. ``with_receipt`` (observers): each message of a
-        batch comes as ``(data, received)``, ``received`` the middleware's reception time (s, system
-        clock; None on the intra-process path), so the time a message is taken never stands in
-        for the time it arrived."""
+        batch comes as ``(data, (sent, received))``, the middleware's source and reception
+        times (s, system clock; None on the intra-process path or when the middleware gives
+        none), so the time a message is taken never stands in for the time it was sent."""
         if with_receipt:
             handler = WithReceipt(handler)
         if qos is None:
@@ -144,14 +144,23 @@ class Inputs:
             self.io_node = None
 
 
-class WithReceipt:
-    """An observer's handler that receives ``(data, received_s)`` pairs (see :meth:`Inputs.subscribe`)."""
+Times = tuple[float | None, float | None]
+"""A message's ``(sent, received)`` times from the middleware (s, system clock; None: unknown)."""
 
-    def __init__(self, handler: Callable[[list[tuple[bytes, float | None]]], None]) -> None:
+
+class WithReceipt:
+    """An observer's handler that receives ``(data, (sent, received))`` pairs (see :meth:`Inputs.subscribe`)."""
+
+    def __init__(self, handler: Callable[[list[tuple[bytes, Times]]], None]) -> None:
         self.handler = handler
 
     def __call__(self, batch: list[Any]) -> None:
-        self.handler([item if type(item) is tuple else (item, None) for item in batch])
+        self.handler([item if type(item) is tuple else (item, (None, None)) for item in batch])
+
+
+def _times(info: dict[str, Any]) -> Times:
+    # a middleware that gives no time gives 0
+    return ((info.get("source_timestamp") or 0) * 1e-9 or None, (info.get("received_timestamp") or 0) * 1e-9 or None)
 
 
 def _taken_by_wait_set(_msg: bytes) -> None:  # pragma: no cover - never called
@@ -201,9 +210,7 @@ def take_batches(inputs: Sequence[tuple[Any, Any, Callable[[list[bytes]], None]]
             taken = handle.take_message(msg_type, True)
             if taken is None:
                 break
-            # (a middleware that gives no reception time gives 0: then None, "taken now")
-            batch.append((taken[0], (taken[1].get("received_timestamp") or 0) * 1e-9 or None)
-                         if receipt else taken[0])
+            batch.append((taken[0], _times(taken[1])) if receipt else taken[0])
         if batch:
             handler(batch)
             took = True
