@@ -28,7 +28,9 @@ import numpy as np
 from .errors import InvalidInputError
 from .runtime.realtime import (
     AFFINITY_FIX,
+    BUSY_WAIT_S,
     DEFAULT_PRIORITY,
+    FIFO_BUSY_WAIT_S,
     FIFO_FIX,
     MAX_PRIORITY,
     MEMLOCK_FIX,
@@ -56,9 +58,9 @@ def add_parser(sub: argparse._SubParsersAction, commands: dict) -> None:  # type
                         "the nodes' thread_priority in real time)")
     p.add_argument("--cpu", default="", help="cores the loop may run on, e.g. 1 or 0,1 (the nodes' cpu_affinity)")
     p.add_argument("--no-lock-memory", action="store_true", help="do not lock memory (the nodes' lock_memory:=false)")
-    p.add_argument("--busy-wait", type=float, default=0.0002,
+    p.add_argument("--busy-wait", type=float, default=None,
                    help="seconds before each tick spent spinning instead of sleeping (the nodes' busy_wait; "
-                        "default 0.0002)")
+                        "default as the nodes: 0.00005 at SCHED_FIFO, 0.0002 at normal priority)")
     commands["rt-check"] = run
 
 
@@ -69,6 +71,8 @@ def settings_from(args: argparse.Namespace) -> tuple[RealtimeSettings, float, fl
     if not (np.isfinite(args.rate) and 1.0 <= args.rate <= 20000.0):
         raise InvalidInputError(f"--rate must be Hz in [1, 20000], got {args.rate:g}")
     period = 1.0 / args.rate
+    if args.busy_wait is None:  # as the nodes' serve loop chooses (nodes/realtime_params.py)
+        args.busy_wait = FIFO_BUSY_WAIT_S if args.priority > 0 else BUSY_WAIT_S
     if not (np.isfinite(args.busy_wait) and 0.0 <= args.busy_wait <= period):
         raise InvalidInputError(f"--busy-wait must be seconds in [0, {period:g}] (one period), got {args.busy_wait:g}")
     try:

@@ -32,6 +32,8 @@ from pathlib import Path
 from ..errors import ConfigError
 
 DEFAULT_PRIORITY = 50  # ros2_control's controller manager: SCHED_FIFO 50
+BUSY_WAIT_S = 0.0002  # seconds spun before each tick at normal priority (the nodes' busy_wait default)
+FIFO_BUSY_WAIT_S = 0.00005  # at SCHED_FIFO unless busy_wait is given: a FIFO thread wakes on time
 MAX_PRIORITY = 99
 # mlockall flags of Linux on x86, arm and riscv (<bits/mman-linux.h>)
 MCL_CURRENT, MCL_FUTURE = 1, 2
