@@ -12,7 +12,6 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-import numpy as np
 from rcl_interfaces.msg import (
     FloatingPointRange,
     ParameterDescriptor,
@@ -28,9 +27,8 @@ from ..config import choice
 from ..control import GAIN_NAMES, Gains, law, law_names
 from ..control.safety import MAX_SAFE_DAMPING, MAX_SAFE_STIFFNESS, SafetyConfig
 from ..errors import ConfigError, InvalidInputError, MissingGainsError
-from ..joints import check_joint_names
 from ..presets import RunSpec, contour_names, make_run, preset_gains, scenario_gain_factors, smc_reading
-from ..robots import ROBOTS, Manipulator
+from ..robots import ROBOTS
 from ..robots.catalog import ROBOT_DESCRIPTION, allowed_robots, register_description, resolve_robot
 from .topics import MODES
 
@@ -157,47 +155,6 @@ def declare_busy_wait(node: Node) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0.0 <= value <= 1.0:
         raise ConfigError(f"parameter busy_wait must be a number of seconds in [0, 1], got {value!r}")
     return float(value)
-
-
-def torque_limit_from_parameters(node: Node, n: int) -> np.ndarray | None:
-    """``torque_limit`` (one positive number per joint, or unset), validated."""
-    value = node.get_parameter("torque_limit").value
-    if value is None or (not isinstance(value, str) and len(value) == 0):
-        return None
-    if isinstance(value, str) or not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value):
-        raise ConfigError(f"parameter torque_limit must be a list of {n} numbers, got {value!r}")
-    limit = np.asarray(value, dtype=float)
-    if limit.shape != (n,) or not np.all(np.isfinite(limit)) or np.any(limit <= 0):
-        raise ConfigError(f"parameter torque_limit needs {n} finite values > 0 (N m), got {list(value)}")
-    return limit
-
-
-@dataclass(frozen=True)
-class ControllerParameters:
-    """The controller's own parameters (besides the run's and the gains), validated."""
-
-    joints: tuple[str, ...]
-    autostart: bool
-    torque_limit: np.ndarray | None
-    stale_periods: int
-
-
-def declare_controller_parameters(node: Node, robot: Manipulator) -> ControllerParameters:
-    """Declare ``joints``, ``autostart``, ``torque_limit`` and ``stale_periods``; a ConfigError if bad."""
-    node.declare_parameter("joints", list(robot.joint_names), ParameterDescriptor(
-        description="controlled joints, in the order of the commands' data (default: the robot's actuated "
-                    "joints); states and trajectories are matched by these names", dynamic_typing=True))
-    node.declare_parameter("autostart", True, ParameterDescriptor(
-        description="configure and activate at start (false: wait for the lifecycle transitions)"))
-    node.declare_parameter("torque_limit", None, ParameterDescriptor(
-        description="optional per-joint torque limits in N m (empty: none)", dynamic_typing=True))
-    stale_periods = declare_int_parameter(
-        node, "stale_periods", 20, "real time: periods after which a state or reference is stale", lo=1, hi=10**6)
-    autostart = node.get_parameter("autostart").value
-    if not isinstance(autostart, bool):
-        raise ConfigError(f"parameter autostart must be true or false, got {autostart!r}")
-    return ControllerParameters(check_joint_names(node.get_parameter("joints").value, robot.n), autostart,
-                                torque_limit_from_parameters(node, robot.n), stale_periods)
 
 
 @dataclass(frozen=True)
