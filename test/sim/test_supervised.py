@@ -138,3 +138,52 @@ def test_lockstep_sends_the_first_state_again_until_a_controller_answers() -> No
     assert seen.states == [0, 0, 0, 0, 1] and p.safe_mode == "off"
     p.check_watchdog(101.0 + 0.6)
     assert p.safe_mode == "hold"
+
+
+def limited_plant(*, lockstep: bool, limit: bool) -> tuple[SupervisedPlant, Recorder]:
+    seen = Recorder()
+    robot = Serial3R()
+    stepper = PlantStepper(robot, 1.0 / RATE, Q0, np.zeros(3))
+    supervised = SupervisedPlant(
+        stepper, last_step=5000, watchdog=Watchdog(rate=RATE, timeout_s=0.5, periods=5, time_scale=1.0),
+        safety=SafetyConfig(), lockstep=lockstep, publish_state=lambda: seen.states.append(stepper.steps),
+        report=lambda level, text: seen.reports.append((level, text)),
+        limit=robot.effort_limits if limit else None)
+    return supervised, seen
+
+
+def test_the_plant_saturates_at_the_effort_limits() -> None:
+    p, _ = limited_plant(lockstep=True, limit=True)
+    p.started = True
+    p.effort(0, (1.0e3, -1.0e3, 5.0), 0.0)
+    assert p.applied.tolist() == [50.0, -25.0, 5.0]  # config/robots.yaml's serial_3r limits
+    assert not p.failure
+
+
+def test_lockstep_divergence_ends_the_run_and_integrates_no_more() -> None:
+    p, seen = limited_plant(lockstep=True, limit=False)
+    p.started = True
+    step = 0
+    while not p.done and step < 4000:  # far past the limits (none applied): the arm spins up
+        p.effort(step, (300.0, -300.0, 100.0), 0.0)
+        step += 1
+    assert p.done and p.failure.startswith("diverged at t = ")
+    assert "beyond 10 x its velocity limit" in p.failure
+    errors = [text for level, text in seen.reports if level == "error"]
+    assert errors == [f"the arm {p.failure}; the plant stops (nothing more is integrated)"]
+    warnings = [text for level, text in seen.reports if level == "warn"]
+    assert 1 <= len(warnings) <= 3 and all("beyond its velocity limit" in w for w in warnings)  # once a joint
+    stopped = p.step
+    p.effort(stopped, (0.0, 0.0, 0.0), 0.0)
+    assert p.step == stopped and seen.states[-1] == stopped  # the diverged state went out, nothing after
+
+
+def test_real_time_divergence_publishes_the_diverged_state_once() -> None:
+    p, seen = limited_plant(lockstep=False, limit=False)
+    p.effort(0, (1.0e6, 1.0e6, 1.0e6), 0.0)
+    p.tick(0.0, lambda: True, 0.0)  # starts
+    for _ in range(100):
+        if p.done:
+            break
+        p.tick(0.0, lambda: True, 0.0)
+    assert p.done and p.failure and seen.states[-1] == seen.states[-2] + 1 == p.step
