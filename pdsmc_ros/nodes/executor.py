@@ -41,7 +41,7 @@ from .lifecycle import (
 )
 from .overrides import check_overrides
 from .params import BUSY_WAIT_S
-from .realtime_params import LoopReport, apply_settings, loop_reports, publish_reports
+from .realtime_params import LoopReport, apply_settings, due_reports, loop_reports
 
 
 def run_node(
@@ -173,6 +173,8 @@ class _Group:
         stats = {id(r.diagnostics.node): r.stats for r in reports if r.diagnostics is not None}
         # the ticking nodes, each with its loop statistics (None: not a loop node)
         self.ticking = [(w, stats.get(id(w.node))) for w in self.wrappers if getattr(w, "period", None)]
+        # real time: work a node does off its tick, in the loop's spare time (``idle(until)``)
+        self.idlers = [w.idle for w in self.wrappers if callable(getattr(w, "idle", None))]
         self.stopped_by_signal: str | None = None
         periods = {getattr(w, "period", None) for w in self.wrappers} - {None}
         self.period = min(periods) if periods else None
@@ -287,6 +289,7 @@ def _serve_loop(executor: SingleThreadedExecutor, group: Any,
     # after the executor thread exists (scheduling is per thread); at FIFO, busy_wait may shrink
     applied, busy_wait = apply_settings(reports, guard_node, period, busy_wait)
     next_report = clock() + STATISTICS_EVERY_S
+    unpublished: list[LoopReport] = []
     try:
         next_cold = float("inf") if period else 0.0
         next_tick = clock() + period if period else float("inf")
@@ -317,11 +320,17 @@ def _serve_loop(executor: SingleThreadedExecutor, group: Any,
                 if now - next_tick > period:  # more than a period behind: resynchronise
                     next_tick = now + period
                 now = clock()
-                if now >= next_report:  # at most once a second, in the time left after a tick
-                    publish_reports(reports, collector)
+                if now >= next_report:  # once a second: one node's statistics after each tick
+                    unpublished = due_reports(reports, collector)
                     next_report = now + STATISTICS_EVERY_S
-                elif next_tick - now > busy_wait + IDLE_MARGIN * period:
+                if next_tick - now <= busy_wait + IDLE_MARGIN * period:
+                    continue  # no time to spare
+                if unpublished:
+                    unpublished.pop().publish()
+                else:
                     collector.idle()
+                    for idle in group.idlers:  # e.g. a state topic at 20 Hz: not in another thread,
+                        idle(next_tick - busy_wait)  # whose message conversion would hold the GIL
                 continue
             if now >= next_cold:
                 if not ok():
@@ -357,7 +366,8 @@ def _serve_loop(executor: SingleThreadedExecutor, group: Any,
             wait_set.wait(int(sleep * 1e9))
     finally:
         restore(applied)
-        publish_reports(reports, collector)
+        for report in due_reports(reports, collector):
+            report.publish()
         stop.set()
         if wake_guard is not None:  # real time: stop the executor thread
             wake_guard.trigger()  # end its wait now

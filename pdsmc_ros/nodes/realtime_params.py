@@ -140,14 +140,13 @@ def apply_settings(reports: Sequence[LoopReport], node: Node, period: float | No
     return applied, busy_wait
 
 
-def publish_reports(reports: Sequence[LoopReport], collector: Collector) -> None:
-    """Publish the loop statistics, with the loop thread's page faults and collections."""
-    stats = [r.stats for r in reports if r.stats is not None]
-    if not stats:
-        return
-    faults = minor_faults()
-    for s in stats:
-        s.page_faults(faults)
-        s.collections = collector.collections
-    for report in reports:
-        report.publish()
+def due_reports(reports: Sequence[LoopReport], collector: Collector) -> list[LoopReport]:
+    """The reports with loop statistics, brought up to date (the loop thread's page faults and
+    collections): the loop publishes one after each tick with time to spare (about 0.1 ms each)."""
+    due = [r for r in reports if r.stats is not None]
+    faults = minor_faults() if due else 0
+    for r in due:
+        if r.stats is not None:
+            r.stats.page_faults(faults)
+            r.stats.collections = collector.collections
+    return due
