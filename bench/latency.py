@@ -78,8 +78,12 @@ class Driver:
         self.msg = JointState(name=["joint1", "joint2", "joint3"], position=list(Q0), velocity=[0.0, 0.0, 0.0])
         self.sender = threading.Thread(target=self.send, daemon=True)
 
-    def on_command(self, msg: object) -> None:
-        self.commands.append((time.perf_counter(), time.time(), tuple(msg.data)))  # type: ignore[attr-defined]
+    def on_command(self, msg: object, info: dict) -> None:
+        # the middleware's reception time, not the time this process's executor got to the message:
+        # on a loaded machine a Python executor falls behind 1,000 messages a second
+        received = info["received_timestamp"] * 1e-9
+        perf = time.perf_counter() - (time.time() - received)
+        self.commands.append((perf, received, tuple(msg.data)))  # type: ignore[attr-defined]
 
     def spin(self) -> None:
         while not self.stop.is_set():
@@ -209,6 +213,10 @@ def run(args: argparse.Namespace, env: dict[str, str], *, start_up: bool) -> int
         if not wait(lambda: active(driver), 120):
             print("controller did not become active", file=sys.stderr)
             return 1
+        # the lifecycle services answer from the executor thread before the loop's thread has
+        # applied its real-time settings (lock_memory's mlockall took 0.3-1.8 s here): the loop
+        # takes no state before then
+        time.sleep(3.0)
         driver.sender.start()
         wait(lambda: driver.commands, 3.0)
         if driver.commands:
