@@ -26,6 +26,10 @@ from ..runtime.goal import STOPPED_VELOCITY_TOLERANCE, Tolerances
 from ..runtime.joint_map import JointMap
 from .params import GainUpdates, declare_int_parameter
 
+FIXED = ("torque_limit", "enforce_limits", "stale_periods", "constraints.goal_time",
+         "constraints.stopped_velocity_tolerance")
+"""The controller's own parameters that a running controller does not re-read."""
+
 
 def torque_limit_from_parameters(node: Node, n: int) -> np.ndarray | None:
     """``torque_limit`` (one positive number per joint, or unset), validated."""
@@ -123,6 +127,10 @@ class OrderedGainUpdates(GainUpdates):
     joint_map: JointMap
 
     def validate(self, params: list[Parameter]) -> SetParametersResult:
+        for param in params:
+            if param.name in FIXED:
+                return SetParametersResult(successful=False,
+                                           reason=f"{param.name} is read at start and cannot change while it runs")
         ordered = [Parameter(p.name, value=self.joint_map.to_robot(p.value).tolist())
                    if p.name in GAIN_NAMES and p.value is not None and len(p.value) == len(self.joint_map.joints)
                    else p for p in params]

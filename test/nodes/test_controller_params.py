@@ -62,6 +62,8 @@ def test_gains_and_limits_given_in_joints_order_land_in_robot_order(node_with) -
     result = node.set_parameters([Parameter("kp", value=[300.0, 1800.0, 1700.0])])[0]
     assert result.successful, result.reason
     np.testing.assert_array_equal(applied[-1].kp, [1800.0, 1700.0, 300.0])
+    refused = node.set_parameters([Parameter("enforce_limits", value=False)])[0]
+    assert not refused.successful and "read at start" in refused.reason
 
 
 def test_the_clamp_defaults_to_the_arms_effort_limits_and_opts_out(node_with) -> None:  # noqa: ANN001
