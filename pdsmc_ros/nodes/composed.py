@@ -6,7 +6,10 @@ parameters, topics and QoS; they share one process and one executor, so a
 lockstep step between them costs no inter-process hand-off. With
 ``--intra-process`` their messages to each other skip DDS as well
 (:mod:`pdsmc_ros.nodes.intra`, rclcpp's intra-process comms); the figures of
-each arrangement are in docs/PERFORMANCE.md.
+each arrangement are in docs/PERFORMANCE.md. In real time one thread ticks
+every composed node, with their real-time settings merged (the highest
+``thread_priority``, every core of ``cpu_affinity``, memory locked if any asks:
+:mod:`pdsmc_ros.nodes.realtime_params`); each node keeps its own loop statistics.
 """
 
 from __future__ import annotations
