@@ -92,8 +92,11 @@ def test_pdsmc_commands_in_a_clean_environment(tmp_path: Path) -> None:
     assert sim.returncode == 0, sim.stderr
     assert json.loads(sim.stdout)["contour_mean"] > 0
     chk = run([str(BIN / "pdsmc"), "check-gains", "--robot", "serial_3r", "--contour", "circle",
-               "--controller", "pd", "--rate", "20000"], tmp_path)
-    assert "discrete-rate condition at 20000 Hz holds" in chk.stdout, chk.stderr
+               "--controller", "pd", "--rate", "20000"], tmp_path)  # real time: x1.19 < x2, refused
+    assert chk.returncode == 1 and "discrete-rate condition at 20000 Hz FAILS in realtime" in chk.stdout, chk.stderr
+    chk = run([str(BIN / "pdsmc"), "check-gains", "--robot", "serial_3r", "--contour", "circle",
+               "--controller", "pd", "--rate", "20000", "--mode", "lockstep"], tmp_path)
+    assert chk.returncode == 0 and "discrete-rate condition at 20000 Hz holds in lockstep" in chk.stdout, chk.stderr
     swp = run([str(BIN / "pdsmc"), "sweep", "--param", "kp", "--robot", "parallel_5r", "--contour",
                "circle", "--values", "100", "--workers", "1"], tmp_path)
     assert swp.returncode == 0 and "kp varied" in swp.stdout, swp.stderr
