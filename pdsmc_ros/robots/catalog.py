@@ -20,6 +20,7 @@ from typing import Any
 
 from ..config import load_config, read_yaml
 from ..errors import ConfigError, InvalidInputError
+from .options import OPTION_KEYS, SETTING_KEYS, check_entry
 from .registry import ROBOTS, register_robot, robot_names, unregister_robot
 from .task import TaskPlane
 from .urdf_robot import UrdfRobot, urdf_robot_class
@@ -34,9 +35,6 @@ element, when a pdsmc_ros plant published it, carries the arm's task options and
 DEFAULT_SETTINGS = {"control_rate": 1000.0, "sample_rate": 500.0, "contour_bound": 1.0e-3, "contour_size": 0.3}
 """Run settings of a URDF arm that does not give its own."""
 
-OPTION_KEYS = ("armature", "ee_frame", "locked_joints", "home", "plane", "orientation", "effort_limits",
-               "velocity_limits", "position_limits")
-SETTING_KEYS = ("control_rate", "sample_rate", "contour_bound", "contour_size", "contours", "gains")
 
 
 def catalog() -> Mapping[str, Any]:
@@ -148,41 +146,3 @@ def _register(name: str, source: Path | str, entry: Mapping[str, Any], where: st
         raise ConfigError(f"robot {name!r}: {exc}") from None
     register_robot(cls, config=settings)
     return cls
-
-
-def _number(value: Any) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool)
-
-
-def check_entry(entry: Mapping[str, Any], where: str) -> None:
-    """The keys and types of an arm's options (lengths against the joints: :func:`.urdf_robot_class`).
-
-    Raises
-    ------
-    ConfigError
-        One line naming ``where`` (the options file) and the key: an unknown key (the
-        allowed ones listed), or a value of the wrong type.
-    """
-    unknown = sorted(set(entry) - set(OPTION_KEYS) - set(SETTING_KEYS))
-    if unknown:
-        raise ConfigError(f"{where}: unknown key(s) {unknown}; allowed: {', '.join(OPTION_KEYS + SETTING_KEYS)}")
-    for key in ("ee_frame", "orientation", "contours"):
-        if entry.get(key) is not None and not isinstance(entry[key], str):
-            raise ConfigError(f"{where}: {key} must be a name (a string), got {entry[key]!r}")
-    locked = entry.get("locked_joints")
-    if locked is not None and (not isinstance(locked, list) or not all(isinstance(j, str) for j in locked)):
-        raise ConfigError(f"{where}: locked_joints must be a list of joint names, got {locked!r}")
-    plane = entry.get("plane")
-    if plane is not None and (not isinstance(plane, dict) or set(plane) != {"origin", "u", "v"} or not all(
-            isinstance(v, list) and len(v) == 3 and all(map(_number, v)) for v in plane.values())):
-        raise ConfigError(f"{where}: plane must give origin, u and v (3 numbers each), got {plane!r}")
-    for key in ("control_rate", "sample_rate", "contour_bound"):
-        if key in entry and not (_number(entry[key]) and 0.0 < entry[key] < float("inf")):
-            raise ConfigError(f"{where}: {key} must be a number > 0, got {entry[key]!r}")
-    size = entry.get("contour_size")
-    if size is not None and not (_number(size) and 0.0 < size < float("inf")):
-        raise ConfigError(f"{where}: contour_size must be a number > 0 (m) or null, got {size!r}")
-    gains = entry.get("gains")
-    if gains is not None and not isinstance(gains, (str, dict)):
-        raise ConfigError(f"{where}: gains must name a table of config/gains.yaml or give one (contour group -> "
-                          f"controller -> kp, kd, ...), got {gains!r}")

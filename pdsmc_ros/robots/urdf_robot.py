@@ -49,6 +49,7 @@ from numpy.typing import ArrayLike, NDArray
 from ..errors import InvalidInputError, UnreachableError
 from . import ik_kernels, spatial_kernels
 from .base import FloatArray, Manipulator, RobotParams
+from .options import per_joint, position_pairs
 from .task import TaskPlane, axis_rotation, rotation_log
 
 ORIENTATIONS = ("contour", "held", "free")
@@ -551,65 +552,6 @@ def urdf_robot_class(
         },
     }
     return type(f"UrdfRobot[{robot_name}]", (UrdfRobot,), attrs)
-
-
-def per_joint(value: Any, names: Sequence[str], key: str, where: str, *, lowest: float | None = None,
-              above: float | None = None, finite: bool = False, single: bool = True) -> FloatArray:
-    """``value`` as one float per joint of ``names`` (one number for all when ``single``).
-
-    Raises
-    ------
-    InvalidInputError
-        One line naming ``where``, ``key``, the joint count and what was given.
-    """
-    n = len(names)
-    wanted = f"{n} numbers (one per joint: {', '.join(names)})" + (" or one number for all" if single else "")
-    if isinstance(value, (bool, str, Mapping)) or value is None:
-        raise InvalidInputError(f"{where}: {key} needs {wanted}, got {value!r}")
-    try:
-        arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise InvalidInputError(f"{where}: {key} needs {wanted}, got {value!r}") from None
-    if arr.ndim == 0 and single:
-        arr = np.full(n, float(arr))
-    if arr.shape != (n,):
-        got = f"{arr.size} values" if arr.ndim == 1 else repr(value)
-        raise InvalidInputError(f"{where}: {key} needs {wanted}, got {got}")
-    bad = np.isnan(arr) | (~np.isfinite(arr) if finite else False)
-    if lowest is not None:
-        bad |= arr < lowest
-    if above is not None:
-        bad |= arr <= above
-    if np.any(bad):
-        i = int(np.argmax(bad))
-        rule = "finite" if finite else "a number"
-        rule += f" >= {lowest:g}" if lowest is not None else f" > {above:g}" if above is not None else ""
-        raise InvalidInputError(f"{where}: {key} of joint {names[i]!r} must be {rule}, got {float(arr[i])!r}")
-    return arr
-
-
-def position_pairs(value: Any, names: Sequence[str], where: str) -> FloatArray:
-    """``position_limits``: one ``[lower, upper]`` pair per joint, lower < upper.
-
-    Raises
-    ------
-    InvalidInputError
-        One line naming ``where``, the key, the joint count or the joint whose pair is wrong.
-    """
-    n = len(names)
-    try:
-        arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        arr = np.empty(0)
-    if isinstance(value, (bool, str, Mapping)) or arr.shape != (n, 2):
-        raise InvalidInputError(f"{where}: position_limits needs {n} pairs [lower, upper] (one per joint: "
-                                f"{', '.join(names)}), got {value!r}")
-    bad = np.isnan(arr).any(axis=1) | (arr[:, 0] >= arr[:, 1])
-    if np.any(bad):
-        i = int(np.argmax(bad))
-        raise InvalidInputError(f"{where}: position_limits of joint {names[i]!r} must be [lower, upper] with "
-                                f"lower < upper, got {list(value[i])!r}")
-    return arr
 
 
 def from_urdf(source: str | Path, *, armature: ArrayLike | None = None, ee_frame: str | None = None,
