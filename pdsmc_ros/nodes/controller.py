@@ -221,6 +221,10 @@ class ControllerNode(CommandingEntity):
                 self.timing_rows.add(self.timing.row(now, lateness))
         self.plant_watch.poll()
 
+    def idle(self, until: float) -> None:
+        """Real time, in the loop's spare time after a tick: the action's feedback and the controller state."""
+        self.action.publish(until)
+
     def close(self) -> None:
         """Stopping (signal, end of run): a zero command unless the lockstep run is complete."""
         self.action.stop()

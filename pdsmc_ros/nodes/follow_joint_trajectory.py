@@ -6,8 +6,9 @@ lives on a node of its own (``<controller>_action``, no parameter services or ro
 by a thread of its own with a small multi-threaded executor: a controller with its action
 server in the control loop's executor answered 142 of 2,000 states at 1 kHz; with the
 server's waiting in another thread it answered every one. The control loop checks the
-active goal every period; this thread only validates goals, waits for their outcome and
-publishes feedback and the controller state at :data:`FEEDBACK_HZ`.
+active goal every period; this thread only validates goals and waits for their outcome. The
+feedback and the controller state (:meth:`FollowJointTrajectoryServer.publish`, :data:`FEEDBACK_HZ`)
+go out in the control loop's spare time in real time (``idle``), by a timer of this thread in lockstep.
 """
 
 from __future__ import annotations
@@ -94,7 +95,6 @@ class FollowJointTrajectoryServer:
         self.node = Node(f"{controller.node.get_name()}_action", namespace=controller.node.get_namespace(),
                          context=controller.node.context, use_global_arguments=False,
                          start_parameter_services=False, enable_rosout=False)
-        self.executions: dict[bytes, GoalExecution] = {}
         group = ReentrantCallbackGroup()
         self.server = ActionServer(self.node, FollowJointTrajectory, f"{base}/follow_joint_trajectory",
                                    execute_callback=self.execute, goal_callback=self.on_goal,
@@ -102,8 +102,10 @@ class FollowJointTrajectoryServer:
         self.state_pub = self.node.create_publisher(JointTrajectoryControllerState, f"{base}/controller_state", 10)
         self.saturation = Diagnostics(controller.node, "controller: torque limits", controller.spec.robot,
                                       values=lambda: {"saturated_periods": str(controller.guard.clamped)})
-        self.saturated_seen, self.ticks = 0, 0
-        self.node.create_timer(1.0 / FEEDBACK_HZ, self.publish_state, callback_group=group)
+        self.saturated_seen, self.ticks, self.next_publish = 0, 0, 0.0
+        self.goals: dict[bytes, tuple[Any, GoalExecution]] = {}  # active goals: (handle, execution)
+        if controller.lockstep:  # no deadlines: a timer here; real time: the loop's spare time (idle)
+            self.node.create_timer(1.0 / FEEDBACK_HZ, lambda: self.publish(float("inf")), callback_group=group)
         self.executor = MultiThreadedExecutor(num_threads=3, context=controller.node.context)
         self.executor.add_node(self.node)
         self.stopping = threading.Event()
@@ -117,7 +119,7 @@ class FollowJointTrajectoryServer:
     def stop(self) -> None:
         """End the thread and the node (the process is stopping)."""
         self.stopping.set()
-        for execution in list(self.executions.values()):
+        for _, execution in list(self.goals.values()):
             execution.done.set()  # their execute callbacks return
         self.thread.join(timeout=2.0)
         self.executor.shutdown(timeout_sec=1.0)
@@ -132,8 +134,8 @@ class FollowJointTrajectoryServer:
         return GoalResponse.ACCEPT  # validated in execute: its result says why it is refused
 
     def on_cancel(self, goal_handle: Any) -> CancelResponse:
-        execution = self.executions.get(bytes(goal_handle.goal_id.uuid))
-        if execution is not None and self.controller.goals.cancel(execution):
+        found = self.goals.get(bytes(goal_handle.goal_id.uuid))
+        if found is not None and self.controller.goals.cancel(found[1]):
             self.controller.node.get_logger().info("action goal canceled: holding")
         return CancelResponse.ACCEPT
 
@@ -172,18 +174,12 @@ class FollowJointTrajectoryServer:
             goal_handle.abort()
             return refusal
         key = bytes(goal_handle.goal_id.uuid)
-        self.executions[key] = execution
+        self.goals[key] = (goal_handle, execution)  # its feedback: publish()
         try:
-            while not execution.done.wait(1.0 / FEEDBACK_HZ):
-                feedback = execution.feedback
-                if feedback is not None:
-                    goal_handle.publish_feedback(FollowJointTrajectory.Feedback(
-                        header=self._header(feedback.time), joint_names=list(self.controller.params.joints),
-                        desired=_point(self.controller, *feedback.desired),
-                        actual=_point(self.controller, *feedback.actual),
-                        error=_point(self.controller, *feedback.error)))
+            while not execution.done.wait(0.1) and not self.stopping.is_set():
+                pass
         finally:
-            del self.executions[key]
+            del self.goals[key]
         outcome = execution.outcome
         if outcome is None:  # stopping
             goal_handle.abort()
@@ -207,8 +203,17 @@ class FollowJointTrajectoryServer:
 
         return Header(stamp=_stamp(t))
 
-    def publish_state(self) -> None:
-        """``~/controller_state`` from the loop's latest period, and saturation diagnostics."""
+    def publish(self, until: float) -> None:
+        """At :data:`FEEDBACK_HZ`: ``~/controller_state`` from the loop's latest period, each active
+        goal's feedback and (once a second, if the clamp count grew) a saturation diagnostic.
+
+        Real time: called by the control loop in its spare time (``idle``), never from a thread
+        of its own, whose message conversions would hold the GIL while a tick is due; it stops
+        once ``time.perf_counter()`` reaches ``until``."""
+        now = time.perf_counter()
+        if now < self.next_publish:
+            return
+        self.next_publish = max(self.next_publish + 1.0 / FEEDBACK_HZ, now)
         ctl = self.controller
         snapshot = ctl.snapshot
         if snapshot is not None:
@@ -219,7 +224,16 @@ class FollowJointTrajectoryServer:
                                                  error=_point(ctl, ref[0] - q, ref[1] - qd))
             msg.output.effort = ctl.joint_map.to_user(np.asarray(tau, dtype=float)).tolist()
             self.state_pub.publish(msg)
+        for handle, execution in list(self.goals.values()):
+            feedback = execution.feedback
+            if feedback is None or time.perf_counter() >= until:
+                continue
+            handle.publish_feedback(FollowJointTrajectory.Feedback(
+                header=self._header(feedback.time), joint_names=list(ctl.params.joints),
+                desired=_point(ctl, *feedback.desired), actual=_point(ctl, *feedback.actual),
+                error=_point(ctl, *feedback.error)))
         self.ticks += 1
-        if self.ticks % int(FEEDBACK_HZ * SATURATION_EVERY_S) == 0 and ctl.guard.clamped > self.saturated_seen:
+        if self.ticks % int(FEEDBACK_HZ * SATURATION_EVERY_S) == 0 and ctl.guard.clamped > self.saturated_seen \
+                and time.perf_counter() < until:
             self.saturated_seen = ctl.guard.clamped
             self.saturation.publish("warn", f"torque clamped to the limits in {ctl.guard.clamped} periods so far")
