@@ -130,7 +130,8 @@ model leaves out (jitter and late periods stretch the delay, damping, Coriolis a
 inertia change the poles) -- the UR5's old shipped gains, x1.04 without delay, diverged within
 40 ms. Lockstep: stable (x1): its delay is exactly zero and the held input exactly what the
 plant integrates, so the map is exact up to the terms the linearisation leaves out; the
-thesis's presets run there at x1.3 (serial arm, its 10 kHz) and must keep running."""
+thesis's presets run there at x1.11 (serial circle, PD-SMC) to x2.95 at the serial arm's 10 kHz
+and x10.7 and up on the five-bar at 5 kHz, and must keep running unchanged."""
 
 
 def loop_delay(mode: str, delay_periods: int = 0) -> int:
