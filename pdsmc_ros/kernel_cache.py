@@ -51,7 +51,8 @@ def numba_cache_dir(source: Path) -> Path | None:
     numba tries its locators in order -- ``NUMBA_CACHE_DIR`` (per-directory subfolders), a
     writable ``__pycache__`` beside the file, the user-wide cache -- and takes the first whose
     directory it can create and write to; asking them the same question gives the same answer.
-    ``None`` when numba could not cache this file at all.
+    ``None`` when numba could not cache this file at all. (numba's ``NUMBA_CACHE_LOCATOR_CLASSES``
+    override is not followed: with it the refresh marks the default location, not the override's.)
     """
     from numba.core import caching
 
