@@ -9,8 +9,10 @@ names the fix (``/etc/security/limits.conf`` ``rtprio``/``memlock``, or the capa
 
 The scheduling policy and the affinity are per thread on Linux (``sched_setscheduler(0)``
 and ``sched_setaffinity(0)`` act on the calling thread): they are applied by the loop's own
-thread, after the threads that must stay at normal priority (the executor's, Fast DDS's)
-exist, so those do not inherit them. Memory locking is per process.
+thread, after the process's other threads (the executor's, Fast DDS's) exist. Those go to
+``SCHED_FIFO`` priority 1 (:func:`raise_helpers`: below the loop, above the machine's normal
+load, which would otherwise preempt one holding the GIL or a DDS lock the loop waits for) and
+to the same cores (:func:`pin_helpers`). Memory locking is per process.
 
 Python's garbage collector is kept out of the loop (:class:`Collector`): everything alive
 after start-up is frozen (``gc.freeze``: never scanned again), automatic collection is off,
@@ -107,8 +109,9 @@ class Applied:
         """One line for the node's log."""
         parts = [f"SCHED_FIFO priority {os.sched_getparam(0).sched_priority}" if self.fifo else "normal scheduling",
                  f"cores {','.join(map(str, self.affinity))}" if self.affinity else "any core",
-                 "memory locked" if self.memory_locked else "memory not locked"]
-        return "real time: " + ", ".join(parts)
+                 "memory locked" if self.memory_locked else "memory not locked",
+                 f"{len(self.helpers)} other threads at FIFO {HELPER_PRIORITY}" if self.helpers else ""]
+        return "real time: " + ", ".join(p for p in parts if p)
 
 
 def _libc() -> ctypes.CDLL:
@@ -160,9 +163,11 @@ def raise_helpers(priority: int = HELPER_PRIORITY) -> list[int]:
     changed = []
     for entry in os.listdir("/proc/self/task"):
         tid = int(entry)
-        if tid == own or os.sched_getscheduler(tid) != os.SCHED_OTHER:
+        if tid == own:
             continue
         try:
+            if os.sched_getscheduler(tid) != os.SCHED_OTHER:
+                continue
             os.sched_setscheduler(tid, os.SCHED_FIFO, os.sched_param(priority))
         except OSError:  # refused (as the loop's own) or the thread has ended
             continue
