@@ -44,7 +44,7 @@ def test_theorem_conditions_hold_for_thesis_gains_and_fail_for_weak_ks() -> None
 
 def test_check_gains_cli_reports_each_condition() -> None:
     proc = subprocess.run([sys.executable, "-m", "pdsmc_ros.cli", "check-gains", "--robot", "serial_3r",
-                           "--contour", "circle", "--controller", "pdsmc", "--rate", "5000"],
+                           "--contour", "circle", "--controller", "pdsmc", "--rate", "5000", "--mode", "lockstep"],
                           capture_output=True, text=True, timeout=300)
     assert proc.returncode == 1, proc.stderr  # the rate condition fails at 5 kHz
     assert proc.stdout.count("holds ") == 9  # lambda, Ks x 3, K + C^T and the four gain bounds
