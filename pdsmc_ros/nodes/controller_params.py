@@ -20,7 +20,7 @@ from rclpy.parameter import Parameter
 
 from ..control import GAIN_NAMES, Gains
 from ..errors import ConfigError
-from ..presets import RunSpec
+from ..presets import RunSpec, scenario_gain_factors
 from ..robots import Manipulator
 from ..runtime.goal import STOPPED_VELOCITY_TOLERANCE, Tolerances
 from ..runtime.joint_map import JointMap
@@ -111,13 +111,14 @@ def gains_in_robot_order(node: Node, spec: RunSpec, joint_map: JointMap) -> RunS
     if joint_map.identity:
         return spec
     rows = spec.gains.as_dict()
+    factors = scenario_gain_factors(spec.scenario, spec.controller)  # as given gains are scaled in robot order
     for name in GAIN_NAMES:
         try:
             value = node.get_parameter(name).value if node.has_parameter(name) else None
         except ParameterUninitializedException:
             continue  # not given: the preset's row, already in robot order
         if value is not None and len(value) == len(joint_map.joints):
-            rows[name] = joint_map.to_robot([float(v) for v in value]).tolist()
+            rows[name] = (joint_map.to_robot([float(v) for v in value]) * factors.get(name, 1.0)).tolist()
     return dataclasses.replace(spec, gains=Gains.from_mapping(rows, len(joint_map.joints), spec.controller))
 
 
