@@ -223,6 +223,9 @@ COLD_PERIOD_S = 0.02  # lockstep: the executor's turn (timers, parameters, /cloc
 # (one turn costs 0.2-1 ms of Python; every 5 ms it took 15 % of the lockstep rate)
 COLD_WAIT_S = 5.0  # real time: the executor thread's longest sleep (it is woken to stop)
 GIL_SWITCH_S = 0.0001  # real time: longest the executor thread keeps the GIL from the loop
+# real time, from the spin before a tick to its end: the loop keeps the GIL (another thread
+# taking it there could hold it through a long C call, e.g. rclpy converting a message)
+HOLD_SWITCH_S = 0.005
 
 
 def _serve_loop(executor: SingleThreadedExecutor, group: Any,
@@ -290,6 +293,7 @@ def _serve_loop(executor: SingleThreadedExecutor, group: Any,
     applied, busy_wait = apply_settings(reports, guard_node, period, busy_wait)
     next_report = clock() + STATISTICS_EVERY_S
     unpublished: list[LoopReport] = []
+    holding = False  # real time: the GIL kept through the spin and the tick (HOLD_SWITCH_S)
     try:
         next_cold = float("inf") if period else 0.0
         next_tick = clock() + period if period else float("inf")
@@ -316,6 +320,9 @@ def _serve_loop(executor: SingleThreadedExecutor, group: Any,
                 if not ok():
                     return
                 group.tick(now - next_tick)
+                if holding:
+                    sys.setswitchinterval(GIL_SWITCH_S)
+                    holding = False
                 next_tick += period
                 if now - next_tick > period:  # more than a period behind: resynchronise
                     next_tick = now + period
@@ -348,6 +355,9 @@ def _serve_loop(executor: SingleThreadedExecutor, group: Any,
                 due = min(due, next_observe)
             sleep = due - now
             if sleep <= 0.0:
+                if period and not holding:
+                    sys.setswitchinterval(HOLD_SWITCH_S)
+                    holding = True
                 continue  # busy-wait for the tick
             if pending(local_hot) or (observing and pending(local_observed)):
                 continue
