@@ -24,6 +24,7 @@ from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy_i
 from ..errors import InvalidInputError, PdsmcError
 from ..runtime.realtime import Collector, restore
 from . import intra
+from .group import NodeGroup
 from .io import (
     Inputs,
     pending,
@@ -104,7 +105,7 @@ def run_nodes(
             return code
         finally:
             intra.activate(None)
-        group = _Group(wrappers, reports)
+        group = NodeGroup(wrappers, reports)
         period = group.period
         # The loop's messages go through a hand-driven wait set (Inputs), the rest through
         # the executor between them. Real-time nodes are paced by the loop, not by rclpy
@@ -163,58 +164,6 @@ class _LocalInputs:
     hot: Sequence[tuple[deque, Callable[[bytes], None]]] = ()
     observed: Sequence[tuple[deque, Callable[[bytes], None]]] = ()
     guard: Any = None  # triggered when a message is queued from another thread
-
-
-class _Group:
-    """Several node wrappers seen as one: done when all are, failed if any is."""
-
-    def __init__(self, wrappers: Sequence[Any], reports: Sequence[LoopReport] = ()) -> None:
-        self.wrappers = list(wrappers)
-        stats = {id(r.diagnostics.node): r.stats for r in reports if r.diagnostics is not None}
-        # the ticking nodes, each with its loop statistics (None: not a loop node)
-        self.ticking = [(w, stats.get(id(w.node))) for w in self.wrappers if getattr(w, "period", None)]
-        # real time: work a node does off its tick, in the loop's spare time (``idle(until)``)
-        self.idlers = [w.idle for w in self.wrappers if callable(getattr(w, "idle", None))]
-        self.stopped_by_signal: str | None = None
-        periods = {getattr(w, "period", None) for w in self.wrappers} - {None}
-        self.period = min(periods) if periods else None
-        self.busy_wait = max((getattr(w, "busy_wait", BUSY_WAIT_S) for w in self.wrappers
-                              if getattr(w, "period", None)), default=BUSY_WAIT_S)
-        # real time, composed: the plant's node stays in the graph after its run, so the
-        # nodes that watch for it to leave are told when it is done
-        self.state_sources = [w for w in self.wrappers if getattr(w, "publishes_states", False)]
-        self.watchers = [w.plant_watch for w in self.wrappers if getattr(w, "plant_watch", None)]
-
-    @property
-    def done(self) -> bool:
-        for w in self.wrappers:  # noqa: SIM110 (checked at every pass of the loop: no generator)
-            if not w.done:
-                return False
-        return True
-
-    @done.setter
-    def done(self, value: bool) -> None:  # set by the signal handler
-        for w in self.wrappers:
-            w.done = value
-
-    @property
-    def exit_code(self) -> int:
-        return max(w.exit_code for w in self.wrappers)
-
-    def tick(self, lateness: float) -> None:
-        clock = time.perf_counter
-        deadline = clock() - lateness
-        for w, stats in self.ticking:
-            if not w.done:
-                start = clock()
-                w.tick(lateness)
-                if stats is not None:  # ros2_control's overrun accounting, per node
-                    stats.record(start, start - deadline, clock())
-        if self.watchers and self.state_sources and all(w.done for w in self.state_sources):
-            for watch in self.watchers:
-                if not watch.gone:
-                    watch.gone = True
-                    watch.on_gone()
 
 
 STATISTICS_EVERY_S = 1.0  # real time: loop statistics on /diagnostics this often
