@@ -225,9 +225,10 @@ class Staleness:
 # --------------------------------------------------------------------------- #
 # Joint limits and divergence
 # --------------------------------------------------------------------------- #
-BOUND_ROWS = 6
+BOUND_ROWS = 7
 """Rows of :attr:`DivergenceCheck.bounds`: position limits (lower, upper), velocity limit,
-runaway bounds (lower, upper position, rate)."""
+runaway bounds (lower, upper position, rate), and the smaller of the velocity limit and the
+runaway rate (the common case's test)."""
 
 
 @njit(cache=True)  # numba types the kernel when it compiles it
@@ -241,7 +242,7 @@ def watch(q: FloatArray, qd: FloatArray, step: int, bounds: FloatArray, first: N
         Joint angles and rates.
     step : int
         The state's control step.
-    bounds : ndarray, shape (6, n)
+    bounds : ndarray, shape (7, n)
         :attr:`DivergenceCheck.bounds`.
     first : ndarray of int64, shape (2, n)
         First step each joint was beyond its position (row 0) or velocity (row 1) limit, -1 if
@@ -261,6 +262,10 @@ def watch(q: FloatArray, qd: FloatArray, step: int, bounds: FloatArray, first: N
     for i in range(n):
         x = q[i]
         v = qd[i]
+        # the common case first, in three comparisons: within the position limits and below the
+        # smaller of the velocity limit and the runaway rate (finite: NaN and infinities fail it)
+        if bounds[0, i] <= x <= bounds[1, i] and abs(v) <= bounds[6, i]:
+            continue
         # every comparison with NaN is false, and bounds[5] is finite: NaN and an infinite rate fail
         # here; x - x is 0 for every finite x (an infinite angle beyond an infinite limit fails too)
         if not (bounds[3, i] <= x <= bounds[4, i] and abs(v) <= bounds[5, i] and x - x == 0.0):
@@ -303,7 +308,8 @@ class DivergenceCheck:
         upper = np.asarray(position_limits, dtype=float)[:, 1]
         velocity = np.asarray(velocity_limits, dtype=float)
         self.bounds = np.empty((BOUND_ROWS, n))
-        """``(6, n)``: lower, upper position limit, velocity limit, runaway lower, upper, rate."""
+        """``(7, n)``: lower, upper position limit, velocity limit, runaway lower, upper, rate, and
+        ``min(velocity limit, runaway rate)``."""
         self.bounds[0] = lower
         self.bounds[1] = upper
         self.bounds[2] = velocity
@@ -311,6 +317,7 @@ class DivergenceCheck:
         self.bounds[4] = upper + RUNAWAY_POSITION_MARGIN
         self.bounds[5] = np.where(np.isfinite(velocity), RUNAWAY_VELOCITY_FACTOR * velocity,
                                   RUNAWAY_VELOCITY_UNKNOWN)
+        self.bounds[6] = np.minimum(velocity, self.bounds[5])
         self.first: NDArray[np.int64] = np.full((2, n), -1, dtype=np.int64)
         self.at = np.zeros((4, n))
         """Rows 0, 1: the angle and rate of each joint's first limit crossing; rows 2, 3: the
