@@ -121,3 +121,36 @@ def test_collector_keeps_collection_out_of_the_loop() -> None:
     finally:
         collector.stop()
     assert gc.isenabled() and gc.get_freeze_count() == 0
+
+
+def test_the_last_statistics_of_each_node_are_read_back_from_a_bag(tmp_path: Path) -> None:
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    from pdsmc_ros.runtime.statistics import bag_loop_statistics, format_loop_statistics, status_name
+
+    store = get_typestore(Stores.ROS2_JAZZY)
+    Array, Status, KeyValue = (store.types[f"diagnostic_msgs/msg/{n}"] for n in ("DiagnosticArray",
+                                                                                  "DiagnosticStatus", "KeyValue"))
+    Header, Time = store.types["std_msgs/msg/Header"], store.types["builtin_interfaces/msg/Time"]
+
+    def array(name: str, missed: int) -> object:
+        stats = LoopStatistics(0.001, warm_up=0)
+        for k in range(10):
+            stats.record(k * 0.001, 0.002 if k < missed else 0.0, k * 0.001 + 1e-4)
+        values = [KeyValue(key=k, value=v) for k, v in stats.values().items()]
+        return Array(header=Header(stamp=Time(sec=0, nanosec=0), frame_id=""),
+                     status=[Status(level=0, name=name, message="", hardware_id="", values=values)])
+
+    bag = tmp_path / "bag"
+    with Writer(bag, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        conn = writer.add_connection("/diagnostics", "diagnostic_msgs/msg/DiagnosticArray", typestore=store)
+        for t, (name, missed) in enumerate([(status_name("controller"), 1), (status_name("plant"), 0),
+                                            (status_name("controller"), 3), ("plant: other status", 9)]):
+            writer.write(conn, t + 1, store.serialize_cdr(array(name, missed), conn.msgtype))
+    stats = bag_loop_statistics(bag)
+    assert set(stats) == {"controller", "plant"}
+    assert stats["controller"]["missed"] == 3 and stats["controller"]["ticks"] == 10  # the last one
+    assert stats["plant"]["missed"] == 0
+    lines = format_loop_statistics("run", stats)
+    assert lines[0].startswith("run: controller loop: 10 ticks, missed 3 (30.000 %)")
