@@ -153,7 +153,9 @@ def evaluate(spec: RunSpec, gains: Gains, torque_limit: np.ndarray,
     ``gains``: its contour error, or why it is refused."""
     from .sim import simulate  # numba: only when a run is made
 
-    trial = dataclasses.replace(spec, gains=gains)
+    # without the clamp: a candidate that needs more than a joint's effort limit is refused below,
+    # not run saturated (the clamp would hide what it needs)
+    trial = dataclasses.replace(spec, gains=gains, enforce_limits=False)
     requirement = requirement or Requirement()
     try:
         for run in (trial, *(dataclasses.replace(other, gains=gains) for other in also)):
@@ -292,11 +294,8 @@ def _spec(robot: str, contour: str, controller: str, rate: float | None) -> RunS
 
 
 def _torque_limit(spec: RunSpec) -> np.ndarray:
-    limit = getattr(spec.robot_model(), "torque_limit", None)
-    n = len(spec.gains.kp)
-    if limit is None:
-        return np.full(n, np.inf)
-    limit = np.asarray(limit, dtype=float)
+    """The arm's effort limits (inf where it has none): what a candidate may need at most."""
+    limit = np.asarray(spec.robot_model().effort_limits, dtype=float)
     return np.where(limit > 0.0, limit, np.inf)
 
 

@@ -16,6 +16,7 @@ plant waits for its command). Stopping (signal, lifecycle, stale inputs) publish
 
 from __future__ import annotations
 
+import dataclasses
 import sys
 import time
 from collections.abc import Sequence
@@ -59,7 +60,9 @@ class ControllerNode(CommandingEntity):
         self.robot = robot = run.spec.robot_model()
         self.params = params = declare_controller_parameters(node, robot)
         self.joint_map = params.joint_map
-        self.spec = spec = gains_in_robot_order(node, run.spec, self.joint_map)
+        # the description says whether the clamp runs, so simulate(spec) of the bag repeats the run
+        self.spec = spec = dataclasses.replace(gains_in_robot_order(node, run.spec, self.joint_map),
+                                               enforce_limits=params.enforce_limits)
         self.selector = JointSelector(robot.joint_names)  # the law's vectors stay in robot order
         self.limits = JointLimits.of(robot, robot.joint_names) if params.enforce_limits else None
         self.reference = spec.reference()
