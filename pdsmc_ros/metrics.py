@@ -1,7 +1,7 @@
 """Tracking and contouring statistics as the thesis's tables compute them.
 
 One implementation serves the in-process simulator and the bag analysis
-(NOTES.md section 4): means and population standard deviations of ABSOLUTE
+(docs/THESIS_NOTES.md section 4): means and population standard deviations of ABSOLUTE
 errors over the sampled instants; axial errors per actuated joint
 (``e = q_d - q``); task-space |x error|, |y error| and the error magnitude;
 contour error (Eqs. 2.9 / 2.10); share of samples within the contour bound;
@@ -66,7 +66,7 @@ def sample_times(duration: float, sample_rate: float) -> FloatArray:
 
 
 def compute_metrics(samples: Samples, bound: float, *, saturated: Sequence[int] = ()) -> Metrics:
-    """Thesis-style statistics of sampled signals (NOTES.md section 4); ``saturated``: the
+    """Thesis-style statistics of sampled signals (docs/THESIS_NOTES.md section 4); ``saturated``: the
     clamped periods of each joint, counted by the loop (every period, not only the samples).
 
     Raises

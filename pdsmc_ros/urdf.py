@@ -5,7 +5,7 @@ ROS's convention is z up (REP 103), so the URDF puts the arms in the x-z plane
 of ``base_link``: thesis ``(x, y)`` is ``(x, z)``, and every joint turns about
 ``-y`` (a positive angle turns the x axis towards +z, as in the thesis). A URDF
 of the serial 3R built this way equals the hand-derived dynamics to 1e-9 in
-Pinocchio (NOTES.md).
+Pinocchio (docs/THESIS_NOTES.md section 2; test/robots/test_urdf_robot.py).
 
 The motors' inertia ``J`` has no URDF element (Pinocchio reads it as
 ``model.armature``, ros2_control not at all); it is given in a comment, and the

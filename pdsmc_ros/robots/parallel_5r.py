@@ -60,7 +60,7 @@ class Parallel5R(Manipulator):
         constant along a motion so the passive joints stay continuous.
     left_elbow, right_elbow : {+1, -1}, optional
         Sign of ``q3`` and ``q4`` chosen by :meth:`inverse_kinematics`; the
-        defaults (-1, +1) reproduce Table 4.6 (NOTES.md section 3).
+        defaults (-1, +1) reproduce Table 4.6 (docs/THESIS_NOTES.md section 3).
     """
 
     name = "parallel_5r"

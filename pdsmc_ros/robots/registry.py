@@ -32,7 +32,7 @@ class RobotSettings:
     ----------
     control_rate : float
         Default control rate (Hz); the thesis robots' rates reproduce its
-        continuous-time results (NOTES.md section 1).
+        continuous-time results (docs/THESIS_NOTES.md section 1).
     sample_rate : float
         Rate (Hz) at which errors are sampled for the statistics (Section 4.2).
     contour_bound : float

@@ -46,7 +46,7 @@ class Serial3R(Manipulator):
     Notes
     -----
     The appendix's closed-form inertia matrix (Eqs. 12-17) carries typos
-    (NOTES.md section 2); the model here is derived from the Lagrangian of the
+    (docs/THESIS_NOTES.md section 2); the model here is derived from the Lagrangian of the
     chain (see :class:`PlanarChain`) and checked against Pinocchio in the tests.
     Task point: ``(x_ee, y_ee, q_ee)`` with ``q_ee = q1 + q2 + q3``, Eqs. (1)-(3).
     """
@@ -77,7 +77,7 @@ class Serial3R(Manipulator):
         return np.concatenate([xy, np.sum(q, axis=-1, keepdims=True)], axis=-1)
 
     def _ik(self, p: FloatArray) -> FloatArray:
-        """Appendix Eqs. (4)-(8), branch ``sin(q2) > 0`` (NOTES.md section 3)."""
+        """Appendix Eqs. (4)-(8), branch ``sin(q2) > 0`` (docs/THESIS_NOTES.md section 3)."""
         l1, l2, l3 = self.lengths
         x, y, pose = p[..., 0], p[..., 1], p[..., 2]
         x3 = x - l3 * np.cos(pose)

@@ -1,6 +1,6 @@
 """The continuous-time limit of a run: the control law inside a stiff ODE solver.
 
-The thesis simulated in continuous time (NOTES.md section 1); the project runs a
+The thesis simulated in continuous time (docs/THESIS_NOTES.md section 1); the project runs a
 discrete loop (zero-order hold, RK4) fast enough to stand in for it. This module
 measures how close that is: the same plant (:func:`pdsmc_ros.robots.compiled.forward_dynamics`,
 Eq. 4.1) and the same control law (:class:`simulator.ControlLaw`) evaluated at every

@@ -52,7 +52,7 @@ CONTINUOUS_CASE = ("serial_3r", "circle", "pdsmc")
 
 # Statistics the thesis computed differently for one controller, found by comparing its
 # tables with ours; per (controller, thesis statistic): our statistic it is compared with,
-# and why. The report shows both our values (as read and as NOTES.md section 4 defines it).
+# and why. The report shows both our values (as read and as docs/THESIS_NOTES.md section 4 defines it).
 STATISTIC_READINGS: dict[tuple[str, str], tuple[str, str]] = {
     ("pdsmc", "task_sd.x"): (
         "task_sd_signed.x",
@@ -100,7 +100,7 @@ class Cell:
 
     ``ours_metric`` names our statistic compared with the thesis's ``metric``
     (the same one unless :data:`STATISTIC_READINGS` says otherwise); ``as_defined``
-    is our value of ``metric`` itself, as NOTES.md section 4 defines it, from the
+    is our value of ``metric`` itself, as docs/THESIS_NOTES.md section 4 defines it, from the
     run with the gains as printed (the same run unless :data:`GAIN_READINGS` applies).
     """
 

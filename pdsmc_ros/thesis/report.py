@@ -71,7 +71,7 @@ def write_report(rep: Reproduction, out: Path) -> dict[str, Path]:
         "10 kHz (serial) / 5 kHz (parallel); the serial circle PD-SMC run lies within about 1e-5 "
         "(relative) of its continuous-time limit (see *Discrete loop against the continuous-time "
         "limit*); statistics sampled at 500 Hz / "
-        "5 kHz over [0, T] inclusive (NOTES.md section 1). "
+        "5 kHz over [0, T] inclusive (docs/THESIS_NOTES.md section 1). "
         "Contour error: Eq. 2.9 against the active segment (linear contours), Eq. 2.10 (circles), "
         "exact nearest point (ellipses).")
     add("")
@@ -91,7 +91,7 @@ def write_report(rep: Reproduction, out: Path) -> dict[str, Path]:
     regained = [c for c in cells if (c.robot, c.contour, c.controller) in GAIN_READINGS]
     if read or regained:
         defined = summarize(c for c in as_defined(cells) if c.controller != "smc")
-        add(f"With every statistic as defined in NOTES.md section 4 and every gain as printed "
+        add(f"With every statistic as defined in docs/THESIS_NOTES.md section 4 and every gain as printed "
             f"(no statistic or gain reading, below), the PD and PD-SMC rows give a median deviation "
             f"of {format_pct(defined['median_abs_dev'])} and {format_pct(defined['within_5pct'])} of cells within 5 %.")
         add("")

@@ -118,7 +118,7 @@ def test_loaded_params_add_the_load_at_the_last_links_centre_of_mass() -> None:
 
 
 def test_serial_payload_link_com_reading_fits_means_and_sds_but_not_the_within_column(tmp_path: Path) -> None:
-    """The serial ellipse payload rows under both readings (NOTES.md section 7)."""
+    """The serial ellipse payload rows under both readings (docs/THESIS_NOTES.md section 7)."""
     rep = run_reproduction(only="serial_3r/ellipse/payload/*", workers=1)
     assert set(rep.payload_cells) == set(PAYLOAD_READINGS) - {"tip"}
     tip = {(c.controller, c.metric): c for c in rep.cells}
