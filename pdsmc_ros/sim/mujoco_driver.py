@@ -70,6 +70,7 @@ class MujocoDriver:
         q = np.asarray(q0, dtype=float)
         if q.shape != (arm.n,) or not np.all(np.isfinite(q)):
             raise InvalidInputError(f"initial_positions must be {arm.n} finite angles (rad), got {q.tolist()}")
+        _check_within_range(arm, q)
         set_state(arm, self.data, q)
         k = len(arm.passive_joint_names)
         if k:
@@ -161,6 +162,25 @@ class MujocoDriver:
     @property
     def model(self) -> Any:
         return self.arm.model
+
+
+def _check_within_range(arm: MujocoArm, q: FloatArray) -> None:
+    """Refuse start angles outside a joint's URDF ``<limit lower upper>``: MuJoCo makes those
+    limits hard stops, so the first step would throw the joint back onto its stop (and a
+    controller holding the angle it saw first would push against the stop at full torque).
+
+    Raises
+    ------
+    InvalidInputError
+        Naming the joint, the angle and its limits.
+    """
+    mujoco = _mujoco()
+    for name, angle in zip(arm.joint_names, q):
+        jid = mujoco.mj_name2id(arm.model, mujoco.mjtObj.mjOBJ_JOINT, name)
+        lower, upper = (float(v) for v in arm.model.jnt_range[jid])
+        if arm.model.jnt_limited[jid] and not lower <= angle <= upper:
+            raise InvalidInputError(f"initial_positions: joint '{name}' at {angle:g} rad is outside its "
+                                    f"limits [{lower:g}, {upper:g}] (the URDF's <limit lower upper>)")
 
 
 def default_positions(robot: str) -> FloatArray:

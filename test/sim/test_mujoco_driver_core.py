@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -108,6 +110,22 @@ def test_bad_set_ups_are_one_line(arm: MujocoArm) -> None:
     five_bar = build_model("parallel_5r")
     with pytest.raises(InvalidInputError, match="passive joints"):
         md.MujocoDriver(five_bar, md.default_positions("parallel_5r"))
+
+
+def test_start_angles_outside_the_urdf_limits_are_refused(tmp_path: Path) -> None:
+    # MuJoCo turns <limit lower upper> into hard stops: a start beyond one would be thrown back
+    urdf = tmp_path / "two.urdf"
+    link = ('<link name="{0}"><inertial><origin xyz="0.1 0 0"/><mass value="1"/>'
+            '<inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial></link>')
+    joint = ('<joint name="{0}" type="revolute"><parent link="{1}"/><child link="{2}"/><origin xyz="{3} 0 0"/>'
+             '<axis xyz="0 1 0"/><limit effort="5" velocity="2" lower="-1.0" upper="1.0"/></joint>')
+    urdf.write_text('<robot name="two"><link name="base"/>' + link.format("l1") + link.format("l2")
+                    + joint.format("hinge1", "base", "l1", 0) + joint.format("hinge2", "l1", "l2", 0.2)
+                    + "</robot>")
+    two = build_model(str(urdf), timestep=1e-3)
+    md.MujocoDriver(two, [0.9, -0.9])
+    with pytest.raises(InvalidInputError, match=r"joint 'hinge2' at -1.2 rad is outside its limits \[-1, 1\]"):
+        md.MujocoDriver(two, [0.0, -1.2])
 
 
 def test_joint_state_orders() -> None:
