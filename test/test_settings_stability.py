@@ -95,6 +95,15 @@ def test_node_errors_advise_the_parameter() -> None:
     assert check_rate(dataclasses.replace(slow, rate=rate), slow.reference(), mode="realtime").passes
 
 
+def test_node_margin_error_names_the_parameter_whole() -> None:
+    spec = make_run("parallel_5r", "circle", "pd")
+    low = rate_margin(spec, spec.reference(), mode="realtime").lowest_stable_rate
+    near = dataclasses.replace(spec, rate=1.5 * low, sample_rate=1.5 * low)  # stable, below the x2 required
+    with pytest.raises(UnstableRateError) as info:
+        check_rate(near, near.reference(), mode="realtime", entry="node")
+    assert "x2 required, -p stability_margin:=N sets it)" in str(info.value)
+
+
 def test_margin_and_declared_delay() -> None:
     spec = make_run("parallel_5r", "circle", "pd")
     reference = spec.reference()

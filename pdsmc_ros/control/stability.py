@@ -235,7 +235,7 @@ def check_rate(spec: RunSpec, reference: JointReference, *, mode: str = "lockste
     needed = max(1.2, result.required_margin * 1.05) * result.lowest_stable_rate
     suggestion = float(np.ceil(needed / spec.sample_rate) * spec.sample_rate)
     if entry == "node":
-        rate_advice, margin_name = f"-p rate:={suggestion:.1f}", "-p stability_margin:="
+        rate_advice, margin_name = f"-p rate:={suggestion:.1f}", "-p stability_margin:=N "
     else:
         rate_advice, margin_name = f"--rate {suggestion:g}", "--margin "
     if result.stable:
