@@ -192,10 +192,26 @@ explain() {
 }
 trap 'echo "run_experiment.sh: interrupted, stopping nodes" >&2; stop_all; exit 130' INT TERM
 
+# Real time: the plant's time starts with the first command, and the controller commands (holds)
+# as soon as its loop runs; a trajectory node whose loop starts later (locking memory can take
+# seconds) would miss the motion. So the process with the plant starts once every other loop
+# process says its loop runs ("real time: ..." in its log), or has ended, or after 120 s.
+wait_for_loops() {
+  local deadline=$((SECONDS + 120)) proc
+  for proc in "${ORDER[@]}"; do
+    [[ "$proc" == recorder || "$proc" == viewer ]] && continue
+    while kill -0 "${PIDS[$proc]}" 2>/dev/null && ! grep -q ']: real time: ' "$LOGS/$proc.log" 2>/dev/null \
+        && [[ $SECONDS -lt $deadline ]]; do
+      sleep 0.1
+    done
+  done
+}
+
 for name in "${NODE_NAMES[@]}"; do
   proc="$name"
   [[ -n "${IN_GROUP[$name]:-}" ]] && proc=composed
   [[ -n "${PIDS[$proc]:-}" ]] && continue  # the composed process is already started
+  [[ "$MODE" == realtime && "$name" == plant ]] && wait_for_loops
   ORDER+=("$proc")
   if [[ "$name" == recorder || ( "$proc" == composed && -n "${IN_GROUP[recorder]:-}" ) ]]; then
     start_node "$proc" -p "output:=$OUT"
