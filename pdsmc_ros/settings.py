@@ -39,6 +39,20 @@ CONTROLLER_PARAMETERS = (
 """What the controller node declares: the keys ``pdsmc simulate/check-gains --params-file`` accept
 (the CLI reads the controller's sections without starting ROS)."""
 
+NODE_NAMES = ("plant", "controller", "trajectory", "recorder", "mujoco_driver", "viewer")
+"""The package's nodes: one params file may configure several of them (``run_experiment.sh``
+hands the same file to each)."""
+PACKAGE_PARAMETERS = frozenset(CONTROLLER_PARAMETERS) | {
+    # the plant's (pdsmc_ros.nodes.params.SAFETY_PARAMETERS and its own)
+    "watchdog_timeout", "watchdog_periods", "safe_mode", "safe_damping", "safe_stiffness",
+    "on_controller_loss", "safe_time_scale", "expected_subscribers",
+    # the trajectory's, the recorder's, the viewer's and the MuJoCo driver's
+    "lookahead_steps", "output", "display_rate", "host", "port",
+    "substeps", "joint_state_order", "initial_positions", "command_timeout",
+}
+"""Every parameter some node of the package declares: a shared section (``/**``, a pattern) may
+give one that only other nodes of the run take."""
+
 
 def closest(name: str, names: Iterable[str]) -> str:
     """`` (did you mean 'type'?)`` for the declared name closest to ``name``, or ``''``."""
@@ -124,13 +138,20 @@ def node_parameters(path: str | Path, node_fqn: str, declared: Iterable[str], *,
     declared = list(declared)
     matching = [name for name in sections if section_matches(name, node_fqn)]
     if not matching:
+        # a file for other nodes of the run (the plant's and the controller's sections only) is fine;
+        # one that configures no node of the package is a mistake (a misspelt section name)
+        if any(section_matches(name, f"/{node}") for name in sections for node in NODE_NAMES):
+            return {}
         name = node_fqn.rsplit("/", 1)[-1]
-        raise ConfigError(f"{label}: no section for node {node_fqn!r} (sections: {', '.join(map(repr, sections))}; "
-                          f"use '{name}:' or '/**:' for every node)")
+        raise ConfigError(f"{label}: no section for node {node_fqn!r} or any node of the package (sections: "
+                          f"{', '.join(map(repr, sections))}; use '{name}:' or '/**:' for every node)")
     merged: dict[str, Any] = {}
     for section in matching:
+        shared = "*" in section  # a pattern: it configures other nodes too
         for key, value in sections[section].items():
             if not is_declared(key, declared):
+                if shared and key in PACKAGE_PARAMETERS:
+                    continue  # another node's parameter (e.g. the controller's enforce_limits in /**)
                 raise ConfigError(f"{label}: section {section!r}: {unknown_parameter(key, declared)} for node "
                                   f"{node_fqn!r}")
             merged[key] = value

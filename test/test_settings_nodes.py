@@ -86,8 +86,9 @@ def test_an_undeclared_override_is_warned_about_naming_the_closest(ros_env: dict
 
 @pytest.mark.timeout(300)
 @pytest.mark.parametrize(("content", "message"), [
-    ({"controller": {"ros__parameters": {"robot": "parallel_5r"}}},
-     "params file '{}': no section for node '/trajectory' (sections: 'controller'; use 'trajectory:' or '/**:'"),
+    ({"trajectroy": {"ros__parameters": {"robot": "parallel_5r"}}},
+     "params file '{}': no section for node '/trajectory' or any node of the package (sections: 'trajectroy'; "
+     "use 'trajectory:' or '/**:'"),
     ({"/**": {"ros__parameters": {"robot": "parallel_5r", "kpp": [1.0, 2.0]}}},
      "params file '{}': section '/**': unknown parameter 'kpp' (did you mean 'kp'?) for node '/trajectory'"),
 ])

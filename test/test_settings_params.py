@@ -46,6 +46,19 @@ def test_a_file_without_a_section_for_the_node_is_refused(tmp_path: Path) -> Non
         node_parameters(path, "/controller", CONTROLLER_PARAMETERS)
 
 
+def test_a_file_for_other_nodes_of_the_run_gives_this_node_nothing(tmp_path: Path) -> None:
+    """run_experiment.sh hands one file to every node: the plant's and controller's sections are
+    not the trajectory's business, and a shared section's keys for other nodes are skipped."""
+    path = write(tmp_path / "p.yaml", {"plant": {"ros__parameters": {"safe_mode": "hold"}},
+                                       "controller": {"ros__parameters": {"kp": [1.0, 2.0]}}})
+    assert node_parameters(path, "/trajectory", ["robot", "lookahead_steps"]) == {}
+    shared = write(tmp_path / "s.yaml", {"/**": {"ros__parameters": {"robot": "ur5", "enforce_limits": False}}})
+    assert node_parameters(shared, "/trajectory", ["robot", "lookahead_steps"]) == {"robot": "ur5"}
+    typo = write(tmp_path / "t.yaml", {"/**": {"ros__parameters": {"robot": "ur5", "enforce_limit": False}}})
+    with pytest.raises(ConfigError, match=r"unknown parameter 'enforce_limit'"):
+        node_parameters(typo, "/trajectory", ["robot", "lookahead_steps"])
+
+
 def test_sections_merge_in_file_order(tmp_path: Path) -> None:
     path = write(tmp_path / "p.yaml", {"/**": {"ros__parameters": {"rate": 1000.0, "type": "pd"}},
                                        "controller": {"ros__parameters": {"rate": 2000.0, "kp": [1.0]}},
