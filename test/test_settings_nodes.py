@@ -84,6 +84,15 @@ def test_an_undeclared_override_is_warned_about_naming_the_closest(ros_env: dict
     assert "unknown parameter 'typ' (did you mean 'type'?)" in proc.stderr, proc.stderr
 
 
+@pytest.mark.timeout(200)
+def test_an_undeclared_override_is_named_even_when_the_node_cannot_start(ros_env: dict) -> None:
+    """-p typ:=pd left the default law (PD-SMC), whose thesis gains real time refuses: the user
+    must hear of the typo too, not only of the gains."""
+    proc = ros2_run(ros_env, "controller", "-p", "mode:=realtime", "-p", "typ:=pd", timeout=60)
+    assert proc.returncode == 2, proc.stderr
+    assert "controller: warning: unknown parameter 'typ' (did you mean 'type'?): ignored" in proc.stderr, proc.stderr
+
+
 @pytest.mark.timeout(300)
 @pytest.mark.parametrize(("content", "message"), [
     ({"trajectroy": {"ros__parameters": {"robot": "parallel_5r"}}},

@@ -40,7 +40,7 @@ from .lifecycle import (
     EXIT_OK,
     arm_teardown_watch,
 )
-from .overrides import check_overrides
+from .overrides import check_overrides, warn_unknown_arguments
 from .params import BUSY_WAIT_S
 from .realtime_params import LoopReport, apply_settings, due_reports, loop_reports
 
@@ -96,10 +96,12 @@ def run_nodes(
                 domain.bind()
         except (InvalidInputError, ParameterException, InvalidParameterTypeException, ValueError,
                 TypeError) as exc:
+            warn_unknown_arguments(name, args)
             print(f"{name}: error: {exc}", file=sys.stderr, flush=True)
             code = EXIT_BAD_INPUT  # also what the teardown watch is armed with
             return code
         except PdsmcError as exc:
+            warn_unknown_arguments(name, args)
             print(f"{name}: error: {exc}", file=sys.stderr, flush=True)
             code = EXIT_FAILURE
             return code

@@ -16,6 +16,8 @@ from collections.abc import Sequence
 from rclpy.node import Node
 
 from ..settings import (
+    ALWAYS_DECLARED,
+    PACKAGE_PARAMETERS,
     is_declared,
     node_parameters,
     params_files_in,
@@ -54,4 +56,15 @@ def check_overrides(nodes: Sequence[Node], args: Sequence[str] | None) -> None:
                 node.get_logger().warning(f"{unknown_parameter(name, declared)}: ignored")
 
 
+def warn_unknown_arguments(name: str, args: Sequence[str] | None) -> None:
+    """When a node could not be built: warn about each ``-p NAME:=VALUE`` no node of the package
+    declares (the build's own error may be a consequence: ``-p typ:=pd`` left the default law,
+    whose gains were then refused)."""
+    args = list(sys.argv if args is None else args)
+    known = [*PACKAGE_PARAMETERS, *ALWAYS_DECLARED]
+    for flag, value in zip(args, args[1:]):
+        if flag in ("-p", "--param") and ":=" in value:
+            key = value.split(":=", 1)[0].rsplit(":", 1)[-1]  # node:name:=value names a node's parameter
+            if not is_declared(key, known):
+                print(f"{name}: warning: {unknown_parameter(key, known)}: ignored", file=sys.stderr, flush=True)
 
