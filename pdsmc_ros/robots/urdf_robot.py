@@ -419,7 +419,8 @@ def _structural_rows(model: Any, data: Any, ee_id: int, basis6: FloatArray) -> N
         q = rng.uniform(lo, hi)
         pin.computeJointJacobians(model, data, q)
         pin.updateFramePlacement(model, data, ee_id)
-        jac = basis6 @ pin.getFrameJacobian(model, data, ee_id, pin.LOCAL_WORLD_ALIGNED)
+        # eigenpy hands a one-joint arm's 6 x 1 Jacobian over as a vector
+        jac = basis6 @ np.reshape(pin.getFrameJacobian(model, data, ee_id, pin.LOCAL_WORLD_ALIGNED), (6, -1))
         largest = np.maximum(largest, np.max(np.abs(jac), axis=1))
     return largest < 1e-10
 

@@ -222,3 +222,27 @@ def test_simulate_a_ur5_prints_the_usual_keys_and_check_gains_runs_for_it() -> N
                             "circle", "--controller", "pdsmc"], capture_output=True, text=True, timeout=300)
     assert "discrete-rate condition at 1000 Hz holds" in check.stdout, check.stderr
     assert check.stdout.count("Ks_") == 6  # Eq. 3.19 per joint of the arm
+
+
+ONE_JOINT_URDF = """<robot name="one">
+  <link name="base"/>
+  <link name="l1"><inertial><origin xyz="0.25 0 0"/><mass value="1.0"/>
+    <inertia ixx="0.01" iyy="0.02" izz="0.02" ixy="0" ixz="0" iyz="0"/></inertial></link>
+  <joint name="j1" type="revolute"><parent link="base"/><child link="l1"/><axis xyz="0 -1 0"/>
+    <limit effort="20" velocity="5" lower="-3" upper="3"/></joint>
+  <link name="tip"/>
+  <joint name="tipj" type="fixed"><parent link="l1"/><child link="tip"/><origin xyz="0.5 0 0"/></joint>
+</robot>
+"""
+
+
+def test_a_one_joint_arm_is_loaded_and_what_it_cannot_do_is_one_line(tmp_path: Path) -> None:
+    """Before: eigenpy's 6 x 1 Jacobian came as a vector and loading the arm was a traceback."""
+    (tmp_path / "one.urdf").write_text(ONE_JOINT_URDF)
+    (tmp_path / "gains.yaml").write_text("controller:\n  ros__parameters:\n    kp: [100.0]\n    kd: [10.0]\n")
+    proc = subprocess.run([sys.executable, "-m", "pdsmc_ros.cli", "simulate", "--robot", str(tmp_path / "one.urdf"),
+                           "--contour", "circle", "--controller", "pd", "--params-file", str(tmp_path / "gains.yaml")],
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr, proc.stderr
+    assert proc.stderr.strip().splitlines() == [proc.stderr.strip()]
+    assert "one.urdf workspace" in proc.stderr
