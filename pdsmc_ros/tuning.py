@@ -307,6 +307,8 @@ def write_params_file(path: str | Path, gains: Gains, *, controller: str, robot:
     controller's section, the only node that needs them: the same file serves ``ros2 run`` of
     any node, ``scripts/run_experiment.sh --params-file`` and ``pdsmc simulate --params-file``.
     """
+    if Path(robot).suffix == ".urdf" and Path(robot).is_file():
+        robot = str(Path(robot).resolve())  # the file serves from any directory (analyze, ros2 run)
     run: dict[str, Any] = {"robot": robot, "contour": contour, "type": controller, "rate": float(rate)}
     own = {k: [float(x) for x in v] for k, v in gains.as_dict().items() if k in law(controller).gains}
     requirement = requirement or Requirement()
