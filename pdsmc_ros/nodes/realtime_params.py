@@ -135,8 +135,10 @@ def apply_settings(reports: Sequence[LoopReport], node: Node, period: float | No
     if applied.fifo and period and busy_wait > FIFO_BUSY_SHARE * period:
         logger.info(f"busy_wait {busy_wait:g} s at SCHED_FIFO: spinning at most {FIFO_BUSY_SHARE:g} of each period")
         busy_wait = FIFO_BUSY_SHARE * period
-    if settings != RealtimeSettings() or period:  # real time: this line says the loop runs (run_experiment.sh waits for it)
-        logger.info(applied.summary() + (f", busy-wait {1e6 * busy_wait:g} us before each tick" if period else ""))
+    # real time: this line says the loop runs (run_experiment.sh waits for it)
+    if settings != RealtimeSettings() or period:
+        spin = f", busy-wait {1e6 * busy_wait:g} us before each tick" if period else ""
+        logger.info(applied.summary() + spin)
     return applied, busy_wait
 
 
