@@ -96,8 +96,8 @@ def test_an_undeclared_override_is_named_even_when_the_node_cannot_start(ros_env
 @pytest.mark.timeout(300)
 @pytest.mark.parametrize(("content", "message"), [
     ({"trajectroy": {"ros__parameters": {"robot": "parallel_5r"}}},
-     "params file '{}': no section for node '/trajectory' or any node of the package (sections: 'trajectroy'; "
-     "use 'trajectory:' or '/**:'"),
+     ("params file '{}': no section for node '/trajectory' or any node of the package (sections: 'trajectroy'; "
+      "use 'trajectory:' or '/**:'")),
     ({"/**": {"ros__parameters": {"robot": "parallel_5r", "kpp": [1.0, 2.0]}}},
      "params file '{}': section '/**': unknown parameter 'kpp' (did you mean 'kp'?) for node '/trajectory'"),
 ])
