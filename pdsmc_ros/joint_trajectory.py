@@ -174,7 +174,8 @@ class JointTrajectoryReference:
         t = np.linspace(t0, float(times[k]), count + 1)[1:]
         if duration <= 0.0:  # a first point at receipt: no segment leads to it, only the point
             n = len(p0)
-            velocity = np.zeros(n) if v[k] is None else v[k]
+            given = v[k]
+            velocity = np.zeros(n) if given is None else given
             return t, np.broadcast_to(self.positions[k], (count, n)), np.broadcast_to(velocity, (count, n))
         # a0 None for k == 0: the segment from the state at receipt is cubic at most (sample())
         q, qd, _ = _segment((t - t0)[:, None], duration, p0, v0, a0 if k else None,
