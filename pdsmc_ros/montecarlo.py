@@ -200,6 +200,17 @@ def summarize(rows: Sequence[Mapping[str, Any]], controllers: Sequence[str], bou
     return out
 
 
+def plain_cell(value: Any) -> Any:
+    """A CSV cell as a plain number or word: floats (numpy's too) by their shortest round-trip
+    ``repr`` (``0.7591762968402793``, ``nan``), numpy integers as ``int``; under numpy 2 the
+    ``repr`` of a numpy scalar is ``np.float64(0.759...)``, which a CSV reader takes for text."""
+    if isinstance(value, (float, np.floating)):
+        return repr(float(value))
+    if isinstance(value, np.integer):
+        return int(value)
+    return value
+
+
 def write_outputs(rows: Sequence[Mapping[str, Any]], summary: Mapping[str, Any], meta: Mapping[str, Any],
                   out: Path) -> list[Path]:
     """``montecarlo.csv`` (a row per run and controller, in run order), ``montecarlo.json``."""
@@ -213,7 +224,7 @@ def write_outputs(rows: Sequence[Mapping[str, Any]], summary: Mapping[str, Any],
         writer = csv.DictWriter(handle, fieldnames=columns, restval="nan")
         writer.writeheader()
         for row in ordered:
-            writer.writerow({k: repr(v) if isinstance(v, float) else v for k, v in row.items()})
+            writer.writerow({k: plain_cell(v) for k, v in row.items()})
     report = out / "montecarlo.json"
     report.write_text(json.dumps({**meta, "controllers_summary": summary}, indent=2, sort_keys=True))
     return [table, report]
