@@ -5,8 +5,9 @@ One implementation serves the in-process simulator and the bag analysis
 errors over the sampled instants; axial errors per actuated joint
 (``e = q_d - q``); task-space |x error|, |y error| and the error magnitude;
 contour error (Eqs. 2.9 / 2.10); share of samples within the contour bound;
-maximum |torque| per actuated joint; and (not a thesis statistic) the control periods
-in which each joint's torque was clamped to its limit.
+maximum |torque| per actuated joint; and (not thesis statistics) the control periods
+in which each joint's torque was clamped to its limit and the scores of :mod:`.scores`
+(tracking, chattering, effort), which come from every control step, not the sampled instants.
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ import numpy as np
 
 from .errors import InvalidInputError
 from .robots.base import FloatArray
+from .scores import SCORE_NAMES, Scores
 
 
 @dataclass(frozen=True)
@@ -41,6 +43,15 @@ class Metrics:
     # control periods (all of them, not only the sampled instants) in which each joint's torque
     # was clamped to its effort limit
     saturated_periods: list[int] = field(default_factory=list)
+    # scores beside the errors (:mod:`.scores`, docs/SCORES.md), per joint and for the run
+    # (``run_scores``), from every control step; empty where the run's every step is not at hand
+    error_rms: list[float] = field(default_factory=list)
+    error_itae: list[float] = field(default_factory=list)
+    torque_tv_rate: list[float] = field(default_factory=list)
+    torque_hf_share: list[float] = field(default_factory=list)
+    control_energy: list[float] = field(default_factory=list)
+    torque_rate_peak: list[float] = field(default_factory=list)
+    run_scores: dict[str, float] = field(default_factory=dict)
 
     def as_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -65,9 +76,11 @@ def sample_times(duration: float, sample_rate: float) -> FloatArray:
     return np.arange(count + 1) / sample_rate
 
 
-def compute_metrics(samples: Samples, bound: float, *, saturated: Sequence[int] = ()) -> Metrics:
+def compute_metrics(samples: Samples, bound: float, *, saturated: Sequence[int] = (),
+                    scores: Scores | None = None) -> Metrics:
     """Thesis-style statistics of sampled signals (docs/THESIS_NOTES.md section 4); ``saturated``: the
-    clamped periods of each joint, counted by the loop (every period, not only the samples).
+    clamped periods of each joint, counted by the loop (every period, not only the samples);
+    ``scores``: the run's scores (:func:`pdsmc_ros.scores.compute_scores`, from every step).
 
     Raises
     ------
@@ -95,4 +108,14 @@ def compute_metrics(samples: Samples, bound: float, *, saturated: Sequence[int] 
         task_sd_signed={"x": float(np.std(samples.xy_ref[:, 0] - samples.xy[:, 0])),
                         "y": float(np.std(samples.xy_ref[:, 1] - samples.xy[:, 1]))},
         saturated_periods=[int(c) for c in saturated],
+        **score_fields(scores),
     )
+
+
+def score_fields(scores: Scores | None) -> dict[str, Any]:
+    """:class:`Metrics`' score fields of ``scores`` (none: empty)."""
+    if scores is None:
+        return {}
+    out: dict[str, Any] = {name: list(getattr(scores, name)) for name in SCORE_NAMES}
+    out["run_scores"] = {**scores.run, "cutoff_hz": scores.cutoff_hz, "rate_hz": scores.rate_hz}
+    return out

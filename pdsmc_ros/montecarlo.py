@@ -27,6 +27,7 @@ from .errors import ConfigError
 from .presets import RunSpec, make_run
 from .robots import ROBOTS, UrdfRobot, make_robot, robot_params
 from .robots.base import RobotParams
+from .scores import SCORE_NAMES
 
 PARAMETERS = ("link_mass", "link_com", "link_inertia", "motor_inertia", "motor_damping", "payload",
               "initial_error")
@@ -184,8 +185,9 @@ def base_specs(robot: str, contour: str, controllers: Sequence[str], **options: 
 
 
 def summarize(rows: Sequence[Mapping[str, Any]], controllers: Sequence[str], bound: float) -> dict[str, Any]:
-    """Per controller: mean, p5, p50, p95 and worst of the runs' mean contour error, and the share
-    of runs whose mean contour error is within the bound (runs that failed count as outside)."""
+    """Per controller: mean, p5, p50, p95 and worst of the runs' mean contour error, the share
+    of runs whose mean contour error is within the bound (runs that failed count as outside), and
+    the mean of each run score (``<score>_mean``: :data:`pdsmc_ros.scores.SCORE_NAMES`)."""
     out: dict[str, Any] = {}
     for controller in controllers:
         values = np.array([float(r.get("contour_mean", math.nan)) for r in rows if r["controller"] == controller])
@@ -196,6 +198,12 @@ def summarize(rows: Sequence[Mapping[str, Any]], controllers: Sequence[str], bou
                           **{f"contour_mean_p{p}": float(np.percentile(finite, p)) for p in PERCENTILES},
                           "contour_mean_worst": float(np.max(finite)),
                           "share_within_bound": float(np.sum(finite <= bound) / values.size)})
+        for name in SCORE_NAMES:  # the run scores' mean over the runs that have them (docs/SCORES.md)
+            scores = np.array([float(r.get(f"run_scores_{name}", math.nan)) for r in rows
+                               if r["controller"] == controller])
+            scores = scores[np.isfinite(scores)]
+            if scores.size:
+                entry[f"{name}_mean"] = float(np.mean(scores))
         out[controller] = entry
     return out
 

@@ -25,6 +25,7 @@ from ..metrics import Metrics, Samples, compute_metrics
 from ..presets import RunSpec, control_steps
 from ..robots.base import FloatArray
 from ..robots.catalog import ROBOT_DESCRIPTION, register_description
+from ..scores import Scores, compute_scores
 from . import cdr
 from .stamps import effort_step
 
@@ -213,5 +214,17 @@ def run_samples(run: RecordedRun) -> Samples:
 
 
 def run_metrics(run: RecordedRun) -> Metrics:
-    """Thesis statistics of a recorded run, sampled at the thesis's analysis rate."""
-    return compute_metrics(run_samples(run), run.spec.bound)
+    """Thesis statistics of a recorded run, sampled at the thesis's analysis rate, and its scores
+    from every step (:func:`run_scores`)."""
+    return compute_metrics(run_samples(run), run.spec.bound, scores=run_scores(run))
+
+
+def run_scores(run: RecordedRun) -> Scores | None:
+    """The scores of a recorded run (:mod:`pdsmc_ros.scores`) from every control step, as the
+    simulator computes them; None for a run with a missing step (they need every one) or none applied."""
+    n = len(run.spec.gains.kp)
+    error = run.q_ref[:, :n] - run.q[:, :n]
+    applied = run.tau[:-1, :n]  # the last step's command closes the run; it is not applied
+    if not len(applied) or np.isnan(error).any() or np.isnan(applied).any():
+        return None
+    return compute_scores(error, applied, run.spec.rate)

@@ -22,6 +22,7 @@ from ..metrics import Metrics, Samples, compute_metrics
 from ..presets import RunSpec, control_steps
 from ..robots import ROBOTS
 from ..robots.base import FloatArray, Manipulator
+from ..scores import compute_scores
 from ..trajectories import JointReference
 from .loop import run_loop
 
@@ -87,11 +88,13 @@ def simulate(spec: RunSpec, *, check_stability: bool = True, plant: Manipulator 
     every = spec.sample_every
     q0 = refs[0, 0] if initial_error is None else refs[0, 0] + np.asarray(initial_error, dtype=float)
     limit = robot.effort_limits if spec.enforce_limits else None
-    out_q, _, out_tau, outcome = run_loop(robot, ControlLaw.from_spec(spec), q0, refs, 1.0 / spec.rate, every,
-                                          limit)
+    # every step (the scores' rate: docs/SCORES.md), then the statistics instants
+    out_q, _, out_tau, outcome = run_loop(robot, ControlLaw.from_spec(spec), q0, refs, 1.0 / spec.rate, 1, limit)
+    scores = compute_scores(refs[:, 0] - out_q, out_tau[:-1], spec.rate)
+    out_q, out_tau = np.ascontiguousarray(out_q[::every]), np.ascontiguousarray(out_tau[::every])
     t = (np.arange(steps + 1) / spec.rate)[::every]
     samples = build_samples(robot, reference.contour, t, out_q, refs[::every, 0], out_tau)
-    metrics = compute_metrics(samples, spec.bound, saturated=outcome.saturated)
+    metrics = compute_metrics(samples, spec.bound, saturated=outcome.saturated, scores=scores)
     return RunResult(spec, samples, metrics, steps, time.perf_counter() - start, outcome.diverged,
                      tuple(outcome.warnings))
 
