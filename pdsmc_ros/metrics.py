@@ -7,7 +7,7 @@ errors over the sampled instants; axial errors per actuated joint
 contour error (Eqs. 2.9 / 2.10); share of samples within the contour bound;
 maximum |torque| per actuated joint; and (not thesis statistics) the control periods
 in which each joint's torque was clamped to its limit and the scores of :mod:`.scores`
-(tracking, chattering, effort), which come from every control step, not the sampled instants.
+(tracking, chattering, effort) of the same samples (:func:`sample_scores`).
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ import numpy as np
 
 from .errors import InvalidInputError
 from .robots.base import FloatArray
-from .scores import SCORE_NAMES, Scores
+from .scores import SCORE_NAMES, Scores, compute_scores
 
 
 @dataclass(frozen=True)
@@ -44,7 +44,7 @@ class Metrics:
     # was clamped to its effort limit
     saturated_periods: list[int] = field(default_factory=list)
     # scores beside the errors (:mod:`.scores`, docs/SCORES.md), per joint and for the run
-    # (``run_scores``), from every control step; empty where the run's every step is not at hand
+    # (``run_scores``), from the statistics samples (:func:`sample_scores`); empty without them
     error_rms: list[float] = field(default_factory=list)
     error_itae: list[float] = field(default_factory=list)
     torque_tv_rate: list[float] = field(default_factory=list)
@@ -80,7 +80,7 @@ def compute_metrics(samples: Samples, bound: float, *, saturated: Sequence[int] 
                     scores: Scores | None = None) -> Metrics:
     """Thesis-style statistics of sampled signals (docs/THESIS_NOTES.md section 4); ``saturated``: the
     clamped periods of each joint, counted by the loop (every period, not only the samples);
-    ``scores``: the run's scores (:func:`pdsmc_ros.scores.compute_scores`, from every step).
+    ``scores``: the run's scores (:func:`sample_scores`).
 
     Raises
     ------
@@ -110,6 +110,17 @@ def compute_metrics(samples: Samples, bound: float, *, saturated: Sequence[int] 
         saturated_periods=[int(c) for c in saturated],
         **score_fields(scores),
     )
+
+
+def sample_scores(samples: Samples, rate: float) -> Scores | None:
+    """The scores (:func:`pdsmc_ros.scores.compute_scores`) of the statistics samples, taken at
+    ``rate`` Hz: the error at every sample, the torque of every sample but the last (the run's
+    closing command, never applied) held until the next. None with fewer than two samples or
+    samples not evenly ``1/rate`` apart (a bag with missing steps): the scores need every instant."""
+    t = samples.t
+    if len(t) < 2 or not np.allclose(np.diff(t), 1.0 / rate, rtol=1e-9, atol=0.0):
+        return None
+    return compute_scores(samples.q_ref - samples.q, samples.tau[:-1], rate)
 
 
 def score_fields(scores: Scores | None) -> dict[str, Any]:

@@ -2,12 +2,11 @@
 
 The thesis compares its laws on error statistics and peak torque only (:mod:`.metrics`).
 These are the costs a control engineer weighs as well, each per actuated joint and for the
-run, computed at EVERY control step -- not at the statistics instants: a sliding law's torque
-switches at the control rate, and a 500 Hz subsample of a 10 kHz signal can miss its
-chattering altogether (a torque alternating every step, sampled every 20th step, looks
-constant). With ``N`` applied periods of ``h = 1/rate`` (``T = N h``), the tracking error
-``e_k = q_d(t_k) - q(t_k)`` at ``k = 0..N`` and the torque ``u_k`` held over ``[t_k, t_{k+1})``
-for ``k = 0..N-1`` (the command at ``t_N`` closes the run and is never applied):
+run, of a signal sampled evenly at ``rate`` (the runs pass their statistics samples:
+:func:`pdsmc_ros.metrics.sample_scores`, docs/SCORES.md says what that rate sees). With ``N``
+periods of ``h = 1/rate`` (``T = N h``), the tracking error ``e_k = q_d(t_k) - q(t_k)`` at
+``k = 0..N`` and the torque ``u_k`` held over ``[t_k, t_{k+1})`` for ``k = 0..N-1`` (the command
+at ``t_N`` closes the run and is never applied):
 
 - ``error_rms``: ``sqrt(sum_k e_k^2 / (N + 1))`` (run: of ``|e_k|``, the Euclidean norm);
 - ``error_itae``: ``int t |e| dt`` by the trapezoid rule (Graham and Lathrop 1953; run: of ``|e_k|``);
@@ -88,11 +87,11 @@ def compute_scores(error: FloatArray, torque: FloatArray, rate: float, cutoff: f
     Parameters
     ----------
     error : ndarray, shape (N + 1, n)
-        ``q_d - q`` at every control instant ``t_k = k / rate``, rad.
+        ``q_d - q`` at the instants ``t_k = k / rate``, rad.
     torque : ndarray, shape (N, n)
         The applied torque of each period (held over it), N m.
     rate : float
-        Control rate, Hz.
+        Sample rate of the signals, Hz.
     cutoff : float
         Frequency above which torque power counts as high-frequency, Hz.
 

@@ -92,30 +92,29 @@ def test_nan_makes_the_scores_nan_and_bad_shapes_are_one_line() -> None:
         compute_scores(np.zeros((11, 2)), torque, RATE, cutoff=0.0)
 
 
-def test_a_simulated_run_carries_its_scores_from_every_step() -> None:
-    """The serial arm's SMC at 10 kHz, statistics at 500 Hz: the scores see every step."""
+def test_a_simulated_run_carries_the_scores_of_its_statistics_samples() -> None:
+    """The serial arm's SMC at 10 kHz has its statistics samples at 500 Hz; the five-bar's are its steps."""
     import dataclasses
 
-    from pdsmc_ros.control.law import ControlLaw
+    from pdsmc_ros.metrics import Samples, sample_scores
     from pdsmc_ros.presets import make_run
     from pdsmc_ros.sim import simulate
-    from pdsmc_ros.sim.loop import run_loop
-    from pdsmc_ros.sim.simulator import _reference_samples
 
     spec = dataclasses.replace(make_run("serial_3r", "circle", "smc"), duration_factor=0.04)
     result = simulate(spec)
-    m = result.metrics
+    m, s = result.metrics, result.samples
     assert spec.sample_every == 20 and m.samples == result.steps // 20 + 1
-    _, refs = _reference_samples(spec)
-    robot = spec.robot_model()
-    q, _, tau, _ = run_loop(robot, ControlLaw.from_spec(spec), refs[0, 0], refs, 1.0 / spec.rate, 1,
-                            robot.effort_limits)
-    expected = compute_scores(refs[:, 0] - q, tau[:-1], spec.rate)
+    expected = compute_scores(s.q_ref - s.q, s.tau[:-1], 500.0)
     assert m.control_energy == expected.control_energy and m.torque_tv_rate == expected.torque_tv_rate
-    assert m.run_scores["rate_hz"] == 10000.0 and m.run_scores["cutoff_hz"] == DEFAULT_CUTOFF_HZ
-    # what the 500 Hz samples alone would give: a smaller total variation than every step's
-    sampled_tv = np.abs(np.diff(result.samples.tau[:-1], axis=0)).sum(axis=0) / (result.steps / spec.rate)
-    assert np.all(sampled_tv <= np.array(m.torque_tv_rate) + 1e-12)
-    assert np.all(np.isfinite(m.error_itae)) and m.run_scores["error_rms"] > 0
+    assert m.error_itae == expected.error_itae and m.run_scores["error_rms"] == expected.run["error_rms"]
+    assert m.run_scores["rate_hz"] == 500.0 and m.run_scores["cutoff_hz"] == DEFAULT_CUTOFF_HZ
+    assert np.all(np.isfinite(m.torque_hf_share)) and m.run_scores["error_rms"] > 0
     flat = result.as_dict()
     assert flat["torque_hf_share"] == m.torque_hf_share and "control_energy" in flat["run_scores"]
+    five_bar = simulate(dataclasses.replace(make_run("parallel_5r", "circle", "pdsmc"), duration_factor=0.04))
+    assert five_bar.metrics.run_scores["rate_hz"] == five_bar.spec.rate == 5000.0
+    # samples not evenly spaced (a bag's missing step) have no scores
+    keep = np.r_[0:10, 11:len(s.t)]
+    gap = Samples(s.t[keep], s.q[keep], s.q_ref[keep], s.xy[keep], s.xy_ref[keep], s.tau[keep],
+                  s.contour_error[keep])
+    assert sample_scores(gap, 500.0) is None and sample_scores(s, 500.0) is not None

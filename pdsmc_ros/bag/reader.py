@@ -21,11 +21,10 @@ from typing import Any
 import numpy as np
 
 from ..errors import BagError, CdrError
-from ..metrics import Metrics, Samples, compute_metrics
+from ..metrics import Metrics, Samples, compute_metrics, sample_scores
 from ..presets import RunSpec, control_steps
 from ..robots.base import FloatArray
 from ..robots.catalog import ROBOT_DESCRIPTION, register_description
-from ..scores import Scores, compute_scores
 from . import cdr
 from .stamps import effort_step
 
@@ -214,17 +213,8 @@ def run_samples(run: RecordedRun) -> Samples:
 
 
 def run_metrics(run: RecordedRun) -> Metrics:
-    """Thesis statistics of a recorded run, sampled at the thesis's analysis rate, and its scores
-    from every step (:func:`run_scores`)."""
-    return compute_metrics(run_samples(run), run.spec.bound, scores=run_scores(run))
-
-
-def run_scores(run: RecordedRun) -> Scores | None:
-    """The scores of a recorded run (:mod:`pdsmc_ros.scores`) from every control step, as the
-    simulator computes them; None for a run with a missing step (they need every one) or none applied."""
-    n = len(run.spec.gains.kp)
-    error = run.q_ref[:, :n] - run.q[:, :n]
-    applied = run.tau[:-1, :n]  # the last step's command closes the run; it is not applied
-    if not len(applied) or np.isnan(error).any() or np.isnan(applied).any():
-        return None
-    return compute_scores(error, applied, run.spec.rate)
+    """Thesis statistics of a recorded run, sampled at the thesis's analysis rate, and the scores
+    of the same samples as the simulator computes them (none if a sampled step is missing)."""
+    samples = run_samples(run)
+    return compute_metrics(samples, run.spec.bound,
+                           scores=sample_scores(samples, run.spec.rate / run.spec.sample_every))

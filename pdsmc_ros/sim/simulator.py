@@ -18,11 +18,10 @@ from numpy.typing import ArrayLike
 
 from ..control.law import ControlLaw
 from ..control.stability import check_rate
-from ..metrics import Metrics, Samples, compute_metrics
+from ..metrics import Metrics, Samples, compute_metrics, sample_scores
 from ..presets import RunSpec, control_steps
 from ..robots import ROBOTS
 from ..robots.base import FloatArray, Manipulator
-from ..scores import compute_scores
 from ..trajectories import JointReference
 from .loop import run_loop
 
@@ -88,13 +87,12 @@ def simulate(spec: RunSpec, *, check_stability: bool = True, plant: Manipulator 
     every = spec.sample_every
     q0 = refs[0, 0] if initial_error is None else refs[0, 0] + np.asarray(initial_error, dtype=float)
     limit = robot.effort_limits if spec.enforce_limits else None
-    # every step (the scores' rate: docs/SCORES.md), then the statistics instants
-    out_q, _, out_tau, outcome = run_loop(robot, ControlLaw.from_spec(spec), q0, refs, 1.0 / spec.rate, 1, limit)
-    scores = compute_scores(refs[:, 0] - out_q, out_tau[:-1], spec.rate)
-    out_q, out_tau = np.ascontiguousarray(out_q[::every]), np.ascontiguousarray(out_tau[::every])
+    out_q, _, out_tau, outcome = run_loop(robot, ControlLaw.from_spec(spec), q0, refs, 1.0 / spec.rate, every,
+                                          limit)
     t = (np.arange(steps + 1) / spec.rate)[::every]
     samples = build_samples(robot, reference.contour, t, out_q, refs[::every, 0], out_tau)
-    metrics = compute_metrics(samples, spec.bound, saturated=outcome.saturated, scores=scores)
+    metrics = compute_metrics(samples, spec.bound, saturated=outcome.saturated,
+                              scores=sample_scores(samples, spec.rate / every))
     return RunResult(spec, samples, metrics, steps, time.perf_counter() - start, outcome.diverged,
                      tuple(outcome.warnings))
 

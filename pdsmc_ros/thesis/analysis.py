@@ -186,7 +186,7 @@ def comparison_table(bags: Sequence[AnalyzedBag]) -> str:
         row(f"saturated periods {i + 1}",
             [b.metrics.saturated_periods[i] if i < len(b.metrics.saturated_periods) else float("nan")
              for b in bags], "{:.0f}")
-    for key, name, fmt in SCORE_ROWS:  # scores beside the errors (docs/SCORES.md), from every step
+    for key, name, fmt in SCORE_ROWS:  # scores beside the errors (docs/SCORES.md), of the same samples
         for i in range(n):
             row(f"{name} {i + 1}", [_score(b.metrics, key, i) for b in bags], fmt)
         row(f"{name} run", [b.metrics.run_scores.get(key, float("nan")) for b in bags], fmt)
