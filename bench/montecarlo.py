@@ -9,7 +9,12 @@ Prints, for the five-bar's circle (three controllers per drawn plant):
 
 Last line: ``overhead_ms_per_task=X speedup_2_workers=S montecarlo_1000_wall_s=W``.
 
-Usage: python bench/montecarlo.py [--runs 1000] [--scaling-runs 20] [--rounds 5]   (inside the venv, after make setup)
+``--profile N`` instead: where a task's time goes, N tasks in this process under cProfile -- the
+compiled closed loop against the rest (set-up, samples, statistics, scores), and the largest items
+of the rest. Last line: ``task_ms=X loop_share=Y``.
+
+Usage: python bench/montecarlo.py [--runs 1000] [--scaling-runs 20] [--rounds 5] [--profile N]
+(inside the venv, after make setup)
 """
 
 from __future__ import annotations
@@ -34,15 +39,49 @@ def timed_tasks(client, runs: int, first: int, specs, spreads, workers=None) -> 
     return time.perf_counter() - start
 
 
+def profile(tasks: int, specs, spreads) -> None:  # noqa: ANN001
+    """Where ``tasks`` Monte Carlo tasks spend their time (cProfile, in this process)."""
+    import cProfile
+    import pstats
+
+    profiler = cProfile.Profile()
+    start, cpu = time.perf_counter(), time.process_time()
+    profiler.enable()
+    for i in range(tasks):
+        run_sample(i, 1, specs, spreads)
+    profiler.disable()
+    wall, cpu = time.perf_counter() - start, time.process_time() - cpu
+    stats = pstats.Stats(profiler).stats  # type: ignore[attr-defined]
+    by_name = {f"{func[0].rsplit('/', 2)[-1]}:{func[2]}": (calls, cumulative)
+               for func, (_, calls, _, cumulative, _) in stats.items()}
+    loop = sum(c for name, (_, c) in by_name.items() if name.startswith("loop.py:_closed_loop_"))
+    task = by_name["montecarlo.py:run_sample"][1]
+    print(f"{tasks} tasks ({len(specs)} runs each) in {wall:.2f} s ({cpu:.2f} s of CPU): {1000 * task / tasks:.1f} "
+          f"ms a task, the compiled loop {100 * loop / task:.1f} %, the rest {1000 * (task - loop) / tasks:.1f} ms "
+          "a task", flush=True)
+    rest = ("simulator.py:_reference_samples", "simulator.py:_task_samples", "simulator.py:build_samples",
+            "metrics.py:compute_metrics", "scores.py:compute_scores", "law.py:from_spec",
+            "registry.py:make_robot", "montecarlo.py:sample_plant", "safety.py:for_robot")
+    for name in rest:
+        if name in by_name:
+            share = by_name[name][1] / task
+            print(f"  {name:34s} {1000 * by_name[name][1] / tasks:7.2f} ms a task ({100 * share:.1f} %)")
+    print(f"task_ms={1000 * task / tasks:.1f} task_cpu_ms={1000 * cpu / tasks:.1f} loop_share={loop / task:.3f}")
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=1000)
     parser.add_argument("--scaling-runs", type=int, default=20, help="tasks per round")
     parser.add_argument("--rounds", type=int, default=5)
+    parser.add_argument("--profile", type=int, default=0, help="profile this many tasks in process, nothing else")
     args = parser.parse_args()
     specs = base_specs(ROBOT, CONTOUR, list(CONTROLLERS))
     spreads = load_uncertainty()
     run_sample(10_000, 1, specs, spreads)  # compile here too
+    if args.profile:
+        profile(args.profile, specs, spreads)
+        return 0
     n = args.scaling_runs
     here, one, two = [], [], []
     with dask_client(None, 2) as client:

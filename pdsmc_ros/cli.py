@@ -317,7 +317,23 @@ def format_metrics(metrics: dict, robot_n: int) -> str:
     ]
     if metrics.get("saturated_periods"):
         lines.append("saturated periods      : " + "  ".join(str(c) for c in metrics["saturated_periods"]))
+    lines += score_lines(metrics)
     return "\n".join(lines)
+
+
+SCORE_LABELS = (("error_rms", "RMS error        (rad)"), ("error_itae", "ITAE       (rad s^2)"),
+                ("torque_tv_rate", "torque TV/s   (N m/s)"), ("torque_hf_share", "torque power > {:g} Hz"),
+                ("control_energy", "energy   (N^2 m^2 s)"), ("torque_rate_peak", "peak dtau/dt  (N m/s)"))
+"""The scores' lines of :func:`format_metrics` (pdsmc_ros/scores.py, docs/SCORES.md)."""
+
+
+def score_lines(metrics: dict) -> list[str]:
+    """The scores per joint and for the run (``run``), when the run has them."""
+    run = metrics.get("run_scores")
+    if not run:
+        return []
+    return [f"{label.format(run['cutoff_hz']):23s}: " + "  ".join(f"{v:.4g}" for v in metrics[key])
+            + f"  run {run[key]:.4g}" for key, label in SCORE_LABELS]
 
 
 def cmd_simulate(args: argparse.Namespace) -> int:

@@ -5,8 +5,9 @@ One implementation serves the in-process simulator and the bag analysis
 errors over the sampled instants; axial errors per actuated joint
 (``e = q_d - q``); task-space |x error|, |y error| and the error magnitude;
 contour error (Eqs. 2.9 / 2.10); share of samples within the contour bound;
-maximum |torque| per actuated joint; and (not a thesis statistic) the control periods
-in which each joint's torque was clamped to its limit.
+maximum |torque| per actuated joint; and (not thesis statistics) the control periods
+in which each joint's torque was clamped to its limit and the scores of :mod:`.scores`
+(tracking, chattering, effort) of the same samples (:func:`sample_scores`).
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ import numpy as np
 
 from .errors import InvalidInputError
 from .robots.base import FloatArray
+from .scores import SCORE_NAMES, Scores, compute_scores
 
 
 @dataclass(frozen=True)
@@ -41,6 +43,15 @@ class Metrics:
     # control periods (all of them, not only the sampled instants) in which each joint's torque
     # was clamped to its effort limit
     saturated_periods: list[int] = field(default_factory=list)
+    # scores beside the errors (:mod:`.scores`, docs/SCORES.md), per joint and for the run
+    # (``run_scores``), from the statistics samples (:func:`sample_scores`); empty without them
+    error_rms: list[float] = field(default_factory=list)
+    error_itae: list[float] = field(default_factory=list)
+    torque_tv_rate: list[float] = field(default_factory=list)
+    torque_hf_share: list[float] = field(default_factory=list)
+    control_energy: list[float] = field(default_factory=list)
+    torque_rate_peak: list[float] = field(default_factory=list)
+    run_scores: dict[str, float] = field(default_factory=dict)
 
     def as_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -65,9 +76,11 @@ def sample_times(duration: float, sample_rate: float) -> FloatArray:
     return np.arange(count + 1) / sample_rate
 
 
-def compute_metrics(samples: Samples, bound: float, *, saturated: Sequence[int] = ()) -> Metrics:
+def compute_metrics(samples: Samples, bound: float, *, saturated: Sequence[int] = (),
+                    scores: Scores | None = None) -> Metrics:
     """Thesis-style statistics of sampled signals (docs/THESIS_NOTES.md section 4); ``saturated``: the
-    clamped periods of each joint, counted by the loop (every period, not only the samples).
+    clamped periods of each joint, counted by the loop (every period, not only the samples);
+    ``scores``: the run's scores (:func:`sample_scores`).
 
     Raises
     ------
@@ -95,4 +108,25 @@ def compute_metrics(samples: Samples, bound: float, *, saturated: Sequence[int] 
         task_sd_signed={"x": float(np.std(samples.xy_ref[:, 0] - samples.xy[:, 0])),
                         "y": float(np.std(samples.xy_ref[:, 1] - samples.xy[:, 1]))},
         saturated_periods=[int(c) for c in saturated],
+        **score_fields(scores),
     )
+
+
+def sample_scores(samples: Samples, rate: float) -> Scores | None:
+    """The scores (:func:`pdsmc_ros.scores.compute_scores`) of the statistics samples, taken at
+    ``rate`` Hz: the error at every sample, the torque of every sample but the last (the run's
+    closing command, never applied) held until the next. None with fewer than two samples or
+    samples not evenly ``1/rate`` apart (a bag with missing steps): the scores need every instant."""
+    t = samples.t
+    if len(t) < 2 or not np.allclose(np.diff(t), 1.0 / rate, rtol=1e-9, atol=0.0):
+        return None
+    return compute_scores(samples.q_ref - samples.q, samples.tau[:-1], rate)
+
+
+def score_fields(scores: Scores | None) -> dict[str, Any]:
+    """:class:`Metrics`' score fields of ``scores`` (none: empty)."""
+    if scores is None:
+        return {}
+    out: dict[str, Any] = {name: list(getattr(scores, name)) for name in SCORE_NAMES}
+    out["run_scores"] = {**scores.run, "cutoff_hz": scores.cutoff_hz, "rate_hz": scores.rate_hz}
+    return out

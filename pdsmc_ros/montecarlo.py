@@ -27,6 +27,7 @@ from .errors import ConfigError
 from .presets import RunSpec, make_run
 from .robots import ROBOTS, UrdfRobot, make_robot, robot_params
 from .robots.base import RobotParams
+from .scores import SCORE_NAMES
 
 PARAMETERS = ("link_mass", "link_com", "link_inertia", "motor_inertia", "motor_damping", "payload",
               "initial_error")
@@ -184,8 +185,9 @@ def base_specs(robot: str, contour: str, controllers: Sequence[str], **options: 
 
 
 def summarize(rows: Sequence[Mapping[str, Any]], controllers: Sequence[str], bound: float) -> dict[str, Any]:
-    """Per controller: mean, p5, p50, p95 and worst of the runs' mean contour error, and the share
-    of runs whose mean contour error is within the bound (runs that failed count as outside)."""
+    """Per controller: mean, p5, p50, p95 and worst of the runs' mean contour error, the share
+    of runs whose mean contour error is within the bound (runs that failed count as outside), and
+    the mean of each run score (``<score>_mean``: :data:`pdsmc_ros.scores.SCORE_NAMES`)."""
     out: dict[str, Any] = {}
     for controller in controllers:
         values = np.array([float(r.get("contour_mean", math.nan)) for r in rows if r["controller"] == controller])
@@ -196,8 +198,25 @@ def summarize(rows: Sequence[Mapping[str, Any]], controllers: Sequence[str], bou
                           **{f"contour_mean_p{p}": float(np.percentile(finite, p)) for p in PERCENTILES},
                           "contour_mean_worst": float(np.max(finite)),
                           "share_within_bound": float(np.sum(finite <= bound) / values.size)})
+        for name in SCORE_NAMES:  # the run scores' mean over the runs that have them (docs/SCORES.md)
+            scores = np.array([float(r.get(f"run_scores_{name}", math.nan)) for r in rows
+                               if r["controller"] == controller])
+            scores = scores[np.isfinite(scores)]
+            if scores.size:
+                entry[f"{name}_mean"] = float(np.mean(scores))
         out[controller] = entry
     return out
+
+
+def plain_cell(value: Any) -> Any:
+    """A CSV cell as a plain number or word: floats (numpy's too) by their shortest round-trip
+    ``repr`` (``0.7591762968402793``, ``nan``), numpy integers as ``int``; under numpy 2 the
+    ``repr`` of a numpy scalar is ``np.float64(0.759...)``, which a CSV reader takes for text."""
+    if isinstance(value, (float, np.floating)):
+        return repr(float(value))
+    if isinstance(value, np.integer):
+        return int(value)
+    return value
 
 
 def write_outputs(rows: Sequence[Mapping[str, Any]], summary: Mapping[str, Any], meta: Mapping[str, Any],
@@ -213,7 +232,7 @@ def write_outputs(rows: Sequence[Mapping[str, Any]], summary: Mapping[str, Any],
         writer = csv.DictWriter(handle, fieldnames=columns, restval="nan")
         writer.writeheader()
         for row in ordered:
-            writer.writerow({k: repr(v) if isinstance(v, float) else v for k, v in row.items()})
+            writer.writerow({k: plain_cell(v) for k, v in row.items()})
     report = out / "montecarlo.json"
     report.write_text(json.dumps({**meta, "controllers_summary": summary}, indent=2, sort_keys=True))
     return [table, report]

@@ -48,6 +48,27 @@ def test_draws_depend_on_the_seed_and_the_run_alone_and_every_controller_shares_
     assert all(r["status"] == "ok" and r["contour_mean"] > 0 for r in rows)
 
 
+def test_every_csv_cell_is_a_plain_number_or_word(tmp_path: Path) -> None:
+    """numpy 2's ``repr`` of a numpy scalar (``np.float64(0.75...)``) is not a number to a CSV reader."""
+    from pdsmc_ros.montecarlo import summarize, write_outputs
+
+    spreads = load_uncertainty()
+    specs = [dataclasses.replace(s, duration_factor=0.02) for s in base_specs("serial_3r", "circle", ["pd", "smc"])]
+    rows = run_sample(0, 5, specs, spreads) + run_sample(1, 5, specs, spreads)
+    assert any(isinstance(v, np.floating) for v in rows[0].values())  # what the table used to repr
+    meta = {"controllers": ["pd", "smc"]}
+    write_outputs(rows, summarize(rows, ["pd", "smc"], specs[0].bound), meta, tmp_path)
+    read = table(tmp_path)
+    assert len(read) == 4 and [r["controller"] for r in read] == ["pd", "smc", "pd", "smc"]
+    for row, original in zip(read, rows, strict=True):
+        assert row["status"] == "ok"
+        for column, cell in row.items():
+            if column in ("controller", "status"):
+                continue
+            assert float(cell) == float(original[column]), (column, cell)  # every digit, not text
+        assert row["run"] in ("0", "1") and "np." not in "".join(row.values())
+
+
 def test_bad_uncertainty_files_are_one_line(tmp_path: Path) -> None:
     cases = {
         "link_mas: {distribution: uniform, relative: 0.1}\n": "unknown parameter 'link_mas'",

@@ -14,6 +14,7 @@ from conftest import node_log_tails
 
 from pdsmc_ros.bag.reader import read_run, run_metrics
 from pdsmc_ros.presets import make_run
+from pdsmc_ros.scores import SCORE_NAMES
 from pdsmc_ros.sim import simulate
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -68,7 +69,14 @@ def test_lockstep_run_equals_in_process_simulation(ros_env: dict, tmp_path: Path
     every = run.spec.sample_every
     assert np.max(np.abs(run.q[::every] - sim.samples.q)) <= 1e-9
     assert np.max(np.abs(run.tau[::every] - sim.samples.tau)) <= 1e-9
-    assert run_metrics(run).contour_mean == pytest.approx(sim.metrics.contour_mean, rel=1e-9)
+    recorded = run_metrics(run)
+    assert recorded.contour_mean == pytest.approx(sim.metrics.contour_mean, rel=1e-9)
+    # the scores (from every step: pdsmc_ros/scores.py) of the bag are the in-process run's
+    for name in SCORE_NAMES:
+        assert len(getattr(sim.metrics, name)) == 3, name
+        assert getattr(recorded, name) == pytest.approx(getattr(sim.metrics, name), rel=1e-9, abs=0), name
+    assert set(recorded.run_scores) == set(SCORE_NAMES) | {"cutoff_hz", "rate_hz"}
+    assert recorded.run_scores == pytest.approx(sim.metrics.run_scores, rel=1e-9, abs=0)
     # the description in the bag is the whole run
     assert run.description["controller"] == "pdsmc" and run.description["gains"]["ks"] == [55.0, 35.0, 25.0]
     # the bag opens with the mcap reader as well, with ros2msg schemas

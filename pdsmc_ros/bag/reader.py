@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import BagError, CdrError
-from ..metrics import Metrics, Samples, compute_metrics
+from ..metrics import Metrics, Samples, compute_metrics, sample_scores
 from ..presets import RunSpec, control_steps
 from ..robots.base import FloatArray
 from ..robots.catalog import ROBOT_DESCRIPTION, register_description
@@ -213,5 +213,8 @@ def run_samples(run: RecordedRun) -> Samples:
 
 
 def run_metrics(run: RecordedRun) -> Metrics:
-    """Thesis statistics of a recorded run, sampled at the thesis's analysis rate."""
-    return compute_metrics(run_samples(run), run.spec.bound)
+    """Thesis statistics of a recorded run, sampled at the thesis's analysis rate, and the scores
+    of the same samples as the simulator computes them (none if a sampled step is missing)."""
+    samples = run_samples(run)
+    return compute_metrics(samples, run.spec.bound,
+                           scores=sample_scores(samples, run.spec.rate / run.spec.sample_every))

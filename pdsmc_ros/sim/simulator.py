@@ -18,7 +18,7 @@ from numpy.typing import ArrayLike
 
 from ..control.law import ControlLaw
 from ..control.stability import check_rate
-from ..metrics import Metrics, Samples, compute_metrics
+from ..metrics import Metrics, Samples, compute_metrics, sample_scores
 from ..presets import RunSpec, control_steps
 from ..robots import ROBOTS
 from ..robots.base import FloatArray, Manipulator
@@ -89,9 +89,10 @@ def simulate(spec: RunSpec, *, check_stability: bool = True, plant: Manipulator 
     limit = robot.effort_limits if spec.enforce_limits else None
     out_q, _, out_tau, outcome = run_loop(robot, ControlLaw.from_spec(spec), q0, refs, 1.0 / spec.rate, every,
                                           limit)
-    t = (np.arange(steps + 1) / spec.rate)[::every]
-    samples = build_samples(robot, reference.contour, t, out_q, refs[::every, 0], out_tau)
-    metrics = compute_metrics(samples, spec.bound, saturated=outcome.saturated)
+    t, xy_ref = _task_samples(spec, reference, steps)
+    samples = build_samples(robot, reference.contour, t, out_q, refs[::every, 0], out_tau, xy_ref=xy_ref)
+    metrics = compute_metrics(samples, spec.bound, saturated=outcome.saturated,
+                              scores=sample_scores(samples, spec.rate / every))
     return RunResult(spec, samples, metrics, steps, time.perf_counter() - start, outcome.diverged,
                      tuple(outcome.warnings))
 
@@ -124,6 +125,24 @@ def _reference_samples(spec: RunSpec) -> tuple[JointReference, FloatArray]:
     return hit
 
 
+_TASK_SAMPLES: dict[tuple[object, ...], tuple[FloatArray, FloatArray]] = {}
+
+
+def _task_samples(spec: RunSpec, reference: JointReference, steps: int) -> tuple[FloatArray, FloatArray]:
+    """The statistics instants and the desired task points there (read-only), shared like
+    :func:`_reference_samples` by the runs of a process on the same reference (a Monte Carlo's)."""
+    key = (*_reference_key(spec), spec.sample_every)
+    hit = _TASK_SAMPLES.get(key)
+    if hit is None:
+        t = (np.arange(steps + 1) / spec.rate)[::spec.sample_every]
+        xy_ref = np.ascontiguousarray(reference.contour.task(t).p[:, :2])
+        t.flags.writeable = xy_ref.flags.writeable = False
+        if len(_TASK_SAMPLES) >= 8:
+            _TASK_SAMPLES.pop(next(iter(_TASK_SAMPLES)))
+        hit = _TASK_SAMPLES[key] = (t, xy_ref)
+    return hit
+
+
 def build_samples(
     robot: Manipulator,
     contour: object,
@@ -131,10 +150,14 @@ def build_samples(
     q: FloatArray,
     q_ref: FloatArray,
     tau: FloatArray,
+    *,
+    xy_ref: FloatArray | None = None,
 ) -> Samples:
-    """Samples (actual and desired task points, contour error) from joint signals."""
+    """Samples (actual and desired task points, contour error) from joint signals;
+    ``xy_ref``: the desired task points at ``t`` if already known (``contour.task(t)``)."""
     xy = robot.position(q)
-    xy_ref = contour.task(t).p[:, :2]  # type: ignore[attr-defined]
+    if xy_ref is None:
+        xy_ref = contour.task(t).p[:, :2]  # type: ignore[attr-defined]
     return Samples(
         t=t,
         q=q,

@@ -22,6 +22,7 @@ from ..control.safety import DivergenceCheck
 from ..errors import BagError, InvalidInputError
 from ..metrics import Metrics
 from ..runtime.statistics import loop_report_lines
+from ..scores import DEFAULT_CUTOFF_HZ
 
 
 def is_bag(path: Path) -> bool:
@@ -185,6 +186,10 @@ def comparison_table(bags: Sequence[AnalyzedBag]) -> str:
         row(f"saturated periods {i + 1}",
             [b.metrics.saturated_periods[i] if i < len(b.metrics.saturated_periods) else float("nan")
              for b in bags], "{:.0f}")
+    for key, name, fmt in SCORE_ROWS:  # scores beside the errors (docs/SCORES.md), of the same samples
+        for i in range(n):
+            row(f"{name} {i + 1}", [_score(b.metrics, key, i) for b in bags], fmt)
+        row(f"{name} run", [b.metrics.run_scores.get(key, float("nan")) for b in bags], fmt)
     for b in bags:
         if b.diverged:
             lines.append(f"{b.label}: {b.diverged}; left out of the comparisons")
@@ -199,6 +204,19 @@ def comparison_table(bags: Sequence[AnalyzedBag]) -> str:
     lines.extend(loop_report_lines(bags))  # real time: each loop node's overrun statistics
     lines.extend(improvements(bags))
     return "\n".join(lines)
+
+
+SCORE_ROWS = (("error_rms", "RMS error (rad)", "{:.4e}"), ("error_itae", "ITAE (rad s^2)", "{:.4e}"),
+              ("torque_tv_rate", "torque TV/s (N m/s)", "{:.4g}"), ("torque_hf_share",
+                                                                      f"power > {DEFAULT_CUTOFF_HZ:g} Hz", "{:.4f}"),
+              ("control_energy", "energy (N^2 m^2 s)", "{:.4g}"), ("torque_rate_peak", "peak dtau/dt (N m/s)",
+                                                                     "{:.4g}"))
+"""The comparison table's score rows: key, label, format (a bag's scores use the default cutoff)."""
+
+
+def _score(metrics: Metrics, key: str, joint: int) -> float:
+    values = getattr(metrics, key)
+    return float(values[joint]) if joint < len(values) else float("nan")
 
 
 def improvements(bags: Sequence[AnalyzedBag]) -> list[str]:
