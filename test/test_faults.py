@@ -274,7 +274,7 @@ def test_respawned_controller_resumes_the_run(ros_env: dict, tmp_path: Path) -> 
     law = ControlLaw.from_spec(run.spec)
     ref = run.spec.reference().sample(np.arange(run.steps + 1) / run.spec.rate)
     # the law's torque within the arm's effort limits: the way back after the safe stretch asks for
-    # kilonewton-metres (the clamp, on by default, holds it at 50, 25, 12 N m)
+    # kilonewton-metres (the clamp, on by default, holds it at the arm's effort limits)
     limit = run.spec.robot_model().effort_limits
     commanded = np.array([np.array_equal(run.tau[k], np.clip(law.torque(run.q[k], run.qd[k], ref.q[k], ref.qd[k],
                                                                         ref.qdd[k]), -limit, limit))
