@@ -61,6 +61,11 @@ class Client:
             self.executor.spin_once(timeout_sec=0.05)
 
     def command(self, values: list[float]) -> None:
+        # a message published before the driver's subscription is matched is lost (seen on a
+        # loaded machine: the first bad command never reached the driver)
+        end = time.monotonic() + 10.0
+        while self.commands.get_subscription_count() < 1 and time.monotonic() < end:
+            self.executor.spin_once(timeout_sec=0.05)
         self.commands.publish(Float64MultiArray(data=values))
 
     def close(self) -> None:
