@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from pdsmc_ros.control.safety import SafetyConfig, Watchdog
-from pdsmc_ros.robots import Serial3R
+from pdsmc_ros.robots import Serial3R, make_robot
 from pdsmc_ros.sim import PlantStepper
 from pdsmc_ros.sim.supervised import FIRST_STATE_RESEND_S, MAX_CATCH_UP, SupervisedPlant
 
@@ -156,7 +156,8 @@ def test_the_plant_saturates_at_the_effort_limits() -> None:
     p, _ = limited_plant(lockstep=True, limit=True)
     p.started = True
     p.effort(0, (1.0e3, -1.0e3, 5.0), 0.0)
-    assert p.applied.tolist() == [50.0, -25.0, 5.0]  # config/robots.yaml's serial_3r limits
+    limit = make_robot("serial_3r").effort_limits  # config/robots.yaml's serial_3r limits
+    assert p.applied.tolist() == [limit[0], -limit[1], 5.0]
     assert not p.failure
 
 
