@@ -197,8 +197,11 @@ def test_sweep_tune_and_reproduce_on_a_scheduler_equal_their_local_runs(tmp_path
 @pytest.mark.timeout(600)
 def test_ctrl_c_writes_the_runs_finished_so_far(tmp_path: Path) -> None:
     out = tmp_path / "partial"
+    # as from a shell: SIGINT at its default (a test before this one in the same pytest process may
+    # leave it ignored, and an ignored signal is inherited: the run then went on to the end)
     run = subprocess.Popen([sys.executable, "-m", "pdsmc_ros.cli", "montecarlo", *ARGS, "--runs", "500", "--workers",
-                            "1", "--out", str(out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                            "1", "--out", str(out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                           preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     first = run.stderr.readline()  # type: ignore[union-attr]
     assert first.startswith("montecarlo: 1/500 runs"), first
     run.send_signal(signal.SIGINT)
