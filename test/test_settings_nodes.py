@@ -137,6 +137,7 @@ def test_the_cli_knows_every_parameter_the_controller_declares(ros_env: dict) ->
               "wrapper = ControllerNode()\n"
               "declare_realtime_parameters(wrapper.node, 'realtime')\n"
               "print(' '.join(wrapper.node.list_parameters([], 0).names))\n"
+              "wrapper.action.stop()\n"  # the action server's thread ends before the context does
               "wrapper.node.destroy_node()\n"
               "rclpy.shutdown()\n")
     proc = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True, timeout=150)
