@@ -8,7 +8,7 @@ in-process simulator, the ROS nodes (as parameters) and the bag metadata.
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -17,7 +17,7 @@ import numpy as np
 from . import __version__
 from .config import choice, load_config
 from .control.gains import Gains
-from .control.registry import GAIN_NAMES, SMC_MODEL_KEYS, law, smc_model_vector
+from .control.registry import SMC_MODEL_KEYS, law, smc_model_vector
 from .errors import ConfigError, MissingGainsError
 from .robots import ROBOTS, Manipulator, RobotParams, UrdfRobot, make_robot, robot_params, robot_settings
 from .robots.catalog import resolve_robot
@@ -205,7 +205,7 @@ class RunSpec:
             contour=data["contour"],
             controller=data["controller"],
             scenario=data.get("scenario", "nominal"),
-            gains=Gains(**{k: tuple(float(x) for x in data["gains"][k]) for k in GAIN_NAMES}),
+            gains=Gains.from_mapping(data["gains"], ROBOTS[robot].n, data["controller"]),
             rate=float(data["control_rate_hz"]),
             sample_rate=float(data["sample_rate_hz"]),
             payload=float(data.get("payload_kg", 0.0)),
@@ -339,6 +339,43 @@ def preset_gains(robot: str, contour: str, controller: str) -> Gains:
     return Gains.from_mapping(table, cls.n, controller)
 
 
+def run_gains(robot: str, contour: str, controller: str, *, gains: Gains | None = None,
+              layers: Sequence[Mapping[str, Any]] = (), needs_gains: bool = True) -> Gains:
+    """The gains of a run before its scenario scales them, from layered inputs.
+
+    In this order, each layer replacing the gains it names: (1) ``gains`` if given, else the
+    presets (``config/gains.yaml``, Tables 4.16 / 4.33; an arm may have none); (2) each of
+    ``layers`` in turn -- a params file's gains, then explicit overrides (``-p kp:=``,
+    ``--gain kp=``). Every gain the law declares as needed must come from some layer; when
+    ``needs_gains`` is False (the nodes other than the controller, which never use them) the
+    missing ones hold their neutral values.
+
+    Raises
+    ------
+    ConfigError
+        A gain the law does not declare, a value out of its bounds, or (``needs_gains``) a
+        gain given by no layer.
+    """
+    entry = law(controller)
+    n = ROBOTS[resolve_robot(robot)].n
+    try:
+        base = (gains if gains is not None else preset_gains(robot, contour, controller)).as_dict()
+    except MissingGainsError:
+        if needs_gains and not any(layers):
+            raise
+        base = {}
+    given: dict[str, Any] = dict(base)
+    for layer in layers:
+        given.update(layer)
+    missing = [g for g in entry.gain_names if g not in given]
+    if missing and needs_gains:
+        raise ConfigError(f"{controller} needs gains {', '.join(missing)}: this arm has no preset for {contour}; "
+                          f"give them ({missing[0]}:=[...] or --gain {missing[0]}=..., one per joint) or a params "
+                          "file (pdsmc tune writes one)")
+    neutral = {g.name: [g.neutral] for g in entry.specs if g.name in missing}
+    return Gains.from_mapping({**neutral, **given}, n, controller)
+
+
 def make_run(
     robot: str,
     contour: str,
@@ -347,6 +384,9 @@ def make_run(
     scenario: str = "nominal",
     rate: float | None = None,
     gains: Gains | None = None,
+    params: Mapping[str, Any] | None = None,
+    overrides: Mapping[str, Any] | None = None,
+    needs_gains: bool = True,
     smc_model: Mapping[str, float] | None = None,
     ellipse_error: str = "nearest",
     waypoints_file: str | None = None,
@@ -354,12 +394,19 @@ def make_run(
     sample_rate: float | None = None,
     payload_reading: str = "tip",
 ) -> RunSpec:
-    """A run from preset names, with the scenario of Section 4.5 applied."""
+    """The one run builder (the CLI, the nodes, tune, sweep, Monte Carlo and reproduce use it).
+
+    The gains come from :func:`run_gains`: ``gains`` or the presets, then ``params`` (a params
+    file's gains), then ``overrides`` (explicit ``-p``/``--gain`` values); the scenario of
+    Section 4.5 then applies to the result, whichever layer gave each gain (its gain factors,
+    payload and duration factor). Rates not given are the robot's settings.
+    """
     choice(contour, contour_names(robot), f"contour for {robot}")
     settings = robot_settings(robot)
     scenarios = load_config("scenarios")
     sc = scenarios[choice(scenario, list(scenarios), "scenario")] or {}
-    base = gains or preset_gains(robot, contour, controller)
+    base = run_gains(robot, contour, controller, gains=gains, layers=[x for x in (params, overrides) if x],
+                     needs_gains=needs_gains)
     factors = scenario_gain_factors(scenario, controller)
     model = smc_model_default()
     model.update(smc_model or {})
@@ -387,8 +434,8 @@ def scenario_gain_factors(scenario: str, controller: str) -> dict[str, float]:
     the gains given (a params file, ``-p``, ``ros2 param set``) as to the presets."""
     scenarios = load_config("scenarios")
     sc = scenarios[choice(scenario, list(scenarios), "scenario")] or {}
-    needs = law(controller).gains
-    return {k: float(v) for k, v in (sc.get("gain_factors") or {}).items() if k in needs}
+    factors = sc.get("gain_factors") or {}
+    return {g.name: float(factors[g.factor_key]) for g in law(controller).specs if g.factor_key in factors}
 
 
 def smc_reading(name: str) -> dict[str, float]:

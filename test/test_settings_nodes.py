@@ -57,13 +57,13 @@ def test_given_gains_are_scaled_by_the_scenario_as_in_process(context: object, s
                                                                                   "pdsmc"), scenario=scenario)
     assert partial.gains == unscaled.gains
     if scenario == "high_pd":
-        assert spec.gains.kp == (450.0, 300.0) and spec.gains.ks == tuple(GIVEN["ks"])
+        assert spec.gains["kp"] == (450.0, 300.0) and spec.gains["ks"] == tuple(GIVEN["ks"])
 
 
 def test_only_the_controller_needs_gains(context: object) -> None:
     run = {"robot": "ur3", "contour": "circle", "type": "pdsmc"}  # no preset gains for the UR3
     plant = node_spec(context, run, needs_gains=False)
-    assert plant.robot == "ur3" and len(plant.gains.kp) == 6
+    assert plant.robot == "ur3" and len(plant.gains["kp"]) == 6
     with pytest.raises(ConfigError, match=r"pdsmc needs gains kp, kd, ks, lam, phi: this arm has no preset.*tune"):
         node_spec(context, run)
     gains = {k: [v[0]] * 6 for k, v in GIVEN.items()}
@@ -126,7 +126,8 @@ def test_the_controller_refuses_gains_unstable_in_real_time_advising_the_paramet
 
 @pytest.mark.timeout(200)
 def test_the_cli_knows_every_parameter_the_controller_declares(ros_env: dict) -> None:
-    """settings.CONTROLLER_PARAMETERS (what pdsmc --params-file accepts without ROS) is the controller's list."""
+    """settings.CONTROLLER_PARAMETERS and the laws' gains (what pdsmc --params-file accepts without ROS) are
+    the controller's list."""
     from pdsmc_ros.settings import ALWAYS_DECLARED, CONTROLLER_PARAMETERS
 
     env = {**ros_env, "ROS_DOMAIN_ID": str(next_domain())}
@@ -142,4 +143,6 @@ def test_the_cli_knows_every_parameter_the_controller_declares(ros_env: dict) ->
     proc = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True, timeout=150)
     assert proc.returncode == 0, proc.stderr
     declared = set(proc.stdout.split()) - set(ALWAYS_DECLARED)
-    assert declared == set(CONTROLLER_PARAMETERS)
+    from pdsmc_ros.control import gain_names
+
+    assert declared == set(CONTROLLER_PARAMETERS) | set(gain_names())

@@ -70,7 +70,7 @@ def theorem_conditions(spec: RunSpec, *, points: int = 401) -> list[Condition]:
         + robot.gravity(q)
     )
     g = spec.gains
-    kp, kd, ks, lam = (np.asarray(x, dtype=float) for x in (g.kp, g.kd, g.ks, g.lam))
+    kp, kd, ks, lam = (np.asarray(x, dtype=float) for x in (g["kp"], g["kd"], g["ks"], g["lam"]))
     lam_max = float(lam.max())
     m_max = float(np.max(np.linalg.eigvalsh(mass)))
     ct_sym = _sym(np.swapaxes(cor, -1, -2))
