@@ -111,7 +111,10 @@ def starting_gains(spec: RunSpec, w: float | None = None) -> Gains:
     w = bandwidth(spec.rate) if w is None else w
     values = {"kp": m * w * w, "kd": 2.0 * m * w, "ks": 2.0 * m * w * BOUNDARY_LAYER,
               "lam": np.full_like(m, w / 2.0), "phi": np.full_like(m, BOUNDARY_LAYER)}
-    needed = law(spec.controller).gain_names
+    entry = law(spec.controller)
+    for g in entry.specs:  # a gain the recipe does not set starts where its law declares
+        values.setdefault(g.name, np.full(len(m) if g.per_joint else 1, g.neutral if g.start is None else g.start))
+    needed = entry.gain_names
     gains = _gains(values, needed, spec.controller)
     if spec.controller in THEOREM_LAWS:
         gains = _inside_theorem(spec, values, needed)
@@ -289,7 +292,7 @@ def _spec(robot: str, contour: str, controller: str, rate: float | None) -> RunS
     """The run to tune: the robot's settings with placeholder gains (replaced per candidate)."""
     needed = law(controller).gain_names
     n = ROBOTS[resolve_robot(robot)].n
-    placeholder = Gains.from_mapping({k: [1.0] * n for k in needed}, n, controller)
+    placeholder = Gains.from_mapping({k: [1.0] for k in needed}, n, controller)  # one value: every joint
     return make_run(robot, contour, controller, rate=rate, gains=placeholder)
 
 

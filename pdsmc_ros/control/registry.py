@@ -57,6 +57,9 @@ class GainSpec:
     scaled_by : str or None
         The key of a scenario's ``gain_factors`` (``config/scenarios.yaml``, Section 4.5.3)
         that multiplies it; None: its own name.
+    start : float or None
+        Where ``pdsmc tune`` starts it when the thesis's recipe (Section 4.2.3, which sets
+        ``kp, kd, ks, lam, phi``) does not; None: :attr:`neutral`.
     """
 
     name: str
@@ -68,6 +71,7 @@ class GainSpec:
     upper: float = math.inf
     neutral: float = 0.0
     scaled_by: str | None = None
+    start: float | None = None
 
     def __post_init__(self) -> None:
         if not self.name.isidentifier():
