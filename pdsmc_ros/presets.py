@@ -370,8 +370,8 @@ def run_gains(robot: str, contour: str, controller: str, *, gains: Gains | None 
     missing = [g for g in entry.gain_names if g not in given]
     if missing and needs_gains:
         raise ConfigError(f"{controller} needs gains {', '.join(missing)}: this arm has no preset for {contour}; "
-                          f"give them (-p {missing[0]}:=[...] or --gain {missing[0]}=...: see the law's gains) or a params "
-                          "file (pdsmc tune writes one)")
+                          f"give them (-p {missing[0]}:=[...] or --gain {missing[0]}=...: see the law's gains) or a "
+                          "params file (pdsmc tune writes one)")
     neutral = {g.name: [g.neutral] for g in entry.specs if g.name in missing}
     return Gains.from_mapping({**neutral, **given}, n, controller)
 
