@@ -361,17 +361,16 @@ def run_gains(robot: str, contour: str, controller: str, *, gains: Gains | None 
     try:
         base = (gains if gains is not None else preset_gains(robot, contour, controller)).as_dict()
     except MissingGainsError:
-        if needs_gains and not any(layers):
-            raise
-        base = {}
+        base = {}  # an arm or a law without presets: the layers give them
     given: dict[str, Any] = dict(base)
     for layer in layers:
         given.update(layer)
     missing = [g for g in entry.gain_names if g not in given]
     if missing and needs_gains:
-        raise ConfigError(f"{controller} needs gains {', '.join(missing)}: this arm has no preset for {contour}; "
-                          f"give them (-p {missing[0]}:=[...] or --gain {missing[0]}=...: see the law's gains) or a "
-                          "params file (pdsmc tune writes one)")
+        raise MissingGainsError(
+            f"{controller} needs gains {', '.join(missing)}: this arm has no preset for {contour} (config/gains.yaml "
+            f"has no {controller} gains for {robot}); give them (-p {missing[0]}:=[...] or --gain {missing[0]}=...) "
+            "or a params file (pdsmc tune writes one)")
     neutral = {g.name: [g.neutral] for g in entry.specs if g.name in missing}
     return Gains.from_mapping({**neutral, **given}, n, controller)
 
