@@ -11,22 +11,14 @@ import json
 import sys
 from collections.abc import Sequence
 from pathlib import Path
-from typing import NoReturn
 
 import numpy as np
 
 from . import __version__, rt_check
+from .arguments import EXIT_USAGE, OneLineParser
 from .errors import ConfigError, InvalidInputError, PdsmcError
 
-EXIT_USAGE = 2
 EXIT_FAILURE = 1
-
-
-class OneLineParser(argparse.ArgumentParser):
-    """argparse with a single-line error message and exit status 2."""
-
-    def error(self, message: str) -> NoReturn:
-        self.exit(EXIT_USAGE, f"{self.prog}: error: {message} (see --help)\n")
 
 
 def positive_float(text: str) -> float:

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..presets import RunSpec
+from .run import LawRun
 
 
 @dataclass(frozen=True)
@@ -53,7 +53,7 @@ def _sym(a: np.ndarray) -> np.ndarray:
     return np.asarray(0.5 * (a + np.swapaxes(a, -1, -2)))
 
 
-def theorem_conditions(spec: RunSpec, *, points: int = 401) -> list[Condition]:
+def theorem_conditions(spec: LawRun, *, points: int = 401) -> list[Condition]:
     """Eq. (3.19) evaluated on ``points`` instants of the desired motion."""
     robot = spec.nominal_model()
     reference = spec.reference()
