@@ -98,7 +98,7 @@ def run_sweep(
         diverged = not np.all(np.isfinite(eps)) or float(np.nanmax(eps)) > 0.05
         points.append(
             SweepPoint(
-                value=float(getattr(spec.gains, param)[0]),
+                value=float(spec.gains[param][0]),
                 rate=spec.rate,
                 contour_mean=res.metrics.contour_mean,
                 contour_sd=res.metrics.contour_sd,
