@@ -73,7 +73,7 @@ def test_the_declaration_is_what_the_package_knows(pd_g: None) -> None:  # noqa:
                        overrides={"kp": [230, 260], "kd": [24, 36], "kg": 0.5})
     assert high_pd.gains["kp"] == (345.0, 390.0) and high_pd.gains["kg"] == (0.5,)  # kg: no scenario factor
     for bad, message in (({"kg": 1.5}, r"gain kg of pd_g must be finite and >= 0 and <= 1"),
-                         ({"kg": [0.5, 0.5]}, r"gain kg needs one number, got 2 values"),
+                         ({"kg": [0.5, 0.5]}, r"gain kg needs one value \(for every joint\), got 2"),
                          ({"kg": 0.5, "ki": [1.0, 1.0]}, r"unknown gain\(s\) \['ki'\] for pd_g; allowed: kp, kd, kg")):
         with pytest.raises(ConfigError, match=message):
             make_run("parallel_5r", "circle", "pd_g", overrides={"kp": [230, 260], "kd": [24, 36], **bad})

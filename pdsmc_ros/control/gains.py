@@ -62,15 +62,15 @@ class Gains(Mapping[str, tuple[float, ...]]):
         for spec in entry.row_specs:
             size = n if spec.per_joint else 1
             raw = data.get(spec.name, [spec.neutral] * size)
-            what = f"a list of {n} numbers" if spec.per_joint else "one number"
+            what = f"{n} values (one per joint)" if spec.per_joint else "one value (for every joint)"
             try:
                 arr = np.asarray(raw, dtype=float).reshape(-1)
             except (TypeError, ValueError):
-                raise ConfigError(f"gain {spec.name} must be {what}, got {raw!r}") from None
+                raise ConfigError(f"gain {spec.name} must be numbers, {what}, got {raw!r}") from None
             if arr.size == 1:
                 arr = np.full(size, arr[0])
             if arr.size != size:
-                raise ConfigError(f"gain {spec.name} needs {what}, got {arr.size} values")
+                raise ConfigError(f"gain {spec.name} needs {what}, got {arr.size}")
             spec.check(arr, controller)
             rows.append((spec.name, tuple(float(v) for v in arr)))
         return cls(n, tuple(rows))

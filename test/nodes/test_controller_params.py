@@ -61,7 +61,7 @@ def test_gains_and_limits_given_in_joints_order_land_in_robot_order(node_with) -
     updates.joint_map = params.joint_map
     result = node.set_parameters([Parameter("kp", value=[300.0, 1800.0, 1700.0])])[0]
     assert result.successful, result.reason
-    np.testing.assert_array_equal(applied[-1].kp, [1800.0, 1700.0, 300.0])
+    np.testing.assert_array_equal(applied[-1]["kp"], [1800.0, 1700.0, 300.0])
     refused = node.set_parameters([Parameter("enforce_limits", value=False)])[0]
     assert not refused.successful and "read at start" in refused.reason
 
