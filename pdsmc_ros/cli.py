@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from . import __version__, rt_check
-from .arguments import EXIT_USAGE, OneLineParser
+from .arguments import EXIT_USAGE, OneLineParser, gain_value
 from .errors import ConfigError, InvalidInputError, PdsmcError
 
 EXIT_FAILURE = 1
@@ -74,22 +74,6 @@ def value_list(text: str) -> list[float]:
     if len(values) > MAX_VALUES:
         raise argparse.ArgumentTypeError(f"expected at most {MAX_VALUES} values (one run each), got {len(values)}")
     return values
-
-
-def gain_value(text: str) -> tuple[str, list[float]]:
-    """``--gain kp=100,200``: a gain's name and values (checked against the law's declaration when the
-    run is built: names and bounds are the law's)."""
-    name, sep, values = text.partition("=")
-    if not sep or not name.strip().isidentifier():
-        raise argparse.ArgumentTypeError(f"expected NAME=V1,V2,... (a gain of the law), got {text!r}")
-    try:
-        numbers = [float(v) for v in values.split(",") if v.strip()]
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"gain {name.strip()}: expected comma-separated numbers, got {values!r}") \
-            from None
-    if not numbers or not all(np.isfinite(numbers)):
-        raise argparse.ArgumentTypeError(f"gain {name.strip()}: expected finite numbers, got {values!r}")
-    return name.strip(), numbers
 
 
 MAX_RUNS = 1_000_000
