@@ -109,7 +109,7 @@ def test_the_controller_node_declares_and_takes_it(pd_g: None) -> None:  # noqa:
     rclpy = pytest.importorskip("rclpy")
     from rclpy.parameter import Parameter
 
-    from pdsmc_ros.nodes.params import declare_run_parameters, run_spec_from_parameters
+    from pdsmc_ros.nodes.params import GainUpdates, declare_run_parameters, run_spec_from_parameters
 
     context = rclpy.context.Context()
     rclpy.init(context=context)
@@ -133,6 +133,19 @@ def test_the_controller_node_declares_and_takes_it(pd_g: None) -> None:  # noqa:
         assert spec.gains == in_process.gains and spec.gains["kg"] == (0.5,)
         with pytest.raises(ConfigError, match=r"parameters: gain kg of pd_g must be finite and >= 0 and <= 1"):
             spec_of({**run, "kg": 1.5})
+        # ros2 param set kg: validated against its bounds and applied as a scalar
+        node = rclpy.create_node("controller", context=context,
+                                 parameter_overrides=[Parameter(k, value=v) for k, v in {**run, "kg": 0.5}.items()])
+        try:
+            declare_run_parameters(node, gains=True)
+            applied: list = []
+            GainUpdates(node, run_spec_from_parameters(node), lambda new: None, applied.append)
+            assert node.set_parameters([Parameter("kg", value=0.25)])[0].successful
+            assert applied[-1]["kg"] == (0.25,) and applied[-1]["kp"] == (345.0, 390.0)  # kp as started (high_pd)
+            refused = node.set_parameters([Parameter("kg", value=3.0)])[0]
+            assert not refused.successful and "gain kg of pd_g must be finite and >= 0 and <= 1" in refused.reason
+        finally:
+            node.destroy_node()
         with pytest.raises(ConfigError, match=r"parameters: pd_g needs gains kg"):
             spec_of(run)
     finally:

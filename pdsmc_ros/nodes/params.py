@@ -247,14 +247,6 @@ def declare_run_parameters(node: Node, *, gains: bool = False) -> None:
             node.declare_parameter(name, default, desc)
 
 
-def law_model_based(name: str) -> bool:
-    """Whether the law ``name`` uses the model estimate (a ConfigError naming the parameter if unknown)."""
-    try:
-        return law(name).model_based
-    except ConfigError as exc:
-        raise ConfigError(f"parameter type: {exc}") from None
-
-
 def run_spec_from_parameters(node: Node, *, needs_gains: bool = True) -> RunSpec:
     """Build and validate the RunSpec named by the node's parameters.
 
@@ -301,18 +293,13 @@ def run_spec_from_parameters(node: Node, *, needs_gains: bool = True) -> RunSpec
             ):
                 raise ConfigError(f"parameter {name} must be a list of numbers, got {value!r}")
             overrides[name] = [float(v) for v in value]
-    options = {
-        "scenario": p["scenario"],
-        "rate": p["rate"] or None,
-        "sample_rate": p["sample_rate"] or None,
-        "smc_model": smc_reading(p["smc_reading"]) if law_model_based(p["type"]) else None,
-        "ellipse_error": p["ellipse_error"],
-        "waypoints_file": p["waypoints_file"] or None,
-        "segment_duration": p["segment_duration"],
-    }
     try:
         choice(p["contour"], contour_names(p["robot"]), f"contour for {p['robot']}")
-        spec = make_run(p["robot"], p["contour"], p["type"], overrides=overrides, needs_gains=needs_gains, **options)
+        spec = make_run(p["robot"], p["contour"], p["type"], scenario=p["scenario"], rate=p["rate"] or None,
+                        sample_rate=p["sample_rate"] or None,
+                        smc_model=smc_reading(p["smc_reading"]) if law(p["type"]).model_based else None,
+                        ellipse_error=p["ellipse_error"], waypoints_file=p["waypoints_file"] or None,
+                        segment_duration=p["segment_duration"], overrides=overrides, needs_gains=needs_gains)
     except ConfigError as exc:
         raise ConfigError(f"parameters: {exc}") from None
     if p["duration_factor"] != 1.0:
@@ -347,7 +334,9 @@ class GainUpdates:
         changed = False
         for param in params:
             if param.name in GAINS:
-                merged[param.name] = list(param.value or [])
+                value = param.value
+                scalar = isinstance(value, (int, float)) and not isinstance(value, bool)
+                merged[param.name] = [value] if scalar else list(value or [])
                 changed = True
             elif param.name in RUN_PARAMETERS or param.name in ("joints", "autostart"):
                 return SetParametersResult(
