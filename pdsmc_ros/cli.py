@@ -11,12 +11,16 @@ import json
 import sys
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from . import __version__, rt_check
 from .arguments import EXIT_USAGE, OneLineParser, gain_value
 from .errors import ConfigError, InvalidInputError, PdsmcError
+
+if TYPE_CHECKING:
+    from .presets import RunSpec
 
 EXIT_FAILURE = 1
 
@@ -238,7 +242,7 @@ FILE_SETTINGS = {"robot": "--robot", "contour": "--contour", "type": "--controll
 """Run parameters of a params file that a flag also sets: they must agree."""
 
 
-def _spec_from_args(args: argparse.Namespace):  # noqa: ANN202
+def _spec_from_args(args: argparse.Namespace) -> RunSpec:
     from .control import law
     from .presets import make_run, smc_reading
 
@@ -302,7 +306,7 @@ def _same_robot(a: object, b: str) -> bool:
         return False
 
 
-def format_metrics(metrics: dict, robot_n: int) -> str:
+def format_metrics(metrics: dict[str, Any], robot_n: int) -> str:
     """Human-readable statistics of one run."""
     axes = range(robot_n)
     lines = [
@@ -432,7 +436,7 @@ def cmd_analyze(args: argparse.Namespace) -> int:
 
         out = Path(args.out or "analysis")
         written = []
-        groups: dict[tuple[str, str, str], list] = {}
+        groups: dict[tuple[str, str, str], list[Any]] = {}
         for b in bags:
             samples = run_samples(b.run)
             written += plot_run(samples, b.run.spec.robot, b.path.name, out)
@@ -572,7 +576,7 @@ def cmd_montecarlo(args: argparse.Namespace) -> int:
     bound = specs[0].bound
     meta = {"robot": args.robot, "contour": args.contour, "controllers": list(args.controllers), "runs": args.runs,
             "seed": args.seed, "uncertainty": {k: vars(v) for k, v in spreads.items()}, "contour_bound_m": bound}
-    rows: list = []
+    rows: list[Any] = []
     done = 0
     progress = Progress(args.runs, "montecarlo")
     interrupted = False
