@@ -11,22 +11,18 @@ import json
 import sys
 from collections.abc import Sequence
 from pathlib import Path
-from typing import NoReturn
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from . import __version__, rt_check
+from .arguments import EXIT_USAGE, OneLineParser, gain_value
 from .errors import ConfigError, InvalidInputError, PdsmcError
 
-EXIT_USAGE = 2
+if TYPE_CHECKING:
+    from .presets import RunSpec
+
 EXIT_FAILURE = 1
-
-
-class OneLineParser(argparse.ArgumentParser):
-    """argparse with a single-line error message and exit status 2."""
-
-    def error(self, message: str) -> NoReturn:
-        self.exit(EXIT_USAGE, f"{self.prog}: error: {message} (see --help)\n")
 
 
 def positive_float(text: str) -> float:
@@ -154,6 +150,9 @@ def _add_run_arguments(p: argparse.ArgumentParser) -> None:
                    help="seconds per segment of a CSV contour (default 2)")
     p.add_argument("--params-file", default=None,
                    help="gains from a ROS 2 params file (the controller's, e.g. written by pdsmc tune)")
+    p.add_argument("--gain", type=gain_value, action="append", default=None, metavar="NAME=V1,V2,...",
+                   help="one gain the law declares (its -p NAME:= parameter), one value per joint; repeat for "
+                   "others; replaces the preset's and the params file's, before the scenario's factors")
     p.add_argument("--no-enforce-limits", action="store_true",
                    help="do not clamp the torque to the arm's effort limits (URDF <limit effort>, "
                    "config/robots.yaml); the clamp is on by default")
@@ -193,8 +192,9 @@ def build_parser() -> argparse.ArgumentParser:
     ana.add_argument("--plots", action="store_true", help="write PNG figures into --out (default: analysis/)")
 
     swp = sub.add_parser("sweep", help="vary one PD-SMC parameter (Section 4.2.3, Table 4.15)")
-    swp.add_argument("--param", required=True, choices=("kp", "kd", "ks", "lam"),
-                     help="the gain varied (lam: the thesis's lambda)")
+    swp.add_argument("--param", required=True,
+                     help="the PD-SMC gain varied, one its declaration and Table 4.15 give a range: kp, kd, ks, "
+                     "lam (the thesis's lambda)")
     swp.add_argument("--robot", required=True, help="a registered robot: serial_3r, parallel_5r, ...")
     swp.add_argument("--contour", required=True)
     swp.add_argument("--out", default=None, help="write sweep_<param>.csv and .png here")
@@ -242,10 +242,11 @@ FILE_SETTINGS = {"robot": "--robot", "contour": "--contour", "type": "--controll
 """Run parameters of a params file that a flag also sets: they must agree."""
 
 
-def _spec_from_args(args: argparse.Namespace):  # noqa: ANN202
+def _spec_from_args(args: argparse.Namespace) -> RunSpec:
+    from .control import law
     from .presets import make_run, smc_reading
 
-    gains = None
+    params = None
     rate = args.rate
     if args.params_file:
         from .robots import ROBOTS
@@ -261,24 +262,26 @@ def _spec_from_args(args: argparse.Namespace):  # noqa: ANN202
                                   f"{flags[key]}: give the same, or leave one out")
         if rate is None and given.get("rate"):  # the rate the file's gains were chosen for
             rate = positive_float(str(given["rate"]))
-        gains = read_params_file(args.params_file, ROBOTS[resolve_robot(args.robot)].n, args.controller)
+        params = read_params_file(args.params_file, ROBOTS[resolve_robot(args.robot)].n, args.controller)
     return make_run(
         args.robot,
         args.contour,
         args.controller,
         scenario=args.scenario,
         rate=rate,
-        smc_model=smc_reading(args.smc_reading) if args.controller == "smc" else None,
+        smc_model=smc_reading(args.smc_reading) if law(args.controller).model_based else None,
         ellipse_error=args.ellipse_error,
         waypoints_file=args.waypoints,
         segment_duration=args.segment_duration,
         payload_reading=args.payload_reading,
-        gains=gains,
+        params=params,
+        overrides=dict(args.gain or ()),
     )
 
 
 _RUN_DEFAULTS = {"scenario": "nominal", "rate": None, "smc_reading": "literal", "ellipse_error": "nearest",
-                 "waypoints": None, "segment_duration": 2.0, "payload_reading": "tip", "no_enforce_limits": False}
+                 "waypoints": None, "segment_duration": 2.0, "payload_reading": "tip", "no_enforce_limits": False,
+                 "gain": None}
 """The run arguments montecarlo does not take (its runs are nominal, at the robot's rate)."""
 
 
@@ -303,7 +306,7 @@ def _same_robot(a: object, b: str) -> bool:
         return False
 
 
-def format_metrics(metrics: dict, robot_n: int) -> str:
+def format_metrics(metrics: dict[str, Any], robot_n: int) -> str:
     """Human-readable statistics of one run."""
     axes = range(robot_n)
     lines = [
@@ -367,7 +370,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         f"{d['duration_s']:g} s at {spec.rate:g} Hz control, statistics at {spec.sample_rate:g} Hz "
         f"({result.metrics.samples} samples), {result.wall_s:.2f} s wall"
     )
-    print(format_metrics(result.metrics.as_dict(), len(spec.gains.kp)))
+    print(format_metrics(result.metrics.as_dict(), spec.gains.n))
     return 0
 
 
@@ -390,8 +393,10 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
         scheduler=args.scheduler,
     )
     paths = write_report(rep, Path(args.out))
-    main = summarize(c for c in rep.cells if c.controller != "smc")
-    smc = summarize(c for c in rep.cells if c.controller == "smc")
+    from .control import law
+
+    main = summarize(c for c in rep.cells if not law(c.controller).model_based)
+    smc = summarize(c for c in rep.cells if law(c.controller).model_based)
     print(
         f"{len(rep.results)} runs in {rep.wall_s:.1f} s; PD/PD-SMC cells: median |dev| "
         f"{100 * main['median_abs_dev']:.2f} %, {100 * main['within_5pct']:.1f} % within 5 %; "
@@ -403,11 +408,12 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
 
 
 def cmd_check_gains(args: argparse.Namespace) -> int:
+    from .control import law
     from .control.stability import THEOREM_LAWS, check_gains, describe_loop
 
     spec = _spec_from_args(args)
     print(f"{spec.robot} / {spec.contour} / {spec.controller} / {spec.scenario}: gains "
-          + ", ".join(f"{k}={v}" for k, v in spec.gains.as_dict().items()))
+          + ", ".join(f"{k}={list(spec.gains[k])}" for k in law(spec.controller).gain_names))
     result = check_gains(spec, mode=args.mode, delay_periods=args.delay_periods, margin=args.margin)
     if result.conditions:
         print("Lyapunov conditions of Eq. 3.19 along the desired motion (worst instant):")
@@ -446,7 +452,7 @@ def cmd_analyze(args: argparse.Namespace) -> int:
 
         out = Path(args.out or "analysis")
         written = []
-        groups: dict[tuple[str, str, str], list] = {}
+        groups: dict[tuple[str, str, str], list[Any]] = {}
         for b in bags:
             samples = run_samples(b.run)
             written += plot_run(samples, b.run.spec.robot, b.path.name, out)
@@ -532,12 +538,13 @@ def cmd_sweep(args: argparse.Namespace) -> int:
 
 
 def cmd_tune(args: argparse.Namespace) -> int:
+    from .control import law
     from .tuning import Candidate, Requirement, tune, write_params_file
 
     def progress(candidate: Candidate) -> None:
         error = "-" if candidate.contour_mean is None else f"{candidate.contour_mean:.4e} m"
         gains = ", ".join(f"{k}={[float(f'{x:.4g}') for x in v]}" for k, v in candidate.gains.as_dict().items()
-                          if k in ("kp", "kd", "ks", "lam"))
+                          if k in law(args.controller).gain_names)
         print(f"contour mean {error:>14s}  {candidate.verdict:.90s}  {gains}", file=sys.stderr, flush=True)
 
     out = Path(args.out or f"{Path(args.robot).stem}_{args.contour}_{args.controller}.yaml")
@@ -585,7 +592,7 @@ def cmd_montecarlo(args: argparse.Namespace) -> int:
     bound = specs[0].bound
     meta = {"robot": args.robot, "contour": args.contour, "controllers": list(args.controllers), "runs": args.runs,
             "seed": args.seed, "uncertainty": {k: vars(v) for k, v in spreads.items()}, "contour_bound_m": bound}
-    rows: list = []
+    rows: list[Any] = []
     done = 0
     progress = Progress(args.runs, "montecarlo")
     interrupted = False

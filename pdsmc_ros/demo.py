@@ -17,7 +17,8 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 
-from .cli import EXIT_USAGE, OneLineParser, positive_float
+from .arguments import EXIT_USAGE, OneLineParser
+from .cli import positive_float
 from .resources import ros_environment, script_path, scripts_dir
 from .thesis.analysis import analyze_bag, comparison_table
 

@@ -1,4 +1,4 @@
-"""YAML presets (``config/``) and the description of one run.
+"""YAML presets (``config/``), the description of one run, and the one run builder (:func:`make_run`).
 
 A :class:`RunSpec` names everything a run needs -- robot, contour, controller,
 gains, scenario, rates -- as plain data, so the same description drives the
@@ -8,7 +8,7 @@ in-process simulator, the ROS nodes (as parameters) and the bag metadata.
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -16,22 +16,33 @@ import numpy as np
 
 from . import __version__
 from .config import choice, load_config
+from .contour_presets import build_contour, contour_names, contour_set
 from .control.gains import Gains
-from .control.registry import GAIN_NAMES, SMC_MODEL_KEYS, law, smc_model_vector
+from .control.registry import SMC_MODEL_KEYS, law, smc_model_vector
 from .errors import ConfigError, MissingGainsError
 from .robots import ROBOTS, Manipulator, RobotParams, UrdfRobot, make_robot, robot_params, robot_settings
 from .robots.catalog import resolve_robot
-from .trajectories import (
-    Contour,
-    EllipseContour,
-    JointPath,
-    JointPathContour,
-    JointReference,
-    SegmentContour,
-    load_joint_waypoints,
-    load_waypoints_csv,
-)
+from .trajectories import Contour, JointReference
 from .urdf import robot_urdf
+
+__all__ = [
+    "MAX_CONTROL_STEPS",
+    "PAYLOAD_READINGS",
+    "RunSpec",
+    "build_contour",
+    "contour_names",
+    "contour_set",
+    "control_steps",
+    "loaded_params",
+    "make_run",
+    "preset_gains",
+    "run_gains",
+    "scenario_gain_factors",
+    "scenario_names",
+    "smc_model_default",
+    "smc_reading",
+]
+"""The run builder's names (the contour presets' from :mod:`.contour_presets`, kept importable here)."""
 
 MAX_CONTROL_STEPS = 10_000_000
 """Control steps one run may hold: the sampled reference and its temporaries take about
@@ -205,7 +216,7 @@ class RunSpec:
             contour=data["contour"],
             controller=data["controller"],
             scenario=data.get("scenario", "nominal"),
-            gains=Gains(**{k: tuple(float(x) for x in data["gains"][k]) for k in GAIN_NAMES}),
+            gains=Gains.from_mapping(data["gains"], ROBOTS[robot].n, data["controller"]),
             rate=float(data["control_rate_hz"]),
             sample_rate=float(data["sample_rate_hz"]),
             payload=float(data.get("payload_kg", 0.0)),
@@ -250,76 +261,8 @@ def loaded_params(robot: str, payload: float) -> RobotParams:
     return dataclasses.replace(params, links=tuple(links))
 
 
-def contour_names(robot: str) -> tuple[str, ...]:
-    """The robot's contour presets (``config/contours.yaml``) and ``csv``."""
-    return tuple(load_config("contours").get(contour_set(robot)) or ()) + ("csv", "joints")
-
-
-def contour_set(robot: str) -> str:
-    """Whose contour presets ``robot`` runs: its own, or for a URDF arm the set its settings
-    name (the serial arm's by default: the thesis's task-space contours)."""
-    cls = ROBOTS[resolve_robot(robot)]
-    if issubclass(cls, UrdfRobot):
-        return str(cls.settings.get("contours", "serial_3r"))
-    return robot
-
-
 def scenario_names() -> tuple[str, ...]:
     return tuple(load_config("scenarios"))
-
-
-def build_contour(
-    robot: str,
-    name: str,
-    *,
-    ellipse_error: str = "nearest",
-    waypoints_file: str | None = None,
-    segment_duration: float = 2.0,
-) -> Contour:
-    """The named contour preset (or a CSV contour) for ``robot``.
-
-    A URDF arm runs its contour set's presets fitted to its ``contour_size`` (m, the box's
-    longer side, centred on its task plane's origin; none: as they are) and CSV contours as
-    given, in its task plane's coordinates.
-    """
-    cls = ROBOTS[resolve_robot(robot)]
-    dim = cls.task_dim
-    if name == "joints":
-        if not waypoints_file:
-            raise ConfigError("contour 'joints' needs a file of joint via points (--waypoints FILE: CSV "
-                              "t, q1..qn or YAML points: [{t, q}])")
-        times, points = load_joint_waypoints(waypoints_file, cls.n)
-        return JointPathContour("joints", make_robot(robot), JointPath(times, points))
-    if name == "csv":
-        if not waypoints_file:
-            raise ConfigError("contour 'csv' needs a waypoints file (--waypoints FILE)")
-        pts = load_waypoints_csv(waypoints_file, dim=dim)
-        return SegmentContour("csv", pts, segment_duration, metric="nearest")
-    preset = _preset_contour(contour_set(robot), name, dim, ellipse_error)
-    size = cls.settings.get("contour_size") if issubclass(cls, UrdfRobot) else None
-    return preset.fitted(float(size)) if size else preset
-
-
-def _preset_contour(robot: str, name: str, dim: int, ellipse_error: str) -> Contour:
-    presets = load_config("contours")[robot]
-    spec = presets[choice(name, contour_names(robot), f"contour for {robot}")]
-    if spec["type"] == "segments":
-        pts = np.asarray(spec["waypoints"], dtype=float)
-        if dim == 3:
-            pts[:, 2] *= np.pi
-        return SegmentContour(name, pts, float(spec["segment_duration"]))
-    pose = None
-    if dim == 3:
-        pose = (float(spec["pose_pi"][0]) * np.pi, float(spec["pose_pi"][1]) * np.pi)
-    return EllipseContour(
-        name,
-        spec["center"],
-        float(spec["rx"]),
-        float(spec["ry"]),
-        float(spec["duration"]),
-        pose=pose,
-        ellipse_error=ellipse_error,
-    )
 
 
 def preset_gains(robot: str, contour: str, controller: str) -> Gains:
@@ -339,6 +282,42 @@ def preset_gains(robot: str, contour: str, controller: str) -> Gains:
     return Gains.from_mapping(table, cls.n, controller)
 
 
+def run_gains(robot: str, contour: str, controller: str, *, gains: Gains | None = None,
+              layers: Sequence[Mapping[str, Any]] = (), needs_gains: bool = True) -> Gains:
+    """The gains of a run before its scenario scales them, from layered inputs.
+
+    In this order, each layer replacing the gains it names: (1) ``gains`` if given, else the
+    presets (``config/gains.yaml``, Tables 4.16 / 4.33; an arm may have none); (2) each of
+    ``layers`` in turn -- a params file's gains, then explicit overrides (``-p kp:=``,
+    ``--gain kp=``). Every gain the law declares as needed must come from some layer; when
+    ``needs_gains`` is False (the nodes other than the controller, which never use them) the
+    missing ones hold their neutral values.
+
+    Raises
+    ------
+    ConfigError
+        A gain the law does not declare, a value out of its bounds, or (``needs_gains``) a
+        gain given by no layer.
+    """
+    entry = law(controller)
+    n = ROBOTS[resolve_robot(robot)].n
+    try:
+        base = (gains if gains is not None else preset_gains(robot, contour, controller)).as_dict()
+    except MissingGainsError:
+        base = {}  # an arm or a law without presets: the layers give them
+    given: dict[str, Any] = dict(base)
+    for layer in layers:
+        given.update(layer)
+    missing = [g for g in entry.gain_names if g not in given]
+    if missing and needs_gains:
+        raise MissingGainsError(
+            f"{controller} needs gains {', '.join(missing)}: this arm has no preset for {contour} (config/gains.yaml "
+            f"has no {controller} gains for {robot}); give them (-p {missing[0]}:=[...] or --gain {missing[0]}=...) "
+            "or a params file (pdsmc tune writes one)")
+    neutral = {g.name: [g.neutral] for g in entry.specs if g.name in missing}
+    return Gains.from_mapping({**neutral, **given}, n, controller)
+
+
 def make_run(
     robot: str,
     contour: str,
@@ -347,6 +326,9 @@ def make_run(
     scenario: str = "nominal",
     rate: float | None = None,
     gains: Gains | None = None,
+    params: Mapping[str, Any] | None = None,
+    overrides: Mapping[str, Any] | None = None,
+    needs_gains: bool = True,
     smc_model: Mapping[str, float] | None = None,
     ellipse_error: str = "nearest",
     waypoints_file: str | None = None,
@@ -354,12 +336,19 @@ def make_run(
     sample_rate: float | None = None,
     payload_reading: str = "tip",
 ) -> RunSpec:
-    """A run from preset names, with the scenario of Section 4.5 applied."""
+    """The one run builder (the CLI, the nodes, tune, sweep, Monte Carlo and reproduce use it).
+
+    The gains come from :func:`run_gains`: ``gains`` or the presets, then ``params`` (a params
+    file's gains), then ``overrides`` (explicit ``-p``/``--gain`` values); the scenario of
+    Section 4.5 then applies to the result, whichever layer gave each gain (its gain factors,
+    payload and duration factor). Rates not given are the robot's settings.
+    """
     choice(contour, contour_names(robot), f"contour for {robot}")
     settings = robot_settings(robot)
     scenarios = load_config("scenarios")
     sc = scenarios[choice(scenario, list(scenarios), "scenario")] or {}
-    base = gains or preset_gains(robot, contour, controller)
+    base = run_gains(robot, contour, controller, gains=gains, layers=[x for x in (params, overrides) if x],
+                     needs_gains=needs_gains)
     factors = scenario_gain_factors(scenario, controller)
     model = smc_model_default()
     model.update(smc_model or {})
@@ -387,8 +376,8 @@ def scenario_gain_factors(scenario: str, controller: str) -> dict[str, float]:
     the gains given (a params file, ``-p``, ``ros2 param set``) as to the presets."""
     scenarios = load_config("scenarios")
     sc = scenarios[choice(scenario, list(scenarios), "scenario")] or {}
-    needs = law(controller).gains
-    return {k: float(v) for k, v in (sc.get("gain_factors") or {}).items() if k in needs}
+    factors = sc.get("gain_factors") or {}
+    return {g.name: float(factors[g.factor_key]) for g in law(controller).specs if g.factor_key in factors}
 
 
 def smc_reading(name: str) -> dict[str, float]:

@@ -28,8 +28,8 @@ CONTROLLER_PARAMETERS = (
     # the run (every node; pdsmc_ros.nodes.params.RUN_PARAMETERS)
     "robot", "contour", "type", "scenario", "mode", "rate", "sample_rate", "duration_factor", "smc_reading",
     "ellipse_error", "waypoints_file", "segment_duration", "clock_rate", "busy_wait",
-    # the gains (pdsmc_ros.control.registry.GAIN_NAMES)
-    "kp", "kd", "ks", "lam", "phi",
+    # and the gains every registered law declares (pdsmc_ros.control.gain_names(), not listed here:
+    # a law registered later adds its own)
     # the controller's own (pdsmc_ros.nodes.controller_params, nodes.params.STABILITY_PARAMETERS)
     "joints", "autostart", "torque_limit", "stale_periods", "enforce_limits", "stability_margin",
     "delay_periods", "constraints.goal_time", "constraints.stopped_velocity_tolerance",

@@ -24,7 +24,7 @@ import numpy as np
 import yaml
 
 from .control.gains import Gains
-from .control.registry import GAIN_NAMES, law
+from .control.registry import gain_names, law
 from .control.stability import THEOREM_LAWS, check_gains, loop_delay
 from .errors import ConfigError, PdsmcError
 from .presets import RunSpec, make_run
@@ -111,7 +111,10 @@ def starting_gains(spec: RunSpec, w: float | None = None) -> Gains:
     w = bandwidth(spec.rate) if w is None else w
     values = {"kp": m * w * w, "kd": 2.0 * m * w, "ks": 2.0 * m * w * BOUNDARY_LAYER,
               "lam": np.full_like(m, w / 2.0), "phi": np.full_like(m, BOUNDARY_LAYER)}
-    needed = law(spec.controller).gains
+    entry = law(spec.controller)
+    for g in entry.specs:  # a gain the recipe does not set starts where its law declares
+        values.setdefault(g.name, np.full(len(m) if g.per_joint else 1, g.neutral if g.start is None else g.start))
+    needed = entry.gain_names
     gains = _gains(values, needed, spec.controller)
     if spec.controller in THEOREM_LAWS:
         gains = _inside_theorem(spec, values, needed)
@@ -230,7 +233,7 @@ def tune(
         raise ConfigError(f"rounds must be >= 1, got {rounds!r}")
     if not factors or any(not np.isfinite(f) or f <= 0.0 for f in factors):
         raise ConfigError(f"factors must be positive numbers, got {list(factors)!r}")
-    needed = law(controller).gains
+    needed = law(controller).gain_names
     requirement = requirement or Requirement()
     spec = _spec(robot, contour, controller, rate)
     others = tuple(_spec(robot, name, controller, rate) for name in also)
@@ -287,9 +290,9 @@ def _evaluator(spec: RunSpec, limit: np.ndarray, scheduler: str | None, requirem
 
 def _spec(robot: str, contour: str, controller: str, rate: float | None) -> RunSpec:
     """The run to tune: the robot's settings with placeholder gains (replaced per candidate)."""
-    needed = law(controller).gains
+    needed = law(controller).gain_names
     n = ROBOTS[resolve_robot(robot)].n
-    placeholder = Gains.from_mapping({k: [1.0] * n for k in needed}, n, controller)
+    placeholder = Gains.from_mapping({k: [1.0] for k in needed}, n, controller)  # one value: every joint
     return make_run(robot, contour, controller, rate=rate, gains=placeholder)
 
 
@@ -310,7 +313,7 @@ def write_params_file(path: str | Path, gains: Gains, *, controller: str, robot:
     if Path(robot).suffix == ".urdf" and Path(robot).is_file():
         robot = str(Path(robot).resolve())  # the file serves from any directory (analyze, ros2 run)
     run: dict[str, Any] = {"robot": robot, "contour": contour, "type": controller, "rate": float(rate)}
-    own = {k: [float(x) for x in v] for k, v in gains.as_dict().items() if k in law(controller).gains}
+    own = {k: [float(x) for x in v] for k, v in gains.as_dict().items() if k in law(controller).gain_names}
     requirement = requirement or Requirement()
     margin = "the mode's default margin" if requirement.margin is None else f"margin x{requirement.margin:g}"
     header = (f"# pdsmc tune: {controller} gains for {robot}/{contour} at {float(rate):g} Hz, accepted by\n"
@@ -328,11 +331,13 @@ def controller_parameters(path: str | Path, *, node: str = NODE_NAME) -> dict[st
         One line naming the file: not a params file, no section for the controller, or a key the
         controller does not declare (the closest one suggested).
     """
-    return node_parameters(path, "/" + node, CONTROLLER_PARAMETERS)
+    return node_parameters(path, "/" + node, CONTROLLER_PARAMETERS + gain_names())
 
 
-def read_params_file(path: str | Path, n: int, controller: str, *, node: str = NODE_NAME) -> Gains:
-    """The gains of a params file (as :func:`write_params_file` writes, or any with the gain names).
+def read_params_file(path: str | Path, n: int, controller: str, *, node: str = NODE_NAME) -> dict[str, list[float]]:
+    """The gains a params file gives ``controller`` (as :func:`write_params_file` writes, or any with the
+    gain names): checked against the law's declaration, the others left to the presets (the
+    params-file layer of :func:`~pdsmc_ros.presets.make_run`).
 
     Raises
     ------
@@ -340,8 +345,9 @@ def read_params_file(path: str | Path, n: int, controller: str, *, node: str = N
         One line naming the file and what is wrong.
     """
     params = controller_parameters(path, node=node)
-    values = {k: params[k] for k in GAIN_NAMES if k in params and params[k]}
+    values = {k: params[k] for k in gain_names() if k in params and params[k]}
     try:
-        return Gains.from_mapping(values, n, controller)
+        checked = Gains.from_mapping(values, n, controller, partial=True)
     except ConfigError as exc:
         raise ConfigError(f"params file {str(path)!r}: {exc}") from None
+    return {k: list(checked[k]) for k in values}

@@ -233,7 +233,7 @@ def test_driver_with_wall_stamps_shuffled_names_missing_joint_gains_and_sigint(
         ok, reason = driver.set_parameter("kd", [3000.0, 3000.0])
         assert not ok and "lowest stable rate" in reason, reason
         # a stable change is applied (post-set): the torque follows the new gains
-        kp = [2.0 * k for k in spec().gains.kp]
+        kp = [2.0 * k for k in spec().gains["kp"]]
         ok, reason = driver.set_parameter("kp", kp)
         assert ok, reason
         new_law = ControlLaw.from_spec(dataclasses.replace(spec(), gains=Gains.from_mapping(

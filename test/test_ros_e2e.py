@@ -147,7 +147,7 @@ def test_realtime_smoke_run(ros_env: dict, tmp_path: Path) -> None:
                           "--param", "kp:=[40.0, 45.0]", "--param", "kd:=[3.0, 4.0]")
     assert proc.returncode == 0, proc.stderr
     run = read_run(out)
-    assert run.description["mode"] == "realtime" and run.spec.gains.kp == (40.0, 45.0)
+    assert run.description["mode"] == "realtime" and run.spec.gains["kp"] == (40.0, 45.0)
     assert run.missing["joint_states"] == 0  # the plant published every one of its steps
     metrics = run_metrics(run)
     assert metrics.samples > 0.95 * 501
@@ -427,7 +427,7 @@ def test_nodes_take_the_arm_from_robot_description(ros_env: dict, tmp_path: Path
     assert "waiting for the arm on /robot_description" in (Path(f"{out}.logs") / "controller.log").read_text()
     run = read_run(out)
     assert run.description["robot"] == "/robot_description" and run.complete
-    assert len(run.spec.gains.kp) == 6
+    assert len(run.spec.gains["kp"]) == 6
     sim = simulate(run.spec)
     every = run.spec.sample_every
     assert np.max(np.abs(run.q[::every] - sim.samples.q)) <= 1e-9

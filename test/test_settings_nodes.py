@@ -57,13 +57,49 @@ def test_given_gains_are_scaled_by_the_scenario_as_in_process(context: object, s
                                                                                   "pdsmc"), scenario=scenario)
     assert partial.gains == unscaled.gains
     if scenario == "high_pd":
-        assert spec.gains.kp == (450.0, 300.0) and spec.gains.ks == tuple(GIVEN["ks"])
+        assert spec.gains["kp"] == (450.0, 300.0) and spec.gains["ks"] == tuple(GIVEN["ks"])
+
+
+@pytest.mark.parametrize("scenario", scenario_names())
+def test_a_params_file_and_overrides_give_the_same_gains_in_process_and_in_the_node(
+        context: object, scenario: str, tmp_path: Path) -> None:
+    """The one run builder's layers (presets, params file, explicit overrides, then the scenario) give the
+    same gains to ``pdsmc simulate`` (--params-file, --gain) and to the controller node (--params-file, -p)."""
+    from pdsmc_ros import cli
+    from pdsmc_ros.control import law
+
+    for controller in ("pd", "smc", "pdsmc"):
+        path = tmp_path / f"{controller}.yaml"
+        own = {k: v for k, v in GIVEN.items() if k in ("kp", "ks")}  # part of the law's gains: presets give the rest
+        file_gains = {k: v for k, v in own.items() if k in make_run("parallel_5r", "circle", controller).gains}
+        preset = make_run("parallel_5r", "circle", controller).gains
+        path.write_text(yaml.safe_dump({"/**": {"ros__parameters": {"type": controller}},
+                                        "controller": {"ros__parameters": file_gains}}))
+        override = "kd" if controller != "smc" else "lam"
+        args = cli.build_parser().parse_args(
+            ["simulate", "--robot", "parallel_5r", "--contour", "circle", "--controller", controller, "--scenario",
+             scenario, "--params-file", str(path), "--gain", f"{override}={GIVEN[override][0]},{GIVEN[override][1]}"])
+        in_process = cli._spec_from_args(args)
+        node = rclpy.create_node("controller", context=context, cli_args=[
+            "--ros-args", "-p", "robot:=parallel_5r", "-p", "contour:=circle", "-p", f"scenario:={scenario}",
+            "--params-file", str(path), "-p", f"{override}:={GIVEN[override]}"])
+        try:
+            declare_run_parameters(node, gains=True)
+            in_node = run_spec_from_parameters(node)
+        finally:
+            node.destroy_node()
+        assert in_node.controller == controller and in_node.gains == in_process.gains, (controller, scenario)
+        factors = {"high_pd": {"kp": 1.5, "kd": 1.5}, "high_smc": {"ks": 1.5, "lam": 1.5}}.get(scenario, {})
+        for name in in_node.gains:  # the layers in order, then the scenario's factors on the law's own gains
+            given = GIVEN[name] if name in file_gains or name == override else preset[name]
+            factor = factors.get(name, 1.0) if name in law(controller).gain_names else 1.0
+            assert in_node.gains[name] == tuple(v * factor for v in given), (controller, scenario, name)
 
 
 def test_only_the_controller_needs_gains(context: object) -> None:
     run = {"robot": "ur3", "contour": "circle", "type": "pdsmc"}  # no preset gains for the UR3
     plant = node_spec(context, run, needs_gains=False)
-    assert plant.robot == "ur3" and len(plant.gains.kp) == 6
+    assert plant.robot == "ur3" and len(plant.gains["kp"]) == 6
     with pytest.raises(ConfigError, match=r"pdsmc needs gains kp, kd, ks, lam, phi: this arm has no preset.*tune"):
         node_spec(context, run)
     gains = {k: [v[0]] * 6 for k, v in GIVEN.items()}
@@ -126,7 +162,8 @@ def test_the_controller_refuses_gains_unstable_in_real_time_advising_the_paramet
 
 @pytest.mark.timeout(200)
 def test_the_cli_knows_every_parameter_the_controller_declares(ros_env: dict) -> None:
-    """settings.CONTROLLER_PARAMETERS (what pdsmc --params-file accepts without ROS) is the controller's list."""
+    """settings.CONTROLLER_PARAMETERS and the laws' gains (what pdsmc --params-file accepts without ROS) are
+    the controller's list."""
     from pdsmc_ros.settings import ALWAYS_DECLARED, CONTROLLER_PARAMETERS
 
     env = {**ros_env, "ROS_DOMAIN_ID": str(next_domain())}
@@ -143,4 +180,6 @@ def test_the_cli_knows_every_parameter_the_controller_declares(ros_env: dict) ->
     proc = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True, timeout=150)
     assert proc.returncode == 0, proc.stderr
     declared = set(proc.stdout.split()) - set(ALWAYS_DECLARED)
-    assert declared == set(CONTROLLER_PARAMETERS)
+    from pdsmc_ros.control import gain_names
+
+    assert declared == set(CONTROLLER_PARAMETERS) | set(gain_names())

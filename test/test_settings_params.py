@@ -9,8 +9,12 @@ from pathlib import Path
 import pytest
 import yaml
 
+from pdsmc_ros.control import gain_names
 from pdsmc_ros.errors import ConfigError
 from pdsmc_ros.settings import CONTROLLER_PARAMETERS, node_parameters, section_matches, unknown_parameter
+
+DECLARED = CONTROLLER_PARAMETERS + gain_names()
+"""What the controller declares: the settings' names and every registered law's gains."""
 
 
 def pdsmc(*args: str, timeout: float = 600) -> subprocess.CompletedProcess:
@@ -35,7 +39,7 @@ def test_sections_apply_as_rcl_applies_them(section: str, node: str, applies: bo
 def test_unknown_key_names_the_closest_declared_one(tmp_path: Path) -> None:
     path = write(tmp_path / "p.yaml", {"controller": {"ros__parameters": {"kpp": [1.0, 2.0]}}})
     with pytest.raises(ConfigError) as info:
-        node_parameters(path, "/controller", CONTROLLER_PARAMETERS)
+        node_parameters(path, "/controller", DECLARED)
     assert "unknown parameter 'kpp' (did you mean 'kp'?)" in str(info.value) and str(path) in str(info.value)
     assert unknown_parameter("typ", ["type", "rate"]) == "unknown parameter 'typ' (did you mean 'type'?)"
 
@@ -43,7 +47,7 @@ def test_unknown_key_names_the_closest_declared_one(tmp_path: Path) -> None:
 def test_a_file_without_a_section_for_the_node_is_refused(tmp_path: Path) -> None:
     path = write(tmp_path / "p.yaml", {"my_controller": {"ros__parameters": {"kp": [1.0]}}})
     with pytest.raises(ConfigError, match=r"no section for node '/controller'.*'my_controller'.*'/\*\*:'"):
-        node_parameters(path, "/controller", CONTROLLER_PARAMETERS)
+        node_parameters(path, "/controller", DECLARED)
 
 
 def test_a_file_for_other_nodes_of_the_run_gives_this_node_nothing(tmp_path: Path) -> None:
@@ -63,7 +67,7 @@ def test_sections_merge_in_file_order(tmp_path: Path) -> None:
     path = write(tmp_path / "p.yaml", {"/**": {"ros__parameters": {"rate": 1000.0, "type": "pd"}},
                                        "controller": {"ros__parameters": {"rate": 2000.0, "kp": [1.0]}},
                                        "plant": {"ros__parameters": {"rate": 3.0}}})
-    assert node_parameters(path, "/controller", CONTROLLER_PARAMETERS) == {"rate": 2000.0, "type": "pd", "kp": [1.0]}
+    assert node_parameters(path, "/controller", DECLARED) == {"rate": 2000.0, "type": "pd", "kp": [1.0]}
 
 
 @pytest.mark.parametrize(("content", "message"), [

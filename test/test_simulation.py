@@ -165,7 +165,7 @@ def test_control_laws_follow_the_thesis_equations(controller: str, robot: str) -
     law = ControlLaw.from_spec(spec)
     model = spec.nominal_model()
     g = spec.gains
-    kp, kd, ks, lam, phi = (np.array(x) for x in (g.kp, g.kd, g.ks, g.lam, g.phi))
+    kp, kd, ks, lam, phi = (np.array(x) for x in (g["kp"], g["kd"], g["ks"], g["lam"], g["phi"]))
     rng = np.random.default_rng(11)
     ref = spec.reference().sample(rng.uniform(0, 5, 20))
     for k in range(20):
@@ -362,8 +362,8 @@ def test_gain_reading_changes_only_its_runs_and_keeps_the_printed_result() -> No
     changed = sorted(k for k in read if read[k].gains != printed[k].gains)
     assert changed and all(k.startswith("parallel_5r/ellipse_vertical/") and k.endswith("/pd") for k in changed)
     gains = GAIN_READINGS[("parallel_5r", "ellipse_vertical", "pd")][0]
-    assert list(read["parallel_5r/ellipse_vertical/nominal/pd"].gains.kp) == gains["kp"]
-    assert list(read["parallel_5r/ellipse_vertical/high_pd/pd"].gains.kd) == [1.5 * v for v in gains["kd"]]
+    assert list(read["parallel_5r/ellipse_vertical/nominal/pd"].gains["kp"]) == gains["kp"]
+    assert list(read["parallel_5r/ellipse_vertical/high_pd/pd"].gains["kd"]) == [1.5 * v for v in gains["kd"]]
     assert (
         make_run("parallel_5r", "ellipse_vertical", "pd").gains
         == printed["parallel_5r/ellipse_vertical/nominal/pd"].gains

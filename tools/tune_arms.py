@@ -32,10 +32,9 @@ def main(arms: list[str], groups: list[str]) -> int:
                 result = tune(arm, contour, controller, also=also)
                 gains = result.best.gains.as_dict()
                 block.setdefault(group, {})[controller] = {
-                    k: [float(f"{x:.4g}") for x in gains[k]] for k in ("kp", "kd", "ks", "lam", "phi")
-                    if k in result.spec.gains.as_dict() and k in _needed(controller)}
+                    k: [float(f"{x:.4g}") for x in gains[k]] for k in _needed(controller)}
                 # the gains as config/gains.yaml holds them, on every contour of the group
-                shipped = Gains.from_mapping(block[group][controller], len(gains["kp"]), controller)
+                shipped = Gains.from_mapping(block[group][controller], result.spec.gains.n, controller)
                 checks = [check_gains(make_run(arm, name, controller, gains=shipped)) for name in GROUPS[group]]
                 print(f"{arm}/{contour}/{controller}: contour mean {result.start.contour_mean:.4e} -> "
                       f"{result.best.contour_mean:.4e} m ({len(result.tried)} runs), max torque "
@@ -50,7 +49,7 @@ def main(arms: list[str], groups: list[str]) -> int:
 def _needed(controller: str) -> tuple[str, ...]:
     from pdsmc_ros.control import law
 
-    return law(controller).gains
+    return law(controller).gain_names
 
 
 if __name__ == "__main__":

@@ -138,7 +138,7 @@ def read_run(path: str | Path) -> RecordedRun:
                            "does not hold")
         register_description(cdr.decode_string(urdfs[-1]))
     spec = RunSpec.from_description(description)
-    n = len(spec.gains.kp)
+    n = spec.gains.n
     rate = spec.rate
     steps = control_steps(float(description["duration_s"]), rate)
     q = np.full((steps + 1, n), np.nan)

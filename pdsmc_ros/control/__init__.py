@@ -1,19 +1,22 @@
 """Control laws: each law once (numpy and compiled forms side by side) and a registry by name.
 
-Adding a law: a :class:`LawEntry` with its numpy form registered with
-:func:`register_law` (see :mod:`.laws`) and its gains in ``config/gains.yaml``;
-a compiled form is optional (one branch in :func:`.laws.compiled_torque`).
+Adding a law: a :class:`LawEntry` declaring its gains (:class:`GainSpec`), its numpy form
+and its linear part, registered with :func:`register_law` (see :mod:`.laws`); preset gains in
+``config/gains.yaml`` are optional, a compiled form too (one branch in
+:func:`.laws.compiled_torque`).
 """
 
 from .gains import Gains
 from .law import ControlLaw
 from .laws import PD, PDSMC, SMC, compiled_torque
 from .registry import (
-    GAIN_NAMES,
+    GAINS,
     LAWS,
     SMC_MODEL_KEYS,
+    GainSpec,
     LawEntry,
     LawSetup,
+    gain_names,
     law,
     law_label,
     law_names,
@@ -23,17 +26,19 @@ from .registry import (
 )
 
 __all__ = [
-    "GAIN_NAMES",
+    "GAINS",
     "LAWS",
     "PD",
     "PDSMC",
     "SMC",
     "SMC_MODEL_KEYS",
     "ControlLaw",
+    "GainSpec",
     "Gains",
     "LawEntry",
     "LawSetup",
     "compiled_torque",
+    "gain_names",
     "law",
     "law_label",
     "law_names",

@@ -13,7 +13,7 @@ from .laws import compiled_torque
 from .registry import LawSetup, law
 
 if TYPE_CHECKING:
-    from ..presets import RunSpec
+    from .run import LawRun
 
 Vector = Sequence[float] | FloatArray
 """``n`` floats: a decoded message's tuple or an array."""
@@ -48,7 +48,7 @@ class ControlLaw:
             self._work = robot_compiled.workspace(self.n)
 
     @classmethod
-    def from_spec(cls, spec: RunSpec) -> ControlLaw:
+    def from_spec(cls, spec: LawRun) -> ControlLaw:
         """The law of a run."""
         return cls(spec.controller, spec.gains.matrix(), spec.smc_model_vector(), spec.nominal_model())
 

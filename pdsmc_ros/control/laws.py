@@ -29,6 +29,7 @@ from .registry import (
     S_GRAVITY,
     S_MASS,
     WITH_MOTOR_INERTIA,
+    GainSpec,
     LawEntry,
     LawSetup,
     register_law,
@@ -38,6 +39,18 @@ PD = 0
 SMC = 1
 PDSMC = 2
 """Codes of the compiled forms."""
+
+# --------------------------------------------------------------------------- #
+# The thesis's gains (Tables 4.16 / 4.33), one spec each
+# --------------------------------------------------------------------------- #
+GAIN_KP = GainSpec("kp", "proportional gains Kp (Eq. 3.4)", "N m/rad")
+GAIN_KD = GainSpec("kd", "derivative gains Kd (Eq. 3.4)", "N m s/rad")
+GAIN_KS = GainSpec("ks", "switching gains Ks (Eq. 3.15)", "N m")
+GAIN_LAM = GainSpec("lam", "sliding-surface slopes lambda (Eq. 3.13)", "1/s")
+GAIN_PHI = GainSpec("phi", "boundary layers phi (Eq. 3.45)", "rad/s", lower_open=True, neutral=1.0)
+THESIS_ROWS = (GAIN_KP, GAIN_KD, GAIN_KS, GAIN_LAM, GAIN_PHI)
+"""The gain matrix of the three thesis laws (rows ``KP, KD, KS, LAM, PHI``): one layout for
+their compiled forms, which share :func:`_errors`; a row a law does not use is neutral."""
 
 
 # --------------------------------------------------------------------------- #
@@ -211,7 +224,9 @@ def compiled_torque(code, gains, smc_model, kind, p, x, tau, work):  # noqa: ANN
                x[4 * n : 5 * n], tau, work, n)
 
 
-register_law(LawEntry("pd", "PD", ("kp", "kd"), pd_torque, "Eq. (3.4)", PD, pd_linear_gains))
-register_law(LawEntry("smc", "SMC", ("ks", "lam", "phi"), smc_torque, "Eq. (3.15)", SMC, smc_linear_gains))
-register_law(LawEntry("pdsmc", "PD-SMC", ("kp", "kd", "ks", "lam", "phi"), pdsmc_torque, "Eq. (3.44)", PDSMC,
-                      pdsmc_linear_gains))
+register_law(LawEntry("pd", "PD", (GAIN_KP, GAIN_KD), pd_torque, "Eq. (3.4)", PD, pd_linear_gains,
+                      rows=THESIS_ROWS))
+register_law(LawEntry("smc", "SMC", (GAIN_KS, GAIN_LAM, GAIN_PHI), smc_torque, "Eq. (3.15)", SMC,
+                      smc_linear_gains, rows=THESIS_ROWS, model_based=True))
+register_law(LawEntry("pdsmc", "PD-SMC", THESIS_ROWS, pdsmc_torque, "Eq. (3.44)", PDSMC, pdsmc_linear_gains,
+                      rows=THESIS_ROWS))

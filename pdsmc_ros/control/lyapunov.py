@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..presets import RunSpec
+from .run import LawRun
 
 
 @dataclass(frozen=True)
@@ -53,7 +53,7 @@ def _sym(a: np.ndarray) -> np.ndarray:
     return np.asarray(0.5 * (a + np.swapaxes(a, -1, -2)))
 
 
-def theorem_conditions(spec: RunSpec, *, points: int = 401) -> list[Condition]:
+def theorem_conditions(spec: LawRun, *, points: int = 401) -> list[Condition]:
     """Eq. (3.19) evaluated on ``points`` instants of the desired motion."""
     robot = spec.nominal_model()
     reference = spec.reference()
@@ -70,7 +70,7 @@ def theorem_conditions(spec: RunSpec, *, points: int = 401) -> list[Condition]:
         + robot.gravity(q)
     )
     g = spec.gains
-    kp, kd, ks, lam = (np.asarray(x, dtype=float) for x in (g.kp, g.kd, g.ks, g.lam))
+    kp, kd, ks, lam = (np.asarray(x, dtype=float) for x in (g["kp"], g["kd"], g["ks"], g["lam"]))
     lam_max = float(lam.max())
     m_max = float(np.max(np.linalg.eigvalsh(mass)))
     ct_sym = _sym(np.swapaxes(cor, -1, -2))

@@ -1,29 +1,106 @@
-"""Control laws by name: what a law is and the registry.
+"""Control laws by name: what a law declares and the registry.
 
-A law module builds a :class:`LawEntry` (its numpy form, and optionally its
-compiled form's code and its linear gains for the discrete stability check) and
-registers it with :func:`register_law`; its gains live in ``config/gains.yaml``.
-A law without a compiled form runs on the numpy path (see :mod:`pdsmc_ros.sim`).
+A law module builds a :class:`LawEntry` -- its name, its gains (:class:`GainSpec`: name,
+shape, units, bounds, description, the scenario factor that scales it), its numpy torque,
+optionally its compiled form's code and its linear part for the discrete stability check --
+and registers it with :func:`register_law`. Everything that handles gains reads these
+declarations: the CLI's gain flags, the nodes' gain parameters and their descriptors, the
+params files of ``pdsmc tune`` and the reports. A law's preset gains, if any, live in
+``config/gains.yaml``; a law without a compiled form runs on the numpy path (see
+:mod:`pdsmc_ros.sim`).
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+import math
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..config import choice
-from ..errors import InvalidInputError
+from ..errors import ConfigError, InvalidInputError
 from ..robots.base import FloatArray, Manipulator
 
-GAIN_NAMES = ("kp", "kd", "ks", "lam", "phi")
-"""Diagonal gains a law may use, as rows of :attr:`LawSetup.gains` (``lam`` is the thesis's lambda)."""
 KP, KD, KS, LAM, PHI = range(5)
+"""Rows of the thesis laws' gain matrix (:data:`pdsmc_ros.control.laws.THESIS_ROWS`)."""
 
 SMC_MODEL_KEYS = ("mass", "coriolis", "gravity", "damping", "motor_inertia", "at_desired")
 """The SMC's model estimate, as entries of :attr:`LawSetup.smc_model` (``config/gains.yaml``)."""
 S_MASS, S_CORIOLIS, S_GRAVITY, S_DAMPING, WITH_MOTOR_INERTIA, AT_DESIRED = range(6)
+
+
+@dataclass(frozen=True)
+class GainSpec:
+    """One gain a law declares.
+
+    Attributes
+    ----------
+    name : str
+        The ROS parameter, the CLI flag (``--name``), the params-file key and the key of
+        :class:`~pdsmc_ros.control.gains.Gains`.
+    description : str
+        What it is (the parameter's descriptor, ``--help``).
+    units : str
+        Its units (e.g. ``N m/rad``).
+    per_joint : bool
+        One value per joint (a diagonal gain), or one scalar for every joint.
+    lower : float
+        Lowest allowed value (``>= lower``, or ``> lower`` when ``lower_open``).
+    lower_open : bool
+        The bound ``lower`` itself is refused (a boundary layer's ``phi > 0``).
+    upper : float
+        Highest allowed value (inclusive).
+    neutral : float
+        The value that leaves a law unchanged: fills a row of the gain matrix a law
+        lays out but does not use (the thesis laws share one layout).
+    scaled_by : str or None
+        The key of a scenario's ``gain_factors`` (``config/scenarios.yaml``, Section 4.5.3)
+        that multiplies it; None: its own name.
+    start : float or None
+        Where ``pdsmc tune`` starts it when the thesis's recipe (Section 4.2.3, which sets
+        ``kp, kd, ks, lam, phi``) does not; None: :attr:`neutral`.
+    """
+
+    name: str
+    description: str
+    units: str
+    per_joint: bool = True
+    lower: float = 0.0
+    lower_open: bool = False
+    upper: float = math.inf
+    neutral: float = 0.0
+    scaled_by: str | None = None
+    start: float | None = None
+
+    def __post_init__(self) -> None:
+        if not self.name.isidentifier():
+            raise InvalidInputError(f"gain name {self.name!r} must be an identifier (a parameter and a flag)")
+
+    @property
+    def factor_key(self) -> str:
+        """The scenario factor that scales it."""
+        return self.scaled_by or self.name
+
+    @property
+    def bounds(self) -> str:
+        """``>= 0``, ``> 0``, ``in [0, 10]`` ... (messages and descriptors)."""
+        low = f"{'>' if self.lower_open else '>='} {self.lower:g}"
+        if math.isinf(self.upper):
+            return low
+        return f"{low} and <= {self.upper:g}"
+
+    def help(self) -> str:
+        """One line for a descriptor or ``--help``."""
+        shape = "one per joint" if self.per_joint else "one value for every joint"
+        return f"{self.description} ({self.units}, {shape}, {self.bounds}; empty: the preset)"
+
+    def check(self, values: FloatArray, controller: str) -> None:
+        """Raise a ConfigError naming the gain if ``values`` break its bounds."""
+        low_ok = values > self.lower if self.lower_open else values >= self.lower
+        if not np.all(np.isfinite(values)) or not np.all(low_ok) or np.any(values > self.upper):
+            raise ConfigError(f"gain {self.name} of {controller} must be finite and {self.bounds}, "
+                              f"got {values.tolist()}")
 
 
 @dataclass(frozen=True)
@@ -32,8 +109,8 @@ class LawSetup:
 
     Attributes
     ----------
-    gains : ndarray, shape (5, n)
-        Rows ``kp, kd, ks, lam, phi`` (:data:`GAIN_NAMES`).
+    gains : ndarray, shape (rows, n)
+        The law's gain matrix, one row per entry of :attr:`LawEntry.rows`.
     model : Manipulator
         The nominal robot known to the law (model-based laws).
     smc_model : ndarray, shape (6,)
@@ -49,12 +126,29 @@ NumpyLaw = Callable[[LawSetup, FloatArray, FloatArray, FloatArray, FloatArray, F
 """``torque(setup, q, qd, q_ref, qd_ref, qdd_ref)`` for one state (shape ``(n,)``)."""
 
 LinearGains = Callable[[FloatArray, FloatArray, FloatArray], tuple[FloatArray, FloatArray]]
-"""``(gains, smc_model, mass) -> (Kp_eff, Kd_eff)``: the law's linear gains inside its boundary layer."""
+"""``(gains, smc_model, mass) -> (Kp_eff, Kd_eff)``: the law's linear part inside its boundary layer."""
+
+GAINS: dict[str, GainSpec] = {}
+"""Every gain a registered law declares, by name, in registration order (one spec per name:
+two laws with a ``kp`` share its meaning, its parameter and its flag)."""
+
+
+def _resolve(gains: Sequence[GainSpec | str], law_name: str) -> tuple[GainSpec, ...]:
+    out = []
+    for g in gains:
+        if isinstance(g, GainSpec):
+            out.append(g)
+        elif g in GAINS:
+            out.append(GAINS[g])
+        else:
+            raise InvalidInputError(f"control law {law_name!r}: gain {g!r} is declared by no registered law; "
+                                    f"declare it (a GainSpec) or use one of: {', '.join(GAINS)}")
+    return tuple(out)
 
 
 @dataclass(frozen=True)
 class LawEntry:
-    """A control law.
+    """A control law, declaring itself.
 
     Attributes
     ----------
@@ -62,8 +156,8 @@ class LawEntry:
         Its name (``-p type:=``, ``--controller``, ``RunSpec.controller``).
     label : str
         How tables and figures print it.
-    gains : tuple of str
-        The gains it needs (from :data:`GAIN_NAMES`).
+    gains : tuple of GainSpec
+        The gains it needs (a name string: a gain another registered law declares).
     torque : callable
         The numpy form, :data:`NumpyLaw`.
     equation : str
@@ -72,23 +166,51 @@ class LawEntry:
         The code of its compiled form in :func:`pdsmc_ros.control.laws.compiled_torque`
         (None: numpy only).
     linear_gains : callable or None
-        For the discrete stability check (:mod:`pdsmc_ros.control.stability`);
-        None: not checked.
+        Its linear part, for the discrete stability check
+        (:mod:`pdsmc_ros.control.stability`); None: not checked.
+    rows : tuple of GainSpec
+        The rows of its gain matrix (:attr:`LawSetup.gains`), a superset of ``gains`` (rows it
+        does not use hold :attr:`GainSpec.neutral` unless given); empty: ``gains``.
+    model_based : bool
+        It uses the nominal model's estimate (``--smc-reading``, ``smc_reading:=``).
     """
 
     name: str
     label: str
-    gains: tuple[str, ...]
+    gains: tuple[GainSpec | str, ...]
     torque: NumpyLaw
     equation: str = ""
     code: int | None = None
     linear_gains: LinearGains | None = None
+    rows: tuple[GainSpec | str, ...] = ()
+    model_based: bool = False
 
     def __post_init__(self) -> None:
-        unknown = [g for g in self.gains if g not in GAIN_NAMES]
-        if not self.name or unknown:
-            raise InvalidInputError(f"control law {self.name!r}: needs a name and gains from {GAIN_NAMES}, "
-                                    f"got {self.gains}")
+        if not self.name or not self.gains:
+            raise InvalidInputError(f"control law {self.name!r}: needs a name and its gains, got {self.gains}")
+        gains = _resolve(self.gains, self.name)
+        rows = _resolve(self.rows, self.name) if self.rows else gains
+        names = [r.name for r in rows]
+        if len(set(names)) != len(names) or any(g not in rows for g in gains):
+            raise InvalidInputError(f"control law {self.name!r}: rows {names} must name each gain once and "
+                                    f"hold every gain it needs ({[g.name for g in gains]})")
+        object.__setattr__(self, "gains", gains)
+        object.__setattr__(self, "rows", rows)
+
+    @property
+    def specs(self) -> tuple[GainSpec, ...]:
+        """:attr:`gains` as declarations (resolved at construction)."""
+        return tuple(g for g in self.gains if isinstance(g, GainSpec))
+
+    @property
+    def gain_names(self) -> tuple[str, ...]:
+        """Names of the gains it needs."""
+        return tuple(g.name for g in self.specs)
+
+    @property
+    def row_specs(self) -> tuple[GainSpec, ...]:
+        """:attr:`rows` as declarations."""
+        return tuple(g for g in self.rows if isinstance(g, GainSpec))
 
 
 LAWS: dict[str, LawEntry] = {}
@@ -96,21 +218,36 @@ LAWS: dict[str, LawEntry] = {}
 
 
 def register_law(entry: LawEntry) -> LawEntry:
-    """Register a control law under its name."""
+    """Register a control law under its name, and its gains (one spec per gain name)."""
     if entry.name in LAWS and LAWS[entry.name] is not entry:
         raise InvalidInputError(f"a control law named {entry.name!r} is already registered")
+    for spec in entry.row_specs:
+        known = GAINS.get(spec.name)
+        if known is not None and known != spec:
+            raise InvalidInputError(f"control law {entry.name!r}: gain {spec.name!r} is declared otherwise by "
+                                    "another law; give it another name or use the declared one")
+    for spec in entry.row_specs:
+        GAINS.setdefault(spec.name, spec)
     LAWS[entry.name] = entry
     return entry
 
 
 def unregister_law(name: str) -> None:
-    """Remove a registered law (a test's own law, for example)."""
+    """Remove a registered law (a test's own law, for example), and the gains only it declared."""
     LAWS.pop(name, None)
+    used = {g.name for entry in LAWS.values() for g in entry.row_specs}
+    for gain in [g for g in GAINS if g not in used]:
+        del GAINS[gain]
 
 
 def law_names() -> tuple[str, ...]:
     """Names of the registered laws."""
     return tuple(LAWS)
+
+
+def gain_names() -> tuple[str, ...]:
+    """Names of every gain a registered law declares (the nodes declare them all)."""
+    return tuple(GAINS)
 
 
 def law(name: str) -> LawEntry:

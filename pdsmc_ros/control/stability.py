@@ -33,14 +33,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InvalidInputError, UnstableRateError
-from ..presets import RunSpec
 from ..robots.base import FloatArray
 from ..trajectories import JointReference
 from .lyapunov import Condition, theorem_conditions
 from .registry import law
+from .run import LawRun
 
 
-def effective_gains(spec: RunSpec, mass: FloatArray) -> tuple[FloatArray, FloatArray] | None:
+def effective_gains(spec: LawRun, mass: FloatArray) -> tuple[FloatArray, FloatArray] | None:
     """Linear gains ``(Kp_eff, Kd_eff)`` of the law inside its boundary layer (None: the law has none)."""
     linear_gains = law(spec.controller).linear_gains
     if linear_gains is None:
@@ -169,7 +169,7 @@ class RateCheck:
         return self.stable and self.margin >= self.required_margin
 
 
-def rate_margin(spec: RunSpec, reference: JointReference, *, points: int = 13, mode: str = "lockstep",
+def rate_margin(spec: LawRun, reference: JointReference, *, points: int = 13, mode: str = "lockstep",
                 delay_periods: int = 0, margin: float | None = None) -> RateCheck:
     """Lowest stable rate over the motion and the radius at ``spec.rate``, for the loop of ``mode``
     with ``delay_periods`` more periods of delay (:func:`loop_delay`); ``margin`` is the required
@@ -206,7 +206,7 @@ def describe_loop(check: RateCheck) -> str:
     return f"{check.mode} (zero-order hold + {check.delay} period{'s' if check.delay > 1 else ''} of delay)"
 
 
-def check_rate(spec: RunSpec, reference: JointReference, *, mode: str = "lockstep", delay_periods: int = 0,
+def check_rate(spec: LawRun, reference: JointReference, *, mode: str = "lockstep", delay_periods: int = 0,
                margin: float | None = None, entry: str = "cli") -> RateCheck:
     """Refuse gains that are not stable, with the required margin, at ``spec.rate`` in ``mode``.
 
@@ -281,7 +281,7 @@ class GainCheck:
         return ""
 
 
-def check_gains(spec: RunSpec, reference: JointReference | None = None, *, mode: str = "realtime",
+def check_gains(spec: LawRun, reference: JointReference | None = None, *, mode: str = "realtime",
                 delay_periods: int = 0, margin: float | None = None, points: int = 401) -> GainCheck:
     """Eq. (3.19) where the law has it (:data:`THEOREM_LAWS`) and :func:`rate_margin` in ``mode``.
 

@@ -19,7 +19,7 @@ from collections.abc import Sequence
 
 from rclpy.utilities import remove_ros_args
 
-from ..cli import OneLineParser
+from ..arguments import OneLineParser
 from .controller import ControllerNode
 from .executor import run_nodes
 from .lifecycle import EXIT_BAD_INPUT

@@ -18,7 +18,7 @@ from rclpy.exceptions import ParameterUninitializedException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
-from ..control import GAIN_NAMES, Gains
+from ..control import GAINS, Gains
 from ..errors import ConfigError
 from ..presets import RunSpec, scenario_gain_factors
 from ..robots import Manipulator
@@ -112,7 +112,7 @@ def gains_in_robot_order(node: Node, spec: RunSpec, joint_map: JointMap) -> RunS
         return spec
     rows = spec.gains.as_dict()
     factors = scenario_gain_factors(spec.scenario, spec.controller)  # as given gains are scaled in robot order
-    for name in GAIN_NAMES:
+    for name in GAINS:
         try:
             value = node.get_parameter(name).value if node.has_parameter(name) else None
         except ParameterUninitializedException:
@@ -133,6 +133,6 @@ class OrderedGainUpdates(GainUpdates):
                 return SetParametersResult(successful=False,
                                            reason=f"{param.name} is read at start and cannot change while it runs")
         ordered = [Parameter(p.name, value=self.joint_map.to_robot(p.value).tolist())
-                   if p.name in GAIN_NAMES and p.value is not None and len(p.value) == len(self.joint_map.joints)
+                   if p.name in GAINS and p.value is not None and len(p.value) == len(self.joint_map.joints)
                    else p for p in params]
         return super().validate(ordered)

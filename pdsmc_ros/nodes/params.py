@@ -24,12 +24,11 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 
 from ..config import choice
-from ..control import GAIN_NAMES, Gains, law, law_names
+from ..control import GAINS, Gains, gain_names, law, law_names
 from ..control.safety import MAX_SAFE_DAMPING, MAX_SAFE_STIFFNESS, SafetyConfig
-from ..errors import ConfigError, InvalidInputError, MissingGainsError
-from ..presets import RunSpec, contour_names, make_run, preset_gains, scenario_gain_factors, smc_reading
-from ..robots import ROBOTS
-from ..robots.catalog import ROBOT_DESCRIPTION, allowed_robots, register_description, resolve_robot
+from ..errors import ConfigError, InvalidInputError
+from ..presets import RunSpec, contour_names, make_run, scenario_gain_factors, smc_reading
+from ..robots.catalog import ROBOT_DESCRIPTION, allowed_robots, register_description
 from .topics import MODES
 
 BUSY_WAIT_S = 0.0002  # real time: default busy-wait before a tick (parameter busy_wait)
@@ -62,13 +61,6 @@ RUN_PARAMETERS: dict[str, tuple[Any, ParameterDescriptor]] = {
     "waypoints_file": ("", _descriptor("CSV of task-space waypoints for contour csv")),
     "segment_duration": (2.0, _descriptor("seconds per CSV segment", lo=0.001, hi=1000.0)),
     "clock_rate": (100.0, _descriptor("lockstep: /clock publication rate in sim-time Hz", lo=1.0, hi=1.0e6)),
-}
-GAIN_DESCRIPTIONS = {  # every node declares them (one params file for all); only the controller needs them
-    "kp": "proportional gains Kp, one per joint (empty: preset of Table 4.16 / 4.33)",
-    "kd": "derivative gains Kd, one per joint (empty: preset)",
-    "ks": "switching gains Ks, one per joint (empty: preset)",
-    "lam": "sliding-surface slopes lambda, one per joint (empty: preset)",
-    "phi": "boundary layers phi > 0, one per joint (empty: preset)",
 }
 STABILITY_PARAMETERS: dict[str, tuple[Any, ParameterDescriptor]] = {
     "stability_margin": (0.0, _descriptor(
@@ -248,8 +240,8 @@ def declare_run_parameters(node: Node, *, gains: bool = False) -> None:
     :data:`STABILITY_PARAMETERS`."""
     for name, (default, desc) in RUN_PARAMETERS.items():
         node.declare_parameter(name, default, desc)
-    for name in GAIN_NAMES:
-        node.declare_parameter(name, None, _descriptor(GAIN_DESCRIPTIONS[name]))
+    for name, spec in GAINS.items():  # every gain a registered law declares (one params file for all)
+        node.declare_parameter(name, None, _descriptor(spec.help()))
     if gains:
         for name, (default, desc) in STABILITY_PARAMETERS.items():
             node.declare_parameter(name, default, desc)
@@ -258,10 +250,11 @@ def declare_run_parameters(node: Node, *, gains: bool = False) -> None:
 def run_spec_from_parameters(node: Node, *, needs_gains: bool = True) -> RunSpec:
     """Build and validate the RunSpec named by the node's parameters.
 
-    The gains given (``-p kp:=``, a params file) replace the preset's before the scenario's
-    gain factors apply, as ``pdsmc simulate --params-file`` does (``scenario:=high_pd`` scales
+    The gains given (``-p kp:=``, a params file: rcl merges both) are the overrides layer of
+    :func:`~pdsmc_ros.presets.make_run`, the one builder ``pdsmc simulate`` uses too: they
+    replace the preset's, then the scenario's gain factors apply (``scenario:=high_pd`` scales
     them the same way in-process and in the nodes). An arm without preset gains needs them all
-    given when ``needs_gains`` (the controller); the other nodes run with placeholders.
+    given when ``needs_gains`` (the controller); the other nodes run with neutral placeholders.
 
     Raises
     ------
@@ -285,46 +278,28 @@ def run_spec_from_parameters(node: Node, *, needs_gains: bool = True) -> RunSpec
     if p["mode"] not in MODES:
         raise ConfigError(f"parameter mode: unknown value {p['mode']!r}; choose one of: lockstep, realtime")
     overrides = {}
-    for name in GAIN_NAMES:
+    for name in gain_names():
         if not node.has_parameter(name):
             continue
         try:
             value = node.get_parameter(name).value
         except ParameterUninitializedException:
             continue  # not given: the preset applies
+        if isinstance(value, (int, float)) and not isinstance(value, bool):
+            value = [value]  # a scalar gain given as a number
         if value is not None and len(value) > 0:
             if isinstance(value, str) or not all(
                 isinstance(v, (int, float)) and not isinstance(v, bool) for v in value
             ):
                 raise ConfigError(f"parameter {name} must be a list of numbers, got {value!r}")
             overrides[name] = [float(v) for v in value]
-    options = {
-        "scenario": p["scenario"],
-        "rate": p["rate"] or None,
-        "sample_rate": p["sample_rate"] or None,
-        "smc_model": smc_reading(p["smc_reading"]) if p["type"] == "smc" else None,
-        "ellipse_error": p["ellipse_error"],
-        "waypoints_file": p["waypoints_file"] or None,
-        "segment_duration": p["segment_duration"],
-    }
     try:
-        robot = resolve_robot(p["robot"])
-        n = ROBOTS[robot].n
         choice(p["contour"], contour_names(p["robot"]), f"contour for {p['robot']}")
-        needed = law(p["type"]).gains
-        try:
-            base = preset_gains(p["robot"], p["contour"], p["type"]).as_dict()
-        except MissingGainsError:
-            base = {}  # an arm without preset gains (a URDF arm)
-        given = {**base, **overrides}
-        missing = [g for g in needed if g not in given]
-        if missing and needs_gains:
-            raise ConfigError(f"{p['type']} needs gains {', '.join(missing)}: this arm has no preset for "
-                              f"{p['contour']}; give them (-p {missing[0]}:=[...], one per joint) or a params file "
-                              "(pdsmc tune writes one)")
-        # the other nodes never use the gains: placeholders where none are given
-        gains = Gains.from_mapping({**{g: [1.0 if g == "phi" else 0.0] * n for g in missing}, **given}, n, p["type"])
-        spec = make_run(p["robot"], p["contour"], p["type"], gains=gains, **options)
+        spec = make_run(p["robot"], p["contour"], p["type"], scenario=p["scenario"], rate=p["rate"] or None,
+                        sample_rate=p["sample_rate"] or None,
+                        smc_model=smc_reading(p["smc_reading"]) if law(p["type"]).model_based else None,
+                        ellipse_error=p["ellipse_error"], waypoints_file=p["waypoints_file"] or None,
+                        segment_duration=p["segment_duration"], overrides=overrides, needs_gains=needs_gains)
     except ConfigError as exc:
         raise ConfigError(f"parameters: {exc}") from None
     if p["duration_factor"] != 1.0:
@@ -358,8 +333,10 @@ class GainUpdates:
         factors = scenario_gain_factors(self.spec.scenario, self.spec.controller)
         changed = False
         for param in params:
-            if param.name in GAIN_NAMES:
-                merged[param.name] = list(param.value or [])
+            if param.name in GAINS:
+                value = param.value
+                scalar = isinstance(value, (int, float)) and not isinstance(value, bool)
+                merged[param.name] = [value] if scalar else list(value or [])
                 changed = True
             elif param.name in RUN_PARAMETERS or param.name in ("joints", "autostart"):
                 return SetParametersResult(
@@ -370,9 +347,8 @@ class GainUpdates:
         if not changed:
             return SetParametersResult(successful=True)
         try:
-            gains = Gains.from_mapping(
-                {k: v for k, v in merged.items() if v}, len(self.spec.gains.kp), self.spec.controller
-            )
+            gains = Gains.from_mapping({k: v for k, v in merged.items() if v}, self.spec.gains.n,
+                                       self.spec.controller)
             # as at start: the scenario's factors apply to the gains given
             gains = gains.scaled({k: f for k, f in factors.items() if any(p.name == k for p in params)})
             self.check(dataclasses.replace(self.spec, gains=gains))
@@ -382,7 +358,7 @@ class GainUpdates:
         return SetParametersResult(successful=True)
 
     def applied(self, params: list[Parameter]) -> None:
-        if self.pending is None or not any(p.name in GAIN_NAMES for p in params):
+        if self.pending is None or not any(p.name in GAINS for p in params):
             return
         gains, self.pending = self.pending, None
         self.spec = dataclasses.replace(self.spec, gains=gains)

@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from ..config import load_config
-from ..control import Gains, law_label
+from ..control import Gains, law, law_label
 from ..presets import RunSpec, control_steps, make_run, preset_gains, smc_reading
 from ..sim import RunResult
 
@@ -91,7 +91,7 @@ def read_gains(robot: str, contour: str, controller: str) -> Gains | None:
     if reading is None:
         return None
     base = preset_gains(robot, contour, controller)
-    return Gains.from_mapping({**base.as_dict(), **reading[0]}, len(base.kp), controller)
+    return base.replaced(reading[0], controller)
 
 
 @dataclass(frozen=True)
@@ -145,7 +145,7 @@ def matrix_specs(
                         controller,
                         scenario=scenario,
                         gains=read_gains(robot, contour, controller) if gain_readings else None,
-                        smc_model=model if controller == "smc" else None,
+                        smc_model=model if law(controller).model_based else None,
                         payload_reading=payload_reading,
                     )
                     specs.append(dataclasses.replace(spec, bound=float(entry["bound"])))

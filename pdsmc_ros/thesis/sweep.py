@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..control.gains import Gains
+from ..control.registry import law
 from ..control.stability import rate_margin
 from ..errors import InvalidInputError
 from ..presets import RunSpec, make_run
@@ -48,6 +49,11 @@ class SweepPoint:
     diverged: bool
 
 
+def sweep_params() -> tuple[str, ...]:
+    """The gains ``--param`` may vary: those the PD-SMC declares with a range in Table 4.15 (:data:`RANGES`)."""
+    return tuple(name for name in law("pdsmc").gain_names if name in RANGES)
+
+
 def sweep_specs(
     param: str, robot: str, contour: str, values: list[float] | None = None
 ) -> tuple[str, list[RunSpec]]:
@@ -55,8 +61,9 @@ def sweep_specs(
 
     ``values`` defaults to the thesis's values over the range of Table 4.15.
     """
-    if param not in RANGES:
-        raise InvalidInputError(f"unknown sweep parameter {param!r}; choose one of: {', '.join(RANGES)}")
+    swept = sweep_params()
+    if param not in swept:
+        raise InvalidInputError(f"unknown sweep parameter {param!r}; choose one of: {', '.join(swept)}")
     if values is not None and (not values or any(not np.isfinite(v) or v < 0 for v in values)):
         raise InvalidInputError(f"sweep values must be finite numbers >= 0, got {values}")
     n = ROBOTS[robot].n
@@ -91,7 +98,7 @@ def run_sweep(
         diverged = not np.all(np.isfinite(eps)) or float(np.nanmax(eps)) > 0.05
         points.append(
             SweepPoint(
-                value=float(getattr(spec.gains, param)[0]),
+                value=float(spec.gains[param][0]),
                 rate=spec.rate,
                 contour_mean=res.metrics.contour_mean,
                 contour_sd=res.metrics.contour_sd,

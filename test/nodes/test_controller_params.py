@@ -52,8 +52,8 @@ def test_gains_and_limits_given_in_joints_order_land_in_robot_order(node_with) -
     robot = run.spec.robot_model()
     params = declare_controller_parameters(node, robot)
     spec = gains_in_robot_order(node, run.spec, params.joint_map)
-    np.testing.assert_array_equal(spec.gains.kp, [2000.0, 1900.0, 400.0])  # joint1, joint2, joint3
-    np.testing.assert_array_equal(spec.gains.kd, [100.0, 90.0, 20.0])
+    np.testing.assert_array_equal(spec.gains["kp"], [2000.0, 1900.0, 400.0])  # joint1, joint2, joint3
+    np.testing.assert_array_equal(spec.gains["kd"], [100.0, 90.0, 20.0])
     np.testing.assert_array_equal(params.torque_limit, [3.0, 1.0, 2.0])  # the clamp works in joints order
     # ros2 param set kp in joints order: validated and applied in robot order
     applied = []
@@ -61,7 +61,7 @@ def test_gains_and_limits_given_in_joints_order_land_in_robot_order(node_with) -
     updates.joint_map = params.joint_map
     result = node.set_parameters([Parameter("kp", value=[300.0, 1800.0, 1700.0])])[0]
     assert result.successful, result.reason
-    np.testing.assert_array_equal(applied[-1].kp, [1800.0, 1700.0, 300.0])
+    np.testing.assert_array_equal(applied[-1]["kp"], [1800.0, 1700.0, 300.0])
     refused = node.set_parameters([Parameter("enforce_limits", value=False)])[0]
     assert not refused.successful and "read at start" in refused.reason
 

@@ -24,10 +24,10 @@ def test_thesis_increments_of_table_4_15() -> None:
 def test_sweep_runs_each_point_at_a_stable_rate() -> None:
     param, specs = sweep_specs("kd", "serial_3r", "circle")
     assert param == "kd"
-    assert [s.gains.kd[0] for s in specs][-1] == 10000.0
+    assert [s.gains["kd"][0] for s in specs][-1] == 10000.0
     # Kd = 10000 with the serial arm's inertia needs a faster loop than the default 10 kHz
     assert specs[-1].rate > 10000.0 and specs[0].rate == 10000.0
-    assert all(s.gains.kp == (5000.0,) * 3 and s.gains.phi == (0.5,) * 3 for s in specs)
+    assert all(s.gains["kp"] == (5000.0,) * 3 and s.gains["phi"] == (0.5,) * 3 for s in specs)
 
 
 def test_theorem_conditions_hold_for_thesis_gains_and_fail_for_weak_ks() -> None:

@@ -1,0 +1,88 @@
+"""Contour presets (``config/contours.yaml``) and the contours a run may name (CSV waypoints,
+joint via points): which preset set an arm runs, and the contour built from a name."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .config import choice, load_config
+from .errors import ConfigError
+from .robots import ROBOTS, UrdfRobot, make_robot
+from .robots.catalog import resolve_robot
+from .trajectories import (
+    Contour,
+    EllipseContour,
+    JointPath,
+    JointPathContour,
+    SegmentContour,
+    load_joint_waypoints,
+    load_waypoints_csv,
+)
+
+
+def contour_names(robot: str) -> tuple[str, ...]:
+    """The robot's contour presets (``config/contours.yaml``) and ``csv``."""
+    return tuple(load_config("contours").get(contour_set(robot)) or ()) + ("csv", "joints")
+
+
+def contour_set(robot: str) -> str:
+    """Whose contour presets ``robot`` runs: its own, or for a URDF arm the set its settings
+    name (the serial arm's by default: the thesis's task-space contours)."""
+    cls = ROBOTS[resolve_robot(robot)]
+    if issubclass(cls, UrdfRobot):
+        return str(cls.settings.get("contours", "serial_3r"))
+    return robot
+
+
+def build_contour(
+    robot: str,
+    name: str,
+    *,
+    ellipse_error: str = "nearest",
+    waypoints_file: str | None = None,
+    segment_duration: float = 2.0,
+) -> Contour:
+    """The named contour preset (or a CSV contour) for ``robot``.
+
+    A URDF arm runs its contour set's presets fitted to its ``contour_size`` (m, the box's
+    longer side, centred on its task plane's origin; none: as they are) and CSV contours as
+    given, in its task plane's coordinates.
+    """
+    cls = ROBOTS[resolve_robot(robot)]
+    dim = cls.task_dim
+    if name == "joints":
+        if not waypoints_file:
+            raise ConfigError("contour 'joints' needs a file of joint via points (--waypoints FILE: CSV "
+                              "t, q1..qn or YAML points: [{t, q}])")
+        times, points = load_joint_waypoints(waypoints_file, cls.n)
+        return JointPathContour("joints", make_robot(robot), JointPath(times, points))
+    if name == "csv":
+        if not waypoints_file:
+            raise ConfigError("contour 'csv' needs a waypoints file (--waypoints FILE)")
+        pts = load_waypoints_csv(waypoints_file, dim=dim)
+        return SegmentContour("csv", pts, segment_duration, metric="nearest")
+    preset = _preset_contour(contour_set(robot), name, dim, ellipse_error)
+    size = cls.settings.get("contour_size") if issubclass(cls, UrdfRobot) else None
+    return preset.fitted(float(size)) if size else preset
+
+
+def _preset_contour(robot: str, name: str, dim: int, ellipse_error: str) -> Contour:
+    presets = load_config("contours")[robot]
+    spec = presets[choice(name, contour_names(robot), f"contour for {robot}")]
+    if spec["type"] == "segments":
+        pts = np.asarray(spec["waypoints"], dtype=float)
+        if dim == 3:
+            pts[:, 2] *= np.pi
+        return SegmentContour(name, pts, float(spec["segment_duration"]))
+    pose = None
+    if dim == 3:
+        pose = (float(spec["pose_pi"][0]) * np.pi, float(spec["pose_pi"][1]) * np.pi)
+    return EllipseContour(
+        name,
+        spec["center"],
+        float(spec["rx"]),
+        float(spec["ry"]),
+        float(spec["duration"]),
+        pose=pose,
+        ellipse_error=ellipse_error,
+    )
