@@ -12,9 +12,9 @@ from hypothesis import strategies as st
 
 from pdsmc_ros.bag import cdr
 from pdsmc_ros.errors import CdrError, ConfigError
-from pdsmc_ros.joint_trajectory import JointTrajectoryReference
-from pdsmc_ros.joints import JointSelector, check_joint_names
 from pdsmc_ros.robots import Parallel5R, Serial3R, robot_params
+from pdsmc_ros.runtime.joint_trajectory import JointTrajectoryReference
+from pdsmc_ros.runtime.joints import JointSelector, check_joint_names
 from pdsmc_ros.urdf import robot_urdf
 
 JOINTS = ("joint1", "joint2", "joint3")

@@ -81,7 +81,7 @@ def test_an_old_reference_alone_is_stale() -> None:
 
 
 def test_lockstep_pairing_pairs_by_step_and_drops_skipped_references() -> None:
-    from pdsmc_ros.control.commanding import LockstepPairing
+    from pdsmc_ros.runtime.commanding import LockstepPairing
 
     pairing = LockstepPairing(rate=100.0, last_step=10)
     for step in range(6):  # the trajectory sends references ahead: nothing to pair yet
@@ -102,7 +102,7 @@ def test_lockstep_pairing_pairs_by_step_and_drops_skipped_references() -> None:
 
 
 def test_tick_timing_periods_are_between_tick_starts_and_misses_count() -> None:
-    from pdsmc_ros.control.commanding import TickTiming
+    from pdsmc_ros.runtime.commanding import TickTiming
 
     timing = TickTiming(period=0.001)
     first = timing.start(0.0)

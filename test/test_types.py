@@ -12,8 +12,8 @@ import pytest
 ROOT = Path(__file__).resolve().parent.parent
 # the core: everything but the rclpy nodes and the command-line front ends
 CORE = ["pdsmc_ros/bag", "pdsmc_ros/thesis", "pdsmc_ros/robots", "pdsmc_ros/control", "pdsmc_ros/sim",
-        "pdsmc_ros/config.py", "pdsmc_ros/errors.py", "pdsmc_ros/metrics.py", "pdsmc_ros/joints.py",
-        "pdsmc_ros/joint_trajectory.py", "pdsmc_ros/presets.py", "pdsmc_ros/trajectories.py", "pdsmc_ros/urdf.py",
+        "pdsmc_ros/config.py", "pdsmc_ros/errors.py", "pdsmc_ros/metrics.py",
+        "pdsmc_ros/presets.py", "pdsmc_ros/trajectories", "pdsmc_ros/urdf.py",
         "pdsmc_ros/engine.py", "pdsmc_ros/montecarlo.py", "pdsmc_ros/tuning.py", "pdsmc_ros/live_view.py",
         "pdsmc_ros/kernel_cache.py", "pdsmc_ros/settings.py", "pdsmc_ros/runtime",
         "pdsmc_ros/resources.py", "pdsmc_ros/scores.py"]

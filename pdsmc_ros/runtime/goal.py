@@ -32,8 +32,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..joint_trajectory import JointTrajectoryReference, RawPoint
-from ..joints import JointSelector
+from .joint_trajectory import JointTrajectoryReference, RawPoint
+from .joints import JointSelector
 from .limits import JointLimits
 
 FloatArray = np.ndarray

@@ -5,7 +5,7 @@ its model and of its preset gains). ``joints`` is the order the user speaks in:
 the command's ``data``, gains and torque limits given as parameters, and every
 per-joint output (feedback, controller state) follow it, as ros2_control's
 controllers do with their ``joints`` parameter. States and references are matched
-by name into robot order (:class:`~pdsmc_ros.joints.JointSelector`). ROS-free.
+by name into robot order (:class:`~pdsmc_ros.runtime.joints.JointSelector`). ROS-free.
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from ..errors import ConfigError
-from ..joints import check_joint_names
+from .joints import check_joint_names
 
 FloatArray = np.ndarray
 

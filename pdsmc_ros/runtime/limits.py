@@ -3,7 +3,7 @@
 A trajectory or goal that starts from or passes outside the joints' position
 limits, or whose velocities exceed their velocity limits, is refused with the
 joint, the point and its time named. The torque clamp itself is
-:class:`~pdsmc_ros.control.commanding.TorqueGuard` (``np.clip(tau, -limit, limit)``,
+:class:`~pdsmc_ros.runtime.commanding.TorqueGuard` (``np.clip(tau, -limit, limit)``,
 the same clamp as the in-process simulator's).
 """
 
@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..joint_trajectory import JointTrajectoryReference
+from .joint_trajectory import JointTrajectoryReference
 
 FloatArray = np.ndarray
 SAMPLES_PER_SEGMENT = 20  # a segment's polynomial is checked at this many instants besides its ends

@@ -11,13 +11,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..control.commanding import TorqueGuard
 from ..control.law import ControlLaw
-from ..joint_trajectory import JointTrajectoryReference
-from ..joints import JointSelector
+from .commanding import TorqueGuard
 from .goal import GoalExecution, Tolerances
 from .hold import Hold
 from .joint_map import JointMap
+from .joint_trajectory import JointTrajectoryReference
+from .joints import JointSelector
 from .limits import JointLimits
 
 

@@ -6,13 +6,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pdsmc_ros.control.commanding import LatestInputs
 from pdsmc_ros.errors import ConfigError
-from pdsmc_ros.joint_trajectory import JointTrajectoryReference
-from pdsmc_ros.joints import JointSelector
 from pdsmc_ros.runtime import goal as g
+from pdsmc_ros.runtime.commanding import LatestInputs
 from pdsmc_ros.runtime.hold import Hold
 from pdsmc_ros.runtime.joint_map import JointMap
+from pdsmc_ros.runtime.joint_trajectory import JointTrajectoryReference
+from pdsmc_ros.runtime.joints import JointSelector
 from pdsmc_ros.runtime.limits import JointLimits
 
 NAMES = ("joint1", "joint2", "joint3")

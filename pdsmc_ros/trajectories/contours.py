@@ -1,38 +1,19 @@
-"""Task-space contours and their joint-space references (Section 4.2).
-
-A :class:`Contour` gives the desired end-effector point ``P_d(t)`` with its
-first two derivatives and measures the contour error of an actual point
-(Section 2.4.2). A :class:`JointReference` turns a contour into continuous
-(unwrapped) joint references ``q_d, qd_d, qdd_d`` through the robot's inverse
-kinematics and Jacobians.
-"""
+"""Task-space contours (Section 4.2): the desired end-effector point ``P_d(t)`` with its first
+two derivatives, and the contour error of an actual point (Section 2.4.2)."""
 
 from __future__ import annotations
 
 import csv
 from collections.abc import Sequence
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .config import read_yaml
-from .errors import ConfigError, InvalidInputError, UnreachableError
-from .robots.base import FloatArray, Manipulator, as_vector
-
-
-def quintic(t: ArrayLike, duration: float) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """Fifth-order time scaling and its derivatives, Eqs. (4.3)-(4.4).
-
-    ``t`` is clipped to ``[0, duration]``: before the start and after the end
-    the scaling rests at 0 or 1 with zero rate and acceleration.
-    """
-    tau = np.clip(np.asarray(t, dtype=float) / duration, 0.0, 1.0)
-    s = tau**3 * (10.0 - 15.0 * tau + 6.0 * tau**2)
-    sd = (30.0 * tau**2 - 60.0 * tau**3 + 30.0 * tau**4) / duration
-    sdd = (60.0 * tau - 180.0 * tau**2 + 120.0 * tau**3) / duration**2
-    return s, sd, sdd
+from ..errors import ConfigError, InvalidInputError
+from ..robots.base import FloatArray, as_vector
+from .polynomials import quintic
+from .samples import TaskSample
 
 
 def _require_positive(label: str, value: float | FloatArray) -> None:
@@ -44,15 +25,6 @@ def _require_positive(label: str, value: float | FloatArray) -> None:
 def _require_choice(label: str, value: str, allowed: tuple[str, ...]) -> None:
     if value not in allowed:
         raise InvalidInputError(f"{label} must be one of {', '.join(map(repr, allowed))}, got {value!r}")
-
-
-@dataclass(frozen=True)
-class TaskSample:
-    """Desired task point, rate and acceleration at a set of instants, ``(len(t), dim)``."""
-
-    p: FloatArray
-    pd: FloatArray
-    pdd: FloatArray
 
 
 class Contour:
@@ -364,191 +336,3 @@ def load_waypoints_csv(path: str | Path, *, dim: int) -> FloatArray:
     return pts
 
 
-# --------------------------------------------------------------------------- #
-# Joint references
-# --------------------------------------------------------------------------- #
-@dataclass(frozen=True)
-class JointSample:
-    """Joint references at a set of instants, each ``(len(t), n)``."""
-
-    q: FloatArray
-    qd: FloatArray
-    qdd: FloatArray
-
-    def stacked(self) -> FloatArray:
-        """``(len(t), 3, n)`` array: q, qd, qdd per instant (kernel layout)."""
-        return np.stack([self.q, self.qd, self.qdd], axis=1)
-
-
-class JointReference:
-    """Continuous joint references of a contour for one robot.
-
-    The path is solved once on a dense grid (:meth:`Manipulator.ik_path`, continuous
-    along the motion); the reference at time ``t`` is the solution nearest the
-    grid's, interpolated at ``t`` (:meth:`Manipulator.ik_near`: the branch offset of
-    a closed-form solution, or the seed of a numerical one). The result at a given
-    ``t`` therefore does not depend on which instants were asked before, so a node
-    and the in-process simulator agree exactly.
-
-    Raises
-    ------
-    UnreachableError
-        At construction, naming the first unreachable point and its time.
-    """
-
-    def __init__(self, robot: Manipulator, contour: Contour, *, grid_rate: float = 2000.0) -> None:
-        self.robot = robot
-        self.contour = contour
-        if isinstance(contour, JointPathContour):
-            return  # joint-space via points: no inverse kinematics (see sample)
-        if contour.dim != robot.task_dim:
-            raise InvalidInputError(
-                f"contour {contour.name!r} has {contour.dim} task coordinates, "
-                f"{robot.name} needs {robot.task_dim}"
-            )
-        count = max(int(np.ceil(contour.duration * grid_rate)), 200) + 1
-        self._grid_t = np.linspace(0.0, contour.duration, count)
-        p = contour.task(self._grid_t).p
-        self._grid_q, ok = robot.ik_path(p)
-        if not np.all(ok):
-            first = int(np.argmin(ok))
-            raise UnreachableError(
-                f"contour {contour.name!r} leaves the {robot.name} workspace at "
-                f"t = {self._grid_t[first]:.4f} s, point "
-                f"{np.array2string(p[first], precision=4)}"
-            )
-
-    @property
-    def duration(self) -> float:
-        return self.contour.duration
-
-    def sample(self, t: ArrayLike) -> JointSample:
-        """``q_d, qd_d, qdd_d`` at times ``t`` (held at the end after ``duration``)."""
-        t = np.atleast_1d(np.asarray(t, dtype=float))
-        if isinstance(self.contour, JointPathContour):
-            return self.contour.path.sample(t)
-        task = self.contour.task(t)
-        guide = np.stack(
-            [np.interp(t, self._grid_t, self._grid_q[:, i]) for i in range(self.robot.n)], axis=-1
-        )
-        q = self.robot.ik_near(task.p, guide)
-        qd, qdd = self.robot.joint_rates(q, task.pd, task.pdd)
-        return JointSample(q=q, qd=qd, qdd=qdd)
-
-
-# --------------------------------------------------------------------------- #
-# Joint-space via points
-# --------------------------------------------------------------------------- #
-def load_joint_waypoints(path: str | Path, n: int) -> tuple[FloatArray, FloatArray]:
-    """``(times, points)`` of joint via points from a CSV (rows ``t, q1 .. qn``; a header line
-    is allowed) or a YAML file (``points: [{t: 0.0, q: [...]}, ...]``).
-
-    Raises
-    ------
-    ConfigError
-        One line naming the file, the line or point, and what is wrong: a missing file, a wrong
-        column count, a non-number, times not starting at 0 or not increasing, fewer than two points.
-    """
-    where = str(path)
-    label = f"joint waypoints {where!r}"
-    rows: list[tuple[float, list[float]]] = []
-    if Path(path).suffix.lower() in (".yaml", ".yml"):
-        data = read_yaml(path, label)
-        points = data.get("points") if isinstance(data, dict) else None
-        if not isinstance(points, list):
-            raise ConfigError(f"joint waypoints {where!r}: expected 'points: [{{t: ..., q: [...]}}, ...]'")
-        for i, point in enumerate(points):
-            try:
-                rows.append((float(point["t"]), [float(v) for v in point["q"]]))
-            except (KeyError, TypeError, ValueError):
-                raise ConfigError(f"joint waypoints {where!r}: point {i} needs t (s) and q ({n} numbers)") from None
-            if len(rows[-1][1]) != n:
-                raise ConfigError(f"joint waypoints {where!r}: point {i} has {len(rows[-1][1])} joint values, "
-                                  f"the robot has {n} joints")
-    else:
-        try:
-            text = Path(path).read_text()
-        except OSError as exc:
-            raise ConfigError(f"{label}: {exc.strerror}") from None
-        for lineno, line in enumerate(csv.reader(text.splitlines()), 1):
-            if not line or not "".join(line).strip() or line[0].lstrip().startswith("#"):
-                continue
-            try:
-                values = [float(v) for v in line]
-            except ValueError:
-                if not rows:
-                    continue  # a header line
-                raise ConfigError(f"{where}:{lineno}: expected numbers, got {line!r}") from None
-            if len(values) != n + 1:
-                raise ConfigError(f"{where}:{lineno}: expected {n + 1} columns (t, q1..q{n}), got {len(values)}")
-            rows.append((values[0], values[1:]))
-    if len(rows) < 2:
-        raise ConfigError(f"joint waypoints {where!r}: need at least 2 points, got {len(rows)}")
-    times = np.array([t for t, _ in rows])
-    points = np.array([q for _, q in rows])
-    if not (np.all(np.isfinite(times)) and np.all(np.isfinite(points))):
-        raise ConfigError(f"joint waypoints {where!r}: values must be finite")
-    if times[0] != 0.0 or np.any(np.diff(times) <= 0.0):
-        raise ConfigError(f"joint waypoints {where!r}: times must start at 0 and increase, got {times.tolist()}")
-    return times, points
-
-
-class JointPath:
-    """Stop-and-go motion through joint via points: each segment scaled by the quintic of
-    Eq. (4.5), ``q(t) = q_i + (q_{i+1} - q_i) s_c(t)``, at rest at every via point."""
-
-    def __init__(self, times: ArrayLike, points: ArrayLike) -> None:
-        self.times = np.asarray(times, dtype=float)
-        self.points = np.asarray(points, dtype=float)
-        self.duration = float(self.times[-1])
-
-    def sample(self, t: ArrayLike) -> JointSample:
-        t = np.atleast_1d(np.asarray(t, dtype=float))
-        seg = np.clip(np.searchsorted(self.times, t, side="right") - 1, 0, len(self.times) - 2)
-        length = self.times[seg + 1] - self.times[seg]
-        tau = np.clip((t - self.times[seg]) / length, 0.0, 1.0)
-        s = tau**3 * (10.0 - 15.0 * tau + 6.0 * tau**2)
-        sd = (30.0 * tau**2 - 60.0 * tau**3 + 30.0 * tau**4) / length
-        sdd = (60.0 * tau - 180.0 * tau**2 + 120.0 * tau**3) / length**2
-        delta = self.points[seg + 1] - self.points[seg]
-        return JointSample(q=self.points[seg] + delta * s[:, None], qd=delta * sd[:, None],
-                           qdd=delta * sdd[:, None])
-
-    def scaled(self, factor: float) -> JointPath:
-        return JointPath(self.times * factor, self.points)
-
-
-class JointPathContour(Contour):
-    """The end effector's path of a :class:`JointPath` (``robot.position`` of the joint motion):
-    the contour error is the distance to that path, sampled every :attr:`GRID_S` seconds."""
-
-    GRID_S = 0.002
-
-    def __init__(self, name: str, robot: Manipulator, path: JointPath) -> None:
-        self.name = name
-        self.robot = robot
-        self.path = path
-        self.dim = 2
-        self.duration = path.duration
-        grid = np.linspace(0.0, path.duration, max(int(np.ceil(path.duration / self.GRID_S)), 2) + 1)
-        self._vertices = robot.position(path.sample(grid).q)
-
-    def task(self, t: ArrayLike) -> TaskSample:
-        sample = self.path.sample(t)
-        p = self.robot.position(sample.q)
-        jac = self.robot.jacobian(sample.q)[..., :2, :]
-        pd = np.einsum("...ij,...j->...i", jac, sample.qd)
-        return TaskSample(p=p, pd=pd, pdd=np.full_like(p, np.nan))  # pdd: not used by the metrics
-
-    def contour_error(self, t: FloatArray, xy: FloatArray) -> FloatArray:
-        return polyline_distance(self._vertices, xy)
-
-    def scaled(self, factor: float) -> JointPathContour:
-        return JointPathContour(self.name, self.robot, self.path.scaled(factor))
-
-    def extent(self) -> tuple[FloatArray, FloatArray]:
-        return self._vertices.min(axis=0), self._vertices.max(axis=0)
-
-    def describe(self) -> dict[str, object]:
-        return {"type": "joints", "name": self.name, "times": self.path.times.tolist(),
-                "points": self.path.points.tolist(), "contour_error": "nearest (end effector path)"}

@@ -30,8 +30,9 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from .bag.cdr import decode_joint_trajectory_points
-from .errors import CdrError
+from ..bag.cdr import decode_joint_trajectory_points
+from ..errors import CdrError
+from ..trajectories.polynomials import segment
 from .joints import JointSelector
 
 FloatArray = np.ndarray
@@ -39,29 +40,6 @@ FloatArray = np.ndarray
 RawPoint = tuple[Sequence[float], Sequence[float], Sequence[float], int, int]
 """A decoded point: positions, velocities, accelerations, ``time_from_start`` (sec, nanosec)."""
 
-
-def _segment(t: float | FloatArray, duration: float, p0: FloatArray, v0: FloatArray | None, a0: FloatArray | None,
-             p1: FloatArray, v1: FloatArray | None, a1: FloatArray | None
-             ) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """Position, velocity and acceleration ``t`` s into a segment of ``duration`` s."""
-    if v0 is None or v1 is None:  # positions only (at either end): linear
-        velocity = (p1 - p0) / duration
-        return p0 + velocity * t, velocity, np.zeros_like(p0)
-    if a0 is None or a1 is None:  # velocities at both ends: cubic
-        T = duration
-        c2 = (3.0 * (p1 - p0) - (2.0 * v0 + v1) * T) / T**2
-        c3 = (2.0 * (p0 - p1) + (v0 + v1) * T) / T**3
-        return (p0 + v0 * t + c2 * t**2 + c3 * t**3,
-                v0 + 2.0 * c2 * t + 3.0 * c3 * t**2,
-                2.0 * c2 + 6.0 * c3 * t)
-    T = duration
-    T2, T3, T4, T5 = T**2, T**3, T**4, T**5
-    c3 = (20.0 * (p1 - p0) - (8.0 * v1 + 12.0 * v0) * T - (3.0 * a0 - a1) * T2) / (2.0 * T3)
-    c4 = (30.0 * (p0 - p1) + (14.0 * v1 + 16.0 * v0) * T + (3.0 * a0 - 2.0 * a1) * T2) / (2.0 * T4)
-    c5 = (12.0 * (p1 - p0) - (6.0 * v1 + 6.0 * v0) * T - (a0 - a1) * T2) / (2.0 * T5)
-    return (p0 + v0 * t + 0.5 * a0 * t**2 + c3 * t**3 + c4 * t**4 + c5 * t**5,
-            v0 + a0 * t + 3.0 * c3 * t**2 + 4.0 * c4 * t**3 + 5.0 * c5 * t**4,
-            a0 + 6.0 * c3 * t + 12.0 * c4 * t**2 + 20.0 * c5 * t**3)
 
 
 class JointTrajectoryReference:
@@ -178,7 +156,7 @@ class JointTrajectoryReference:
             velocity = np.zeros(n) if given is None else given
             return t, np.broadcast_to(self.positions[k], (count, n)), np.broadcast_to(velocity, (count, n))
         # a0 None for k == 0: the segment from the state at receipt is cubic at most (sample())
-        q, qd, _ = _segment((t - t0)[:, None], duration, p0, v0, a0 if k else None,
+        q, qd, _ = segment((t - t0)[:, None], duration, p0, v0, a0 if k else None,
                             self.positions[k], v[k], a[k] if k else None)
         return t, np.broadcast_to(q, (count, len(p0))), np.broadcast_to(qd, (count, len(p0)))
 
@@ -195,7 +173,7 @@ class JointTrajectoryReference:
             # from the state at receipt to the first point: cubic where the point gives a
             # velocity (the measured state has none of acceleration), else linear
             t0 = min(0.0, t)
-            return _segment(t - t0, times[0] - t0, self.start_q, self.start_qd, None,
+            return segment(t - t0, times[0] - t0, self.start_q, self.start_qd, None,
                             self.positions[0], v[0], None)
-        return _segment(t - times[k - 1], times[k] - times[k - 1], self.positions[k - 1], v[k - 1],
+        return segment(t - times[k - 1], times[k] - times[k - 1], self.positions[k - 1], v[k - 1],
                         a[k - 1], self.positions[k], v[k], a[k])

@@ -11,9 +11,9 @@ from typing import Protocol
 import numpy as np
 
 from ..bag.stamps import stamp_step
+from ..control.safety import Staleness, limit_torque
 from ..robots.base import FloatArray
-from ..runtime.hold import Hold
-from .safety import Staleness, limit_torque
+from .hold import Hold
 
 MAX_STEP = 2**32 - 1  # an effort command's layout.data_offset is a uint32
 Reference = tuple[FloatArray, FloatArray, FloatArray]

@@ -19,8 +19,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from .bag.cdr import decode_joint_state_named, decode_joint_trajectory_named
-from .errors import CdrError, ConfigError
+from ..bag.cdr import decode_joint_state_named, decode_joint_trajectory_named
+from ..errors import CdrError, ConfigError
 
 FloatArray = np.ndarray
 Values = Sequence[float] | np.ndarray
