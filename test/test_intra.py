@@ -19,7 +19,8 @@ from std_msgs.msg import String  # noqa: E402
 
 from pdsmc_ros.bag import cdr  # noqa: E402
 from pdsmc_ros.nodes import intra  # noqa: E402
-from pdsmc_ros.nodes.io import GuardedPublisher, Inputs, take_local  # noqa: E402
+from pdsmc_ros.nodes.inputs import Inputs, take_local  # noqa: E402
+from pdsmc_ros.nodes.publishers import GuardedPublisher  # noqa: E402
 from pdsmc_ros.nodes.topics import LATCHED_QOS, LATEST_QOS, LOCKSTEP_QOS, STREAM_QOS  # noqa: E402
 
 DOMAIN_ID = next_domain()  # apart from the other tests

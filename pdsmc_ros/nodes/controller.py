@@ -28,12 +28,12 @@ from std_msgs.msg import String
 from trajectory_msgs.msg import JointTrajectory
 
 from ..control import ControlLaw, Gains
-from ..control.commanding import LatestInputs, LockstepPairing, Paired, TickTiming, TorqueGuard
 from ..control.stability import check_rate
-from ..joints import JointSelector
 from ..presets import control_steps
+from ..runtime.commanding import LatestInputs, LockstepPairing, Paired, TickTiming, TorqueGuard
 from ..runtime.goal import GoalSlot
 from ..runtime.hold import Hold
+from ..runtime.joints import JointSelector
 from ..runtime.limits import JointLimits
 from ..runtime.warm import warm_up
 from . import topics
@@ -41,16 +41,17 @@ from .controller_params import OrderedGainUpdates, declare_controller_parameters
 from .diagnostics import Diagnostics, InputReport
 from .executor import run_node
 from .follow_joint_trajectory import FollowJointTrajectoryServer, topic_trajectory
-from .io import EffortOutput, Inputs, RowBatches, Times
+from .inputs import Inputs, Times
 from .lifecycle import EXIT_OK, CommandingEntity, end_when_plant_leaves
 from .params import declare_node_run, description_json
+from .publishers import EffortOutput, RowBatches
 
 GOAL_BATCH_S = 0.002  # ~/joint_trajectory is looked at every 2 ms
 STOP_ACK_S = 0.5  # how long a stopping controller waits for its zero command to be acknowledged
 
 
 class ControllerNode(CommandingEntity):
-    """Wiring around :class:`~pdsmc_ros.control.ControlLaw`, :mod:`~pdsmc_ros.control.commanding`
+    """Wiring around :class:`~pdsmc_ros.control.ControlLaw`, :mod:`~pdsmc_ros.runtime.commanding`
     and :mod:`~pdsmc_ros.runtime` (hold, goals, limits)."""
 
     def __init__(self) -> None:

@@ -24,7 +24,8 @@ from ..presets import RunSpec, scenario_gain_factors
 from ..robots import Manipulator
 from ..runtime.goal import STOPPED_VELOCITY_TOLERANCE, Tolerances
 from ..runtime.joint_map import JointMap
-from .params import GainUpdates, declare_int_parameter
+from .descriptors import declare_int_parameter
+from .gain_updates import GainUpdates
 
 FIXED = ("torque_limit", "enforce_limits", "stale_periods", "constraints.goal_time",
          "constraints.stopped_velocity_tolerance")

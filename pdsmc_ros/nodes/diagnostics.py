@@ -8,7 +8,7 @@ from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.node import Node
 
-from .io import GuardedPublisher
+from .publishers import GuardedPublisher
 from .topics import STREAM_QOS, TOPIC_DIAGNOSTICS
 
 LEVELS = {"info": DiagnosticStatus.OK, "warn": DiagnosticStatus.WARN, "error": DiagnosticStatus.ERROR}

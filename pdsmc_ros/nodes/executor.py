@@ -2,13 +2,9 @@
 
 from __future__ import annotations
 
-import dataclasses
-import math
 import signal
 import sys
-import threading
 import time
-from collections import deque
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -19,19 +15,12 @@ from rclpy.exceptions import (
     ParameterException,
 )
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
-from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy_impl
 
 from ..errors import InvalidInputError, PdsmcError
-from ..runtime.realtime import Collector, restore
 from . import intra
 from .group import NodeGroup
-from .io import (
+from .inputs import (
     Inputs,
-    pending,
-    take_all,
-    take_batches,
-    take_local,
-    take_local_batches,
 )
 from .lifecycle import (
     DRAIN_TIMEOUT_S,
@@ -41,8 +30,8 @@ from .lifecycle import (
     arm_teardown_watch,
 )
 from .overrides import check_overrides, warn_unknown_arguments
-from .params import BUSY_WAIT_S
-from .realtime_params import LoopReport, apply_settings, due_reports, loop_reports
+from .realtime_params import LoopReport, loop_reports
+from .serve_loop import LocalInputs, serve_loop
 
 
 def run_node(
@@ -124,11 +113,11 @@ def run_nodes(
         loop_inputs = [item for inputs in with_inputs if not inputs.batch_s for item in inputs.hot]
         observed = [item for inputs in with_inputs if inputs.batch_s for item in inputs.hot]
         observe_every = min((inputs.batch_s for inputs in with_inputs if inputs.batch_s), default=0.0)
-        local = _LocalInputs(
+        local = LocalInputs(
             [item for inputs in with_inputs if not inputs.batch_s for item in inputs.local],
             [item for inputs in with_inputs if inputs.batch_s for item in inputs.local],
             None if domain is None else domain.guard)
-        _serve_loop(executor, group, loop_inputs, period, observed, observe_every, local,
+        serve_loop(executor, group, loop_inputs, period, observed, observe_every, local,
                     busy_wait=group.busy_wait, reports=reports)
         code = group.exit_code
         if not group.stopped_by_signal:
@@ -157,187 +146,6 @@ def _inputs_of(wrapper: Any) -> list[Inputs]:
     """A wrapper's ``inputs`` and, if it has them, its ``observed_inputs`` (taken in batches)."""
     return [inputs for inputs in (getattr(wrapper, "inputs", None), getattr(wrapper, "observed_inputs", None))
             if inputs is not None]
-
-
-@dataclasses.dataclass(frozen=True)
-class _LocalInputs:
-    """Inputs on the intra-process path (queues filled by publishers of this process)."""
-
-    hot: Sequence[tuple[deque, Callable[[bytes], None]]] = ()
-    observed: Sequence[tuple[deque, Callable[[bytes], None]]] = ()
-    guard: Any = None  # triggered when a message is queued from another thread
-
-
-STATISTICS_EVERY_S = 1.0  # real time: loop statistics on /diagnostics this often
-IDLE_MARGIN = 0.3  # real time: the young generation is collected only with this share of a period to spare
-COLD_PERIOD_S = 0.02  # lockstep: the executor's turn (timers, parameters, /clock) this often
-# (one turn costs 0.2-1 ms of Python; every 5 ms it took 15 % of the lockstep rate)
-COLD_WAIT_S = 5.0  # real time: the executor thread's longest sleep (it is woken to stop)
-GIL_SWITCH_S = 0.0001  # real time: longest the executor thread keeps the GIL from the loop
-# real time, from the spin before a tick to its end: the loop keeps the GIL (another thread
-# taking it there could hold it through a long C call, e.g. rclpy converting a message)
-HOLD_SWITCH_S = 0.005
-
-
-def _serve_loop(executor: SingleThreadedExecutor, group: Any,
-                hot: Sequence[tuple[Any, Callable[[bytes], None]]], period: float | None,
-                observed: Sequence[tuple[Any, Callable[[bytes], None]]] = (),
-                observe_every: float = 0.0, local: _LocalInputs | None = None, *,
-                busy_wait: float = BUSY_WAIT_S, reports: Sequence[LoopReport] = ()) -> None:
-    """Take the loop's inputs with a wait set of their own; serve the rest beside them.
-
-    Every ready input of ``hot`` is drained (``take_message`` until empty) and handed to
-    its handler at every pass. Lockstep: every ``COLD_PERIOD_S`` the executor gets one
-    non-blocking turn (timers, parameters, ``/clock``). Real time (a ``period``): the
-    executor spins in a thread of its own (one of its turns took about 1 ms) and
-    ``group.tick(lateness)`` runs on a wall-clock schedule: the loop sleeps in the wait
-    set until ``busy_wait`` before the deadline and spins the rest (at normal priority a
-    wake-up is late by tens of microseconds, on this VM now and then by milliseconds).
-    Late ticks run at once (no catch-up beyond one period). The garbage collector is
-    kept off the path, its young generation collected now and then (real time: right
-    after a tick with time to spare). ``reports``: the nodes' real-time settings (applied
-    to this thread once the executor thread exists) and loop statistics (published every
-    ``STATISTICS_EVERY_S`` right after a tick, and at the end).
-
-    ``observed`` are the inputs of observers (see :class:`Inputs`): once they
-    have given messages, they are left alone for ``observe_every`` seconds, so
-    their messages are taken in batches -- whether the observer runs alone or
-    composed with the loop's nodes, whose inputs are still taken at every pass.
-    ``local`` are the inputs on the intra-process path (composed
-    ``--intra-process``), taken from their queues the same way; their guard
-    condition wakes the loop when the real-time executor thread queues a message.
-    """
-    clock = time.perf_counter
-    local = local or _LocalInputs()
-    local_hot, local_observed = list(local.hot), list(local.observed)
-    any_observed = bool(observed or local_observed)
-    guard = local.guard if period else None  # only the real-time executor thread publishes off the loop
-    wait_set = _rclpy_impl.WaitSet(len(hot) + len(observed), 0 if guard is None else 1, 0, 0, 0, 0,
-                                   executor.context.handle)
-    inputs = [(sub.handle, sub.msg_type, handler) for sub, handler in hot]
-    observer_inputs = [(sub.handle, sub.msg_type, handler) for sub, handler in observed]
-    collector = Collector() if period else Collector(young_at=50_000)
-    collector.start()
-    switch_interval = sys.getswitchinterval()
-    if period:
-        # the executor thread (timers, the recorder's flush) must hand the GIL back to the loop
-        # within a fraction of a period, not after CPython's default 5 ms
-        sys.setswitchinterval(GIL_SWITCH_S)
-    stop = threading.Event()
-    cold_thread = None
-    guard_node = group.wrappers[0].node
-    wake_guard = None
-    if period:
-        # the executor thread sleeps until it has work (timers, services); a guard condition
-        # of one of its nodes ends that sleep when the loop ends (Executor.wake() does not
-        # interrupt spin_once here). Waking every 0.1 s instead cost ~0.5 ms under the GIL
-        # ten times a second -- a late control period each time.
-        wake_guard = guard_node.create_guard_condition(lambda: None)
-
-        def spin_cold() -> None:
-            while not stop.is_set() and rclpy.ok():
-                executor.spin_once(timeout_sec=COLD_WAIT_S)
-
-        cold_thread = threading.Thread(target=spin_cold, name="executor", daemon=True)
-        cold_thread.start()
-    # after the executor thread exists (scheduling is per thread); at FIFO, busy_wait may shrink
-    applied, busy_wait = apply_settings(reports, guard_node, period, busy_wait)
-    next_report = clock() + STATISTICS_EVERY_S
-    unpublished: list[LoopReport] = []
-    holding = False  # real time: the GIL kept through the spin and the tick (HOLD_SWITCH_S)
-    try:
-        next_cold = float("inf") if period else 0.0
-        next_tick = clock() + period if period else float("inf")
-        next_observe = 0.0
-        ok = executor.context.ok  # checked at ticks and executor turns, not at every pass
-        while not group.done:
-            took = take_all(inputs)
-            if local_hot and take_local(local_hot):
-                took = True
-            now = clock()
-            if any_observed and now >= next_observe:
-                # real time: a batch must not delay the next tick; what is left waits for the
-                # pass after it (next_observe unchanged)
-                until = next_tick - busy_wait if period else math.inf
-                observed_any = take_batches(observer_inputs, until)
-                if take_local_batches(local_observed, until) or observed_any:
-                    took = True
-                    if clock() < until:
-                        next_observe = now + observe_every
-            if took and group.done:
-                return
-            now = clock()
-            if now >= next_tick:
-                if not ok():
-                    return
-                group.tick(now - next_tick)
-                if holding:
-                    sys.setswitchinterval(GIL_SWITCH_S)
-                    holding = False
-                next_tick += period
-                if now - next_tick > period:  # more than a period behind: resynchronise
-                    next_tick = now + period
-                now = clock()
-                if now >= next_report:  # once a second: one node's statistics after each tick
-                    unpublished = due_reports(reports, collector)
-                    next_report = now + STATISTICS_EVERY_S
-                if next_tick - now <= busy_wait + IDLE_MARGIN * period:
-                    continue  # no time to spare
-                if unpublished:
-                    unpublished.pop().publish()
-                else:
-                    collector.idle()
-                    for idle in group.idlers:  # e.g. a state topic at 20 Hz: not in another thread,
-                        idle(next_tick - busy_wait)  # whose message conversion would hold the GIL
-                continue
-            if now >= next_cold:
-                if not ok():
-                    return
-                executor.spin_once(timeout_sec=0.0)
-                next_cold = now + COLD_PERIOD_S
-                continue
-            if not period:
-                collector.idle()
-            if took:
-                continue
-            due = min(next_cold, next_tick - busy_wait, now + 0.1)
-            observing = now >= next_observe
-            if not observing:
-                due = min(due, next_observe)
-            sleep = due - now
-            if sleep <= 0.0:
-                if period and not holding:
-                    sys.setswitchinterval(HOLD_SWITCH_S)
-                    holding = True
-                continue  # busy-wait for the tick
-            if pending(local_hot) or (observing and pending(local_observed)):
-                continue
-            waited = inputs + observer_inputs if observing else inputs
-            if not waited and guard is None:
-                if cold_thread is None and not any_observed:
-                    executor.spin_once(timeout_sec=sleep)  # a node without inputs
-                else:
-                    time.sleep(sleep)
-                continue
-            wait_set.clear_entities()
-            for handle, _, _ in waited:
-                wait_set.add_subscription(handle)
-            if guard is not None:
-                wait_set.add_guard_condition(guard)
-            wait_set.wait(int(sleep * 1e9))
-    finally:
-        restore(applied)
-        for report in due_reports(reports, collector):
-            report.publish()
-        stop.set()
-        if wake_guard is not None:  # real time: stop the executor thread
-            wake_guard.trigger()  # end its wait now
-            cold_thread.join(timeout=2.0)
-            if cold_thread.is_alive():
-                print("warning: the executor thread did not stop within 2 s", file=sys.stderr, flush=True)
-            guard_node.destroy_guard_condition(wake_guard)
-        sys.setswitchinterval(switch_interval)
-        collector.stop()
 
 
 def _drain(executor: Any, wrappers: Sequence[Any], timeout: float = DRAIN_TIMEOUT_S) -> None:

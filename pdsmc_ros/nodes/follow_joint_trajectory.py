@@ -27,10 +27,10 @@ from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
 from trajectory_msgs.msg import JointTrajectoryPoint
 
-from ..joint_trajectory import JointTrajectoryReference
 from ..runtime.goal import INVALID_GOAL, GoalExecution, Outcome, resolve_tolerances, validate_goal
+from ..runtime.joint_trajectory import JointTrajectoryReference
 from .diagnostics import Diagnostics
-from .io import Times
+from .inputs import Times
 
 if TYPE_CHECKING:
     from .controller import ControllerNode

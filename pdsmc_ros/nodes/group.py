@@ -6,7 +6,7 @@ import time
 from collections.abc import Sequence
 from typing import Any
 
-from .params import BUSY_WAIT_S
+from .descriptors import BUSY_WAIT_S
 from .realtime_params import LoopReport
 
 

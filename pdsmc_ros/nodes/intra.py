@@ -6,12 +6,12 @@ lockstep step still paid Fast DDS a write per message and a take per subscriber
 (about 14 us + 10 us each, 40-50 % of a composed step). This module is that path
 for the loop's serialized messages:
 
-* a publisher of a volatile topic (:class:`~pdsmc_ros.nodes.io.GuardedPublisher`)
+* a publisher of a volatile topic (:class:`~pdsmc_ros.nodes.publishers.GuardedPublisher`)
   gets a :class:`Route`: each message is appended to the queue of every subscriber
   of that topic in this process, and written to DDS only while a subscriber
   outside the process is matched (``get_subscription_count`` of the DDS
   publisher, which sees no local reader; re-read every ``COUNT_REFRESH_S``);
-* a loop input (:class:`~pdsmc_ros.nodes.io.Inputs`) of a topic that is
+* a loop input (:class:`~pdsmc_ros.nodes.inputs.Inputs`) of a topic that is
   published in this process takes its messages from that queue and has no DDS
   reader; any other input subscribes over DDS as usual. Queues keep every
   message for keep-all subscriptions and the newest ``depth`` for keep-last

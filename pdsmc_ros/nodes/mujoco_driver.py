@@ -28,10 +28,10 @@ from std_msgs.msg import Float64MultiArray, String
 
 from ..bag.cdr import decode_float64_multi_array, encode_joint_state
 from ..errors import CdrError, ConfigError, InvalidInputError
-from ..joints import check_joint_names
 from ..robots.catalog import allowed_robots, resolve_robot
 from ..robots.registry import ROBOTS
 from ..robots.urdf_robot import UrdfRobot
+from ..runtime.joints import check_joint_names
 from ..sim.mujoco_driver import (
     JOINT_STATE_ORDERS,
     MujocoDriver,
@@ -40,10 +40,11 @@ from ..sim.mujoco_driver import (
     joint_state_order,
 )
 from ..sim.mujoco_model import build_model
+from .descriptors import declare_busy_wait, declare_int_parameter
 from .executor import run_node
-from .io import GuardedPublisher, Inputs
+from .inputs import Inputs
 from .lifecycle import EXIT_OK
-from .params import declare_busy_wait, declare_int_parameter
+from .publishers import GuardedPublisher
 from .topics import LATCHED_QOS, STREAM_QOS, TOPIC_EFFORT, TOPIC_JOINT_STATES, TOPIC_ROBOT_DESCRIPTION
 
 WARN_EVERY_S = 1.0  # dropped commands: one warning a second at most

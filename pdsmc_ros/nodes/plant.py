@@ -50,18 +50,18 @@ from ..errors import CdrError, ConfigError
 from ..presets import control_steps
 from ..sim.plant import PlantStepper
 from ..sim.supervised import SupervisedPlant
-from .diagnostics import Diagnostics
-from .executor import run_node
-from .io import GuardedPublisher, Inputs
-from .lifecycle import EXIT_FAILURE, EXIT_OK
-from .params import (
+from .descriptors import (
     decimation,
     declare_int_parameter,
-    declare_node_run,
     declare_safety_parameters,
-    refuse_run_changes,
     safety_from_parameters,
 )
+from .diagnostics import Diagnostics
+from .executor import run_node
+from .inputs import Inputs
+from .lifecycle import EXIT_FAILURE, EXIT_OK
+from .params import declare_node_run, refuse_run_changes
+from .publishers import GuardedPublisher
 from .topics import (
     LATCHED_QOS,
     LATEST_QOS,

@@ -27,8 +27,8 @@ from ..runtime.realtime import (
     minor_faults,
 )
 from ..runtime.statistics import LoopStatistics, status_name
+from .descriptors import BUSY_WAIT_S
 from .diagnostics import Diagnostics
-from .params import BUSY_WAIT_S
 
 NAMES = ("thread_priority", "cpu_affinity", "lock_memory")
 

@@ -38,13 +38,9 @@ from ..bag.writer import MessageAppender, RunProgress, close_chunk
 from ..errors import BagError, ConfigError
 from ..presets import control_steps
 from .executor import run_node
-from .io import Inputs
+from .inputs import Inputs
 from .lifecycle import EXIT_FAILURE, EXIT_OK
-from .params import (
-    declare_node_run,
-    description_json,
-    refuse_run_changes,
-)
+from .params import declare_node_run, description_json, refuse_run_changes
 from .topics import (
     LATCHED_QOS,
     LOCKSTEP_QOS,

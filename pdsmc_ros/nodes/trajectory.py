@@ -38,14 +38,12 @@ from ..bag.cdr import decode_stamp, encode_joint_trajectories, encode_point_stam
 from ..bag.stamps import stamp_step, step_stamp
 from ..errors import CdrError
 from ..presets import control_steps
+from .descriptors import declare_int_parameter
 from .executor import run_node
-from .io import GuardedPublisher, Inputs
+from .inputs import Inputs
 from .lifecycle import EXIT_OK, end_when_plant_leaves
-from .params import (
-    declare_int_parameter,
-    declare_node_run,
-    refuse_run_changes,
-)
+from .params import declare_node_run, refuse_run_changes
+from .publishers import GuardedPublisher
 from .topics import (
     STEADY_CLOCK,
     STREAM_DEPTH,

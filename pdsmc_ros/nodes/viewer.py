@@ -21,9 +21,10 @@ from sensor_msgs.msg import JointState
 from ..bag.cdr import decode_joint_state_named
 from ..errors import CdrError, ConfigError
 from ..live_view import DEFAULT_DISPLAY_RATE, FoxgloveView, LiveView
+from .descriptors import declare_int_parameter
 from .executor import run_node
 from .lifecycle import EXIT_OK, end_when_plant_leaves
-from .params import declare_int_parameter, declare_node_run, refuse_run_changes
+from .params import declare_node_run, refuse_run_changes
 from .topics import OBSERVER_QOS, STEADY_CLOCK, TOPIC_JOINT_STATES_THROTTLED
 
 MAX_DISPLAY_RATE = 240.0
