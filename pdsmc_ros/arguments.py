@@ -12,6 +12,8 @@ import numpy as np
 
 EXIT_USAGE = 2
 """Exit status of bad input."""
+EXIT_FAILURE = 1
+"""Exit status of a failure while running (a diverged run, a failed check)."""
 
 
 class OneLineParser(argparse.ArgumentParser):

@@ -18,7 +18,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from .arguments import EXIT_USAGE, OneLineParser
-from .cli import positive_float
+from .cli.options import positive_float
 from .resources import ros_environment, script_path, scripts_dir
 from .thesis.analysis import analyze_bag, comparison_table
 

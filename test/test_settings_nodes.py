@@ -79,7 +79,7 @@ def test_a_params_file_and_overrides_give_the_same_gains_in_process_and_in_the_n
         args = cli.build_parser().parse_args(
             ["simulate", "--robot", "parallel_5r", "--contour", "circle", "--controller", controller, "--scenario",
              scenario, "--params-file", str(path), "--gain", f"{override}={GIVEN[override][0]},{GIVEN[override][1]}"])
-        in_process = cli._spec_from_args(args)
+        in_process = cli.spec_from_args(args)
         node = rclpy.create_node("controller", context=context, cli_args=[
             "--ros-args", "-p", "robot:=parallel_5r", "-p", "contour:=circle", "-p", f"scenario:={scenario}",
             "--params-file", str(path), "-p", f"{override}:={GIVEN[override]}"])

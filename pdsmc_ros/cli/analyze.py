@@ -1,0 +1,86 @@
+"""``pdsmc analyze``."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+from ..arguments import EXIT_FAILURE
+from ..errors import InvalidInputError
+
+
+def add_parser(sub: argparse._SubParsersAction, commands: dict) -> None:  # type: ignore[type-arg]
+    """Register ``analyze`` on ``pdsmc``'s subcommands."""
+    p = sub.add_parser("analyze", help="statistics of recorded bags, compared thesis-style")
+    p.add_argument("bags", nargs="+",
+                   help="bags written by the recorder, or directories of bags (each inside, in name order)")
+    p.add_argument("--out", default=None, help="also write analysis.json and analysis.csv here")
+    p.add_argument("--json", action="store_true", help="print JSON instead of the table")
+    p.add_argument("--plots", action="store_true", help="write PNG figures into --out (default: analysis/)")
+    commands["analyze"] = run
+
+
+def run(args: argparse.Namespace) -> int:
+    from ..thesis.analysis import analyze_bag, comparison_table, find_bags, write_outputs
+
+    paths, skipped = find_bags(args.bags)
+    for line in skipped:
+        print(f"pdsmc analyze: {line}", file=sys.stderr)
+    if not paths:
+        raise InvalidInputError(f"no bag among {', '.join(map(repr, args.bags))} (a bag is a directory "
+                                "written by the recorder, or a directory of such bags)")
+    bags = [analyze_bag(path) for path in paths]
+    if args.plots:
+        from ..bag.reader import run_samples
+        from ..thesis.plots import plot_comparison, plot_controllers, plot_run
+
+        out = Path(args.out or "analysis")
+        written = []
+        groups: dict[tuple[str, str, str], list[Any]] = {}
+        for b in bags:
+            samples = run_samples(b.run)
+            written += plot_run(samples, b.run.spec.robot, b.path.name, out)
+            spec = b.run.spec
+            if not b.diverged:  # a diverged run would set the comparison figures' scales
+                groups.setdefault((spec.robot, spec.contour, spec.scenario), []).append(
+                    (spec.controller, samples, spec))
+        for (robot, contour, scenario), runs in groups.items():
+            # the thesis's comparison figures: every controller of one robot, contour and scenario together
+            name = f"{Path(robot).stem}_{contour}" + ("" if scenario == "nominal" else f"_{scenario}")
+            written += plot_controllers([(c, s) for c, s, _ in runs], robot, name, runs[0][2].bound, out)
+        compared = [b for b in bags if not b.diverged]
+        written.append(plot_comparison([b.label for b in compared], [b.metrics.contour_mean for b in compared],
+                                       out / "contour_mean_comparison.png", "mean contour error"))
+        print(f"wrote {len(written)} figures into {out}/", file=sys.stderr)
+    if args.json:
+        print(json.dumps([b.as_dict() for b in bags]))
+    else:
+        print(comparison_table(bags))
+    if args.out:
+        for path in write_outputs(bags, Path(args.out)):
+            print(f"wrote {path}", file=sys.stderr)
+    bad = [b for b in bags if b.run.truncated or (not b.run.complete and b.run.description.get("mode") != "realtime")]
+    for b in bags:
+        if b in bad:
+            what = "truncated (recorder stopped without closing it)" if b.run.truncated else "incomplete"
+            print(f"pdsmc analyze: {b.path}: {what}: statistics of the {b.metrics.samples} readable samples "
+                  f"only; missing steps {b.run.missing}", file=sys.stderr)
+    for b in bags:
+        if b.run.description_from_recorder:
+            print(f"pdsmc analyze: {b.path}: the controller's run description never reached the "
+                  "recorder; the run is named by the recorder's own parameters (gains may differ)",
+                  file=sys.stderr)
+        if b.run.plant_torque_steps:
+            print(f"pdsmc analyze: {b.path}: for {b.run.plant_torque_steps} steps the plant applied a "
+                  "torque other than a recorded command (safe mode, see /diagnostics); the statistics "
+                  "use the torque applied", file=sys.stderr)
+    for b in bags:
+        if b.diverged:
+            print(f"pdsmc analyze: {b.path}: the run {b.diverged}: marked diverged, left out of the "
+                  "comparisons and of the comparison figures' scales", file=sys.stderr)
+    if bad or any(b.diverged for b in bags):
+        return EXIT_FAILURE
+    return 0

@@ -1,0 +1,68 @@
+"""``pdsmc sweep``."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from .options import (
+    value_list,
+    worker_count,
+)
+
+
+def add_parser(sub: argparse._SubParsersAction, commands: dict) -> None:  # type: ignore[type-arg]
+    """Register ``sweep`` on ``pdsmc``'s subcommands."""
+    p = sub.add_parser("sweep", help="vary one PD-SMC parameter (Section 4.2.3, Table 4.15)")
+    p.add_argument("--param", required=True,
+                   help="the PD-SMC gain varied, one its declaration and Table 4.15 give a range: kp, kd, ks, "
+                   "lam (the thesis's lambda)")
+    p.add_argument("--robot", required=True, help="a registered robot: serial_3r, parallel_5r, ...")
+    p.add_argument("--contour", required=True)
+    p.add_argument("--out", default=None, help="write sweep_<param>.csv and .png here")
+    p.add_argument("--workers", type=worker_count, default=None)
+    p.add_argument("--scheduler", default=None, help="run the sweep on a Dask cluster, tcp://HOST:PORT")
+    p.add_argument("--values", type=value_list, default=None,
+                   help="comma-separated values instead of the thesis's (e.g. 1,10,100)")
+    commands["sweep"] = run
+
+
+def run(args: argparse.Namespace) -> int:
+    from ..thesis.sweep import run_sweep
+
+    def progress(done: int, total: int, _res: object) -> None:
+        print(f"[{done}/{total}]", end="\r", file=sys.stderr, flush=True)
+
+    param, points = run_sweep(args.param, args.robot, args.contour, values=args.values,
+                              workers=args.workers, progress=progress, scheduler=args.scheduler)
+    label = param
+    print(f"PD-SMC, {args.robot} / {args.contour}: {label} varied, others at Kp=5000, Kd=1000, Ks=5, "
+          "lambda=10, phi=0.5 (Section 4.2.3)")
+    print(f"{label:>8s} {'rate (Hz)':>10s} {'mean (m)':>11s} {'S.D. (m)':>11s} {'max (m)':>11s} {'within':>8s}")
+    for p in points:
+        flag = "  diverged" if p.diverged else ""
+        print(f"{p.value:8g} {p.rate:10g} {p.contour_mean:11.4e} {p.contour_sd:11.4e} {p.contour_max:11.4e} "
+              f"{p.within_pct:7.2f}%{flag}")
+    if args.out:
+        import csv
+
+        from ..thesis.plots import plot_sweep
+
+        out = Path(args.out)
+        out.mkdir(parents=True, exist_ok=True)
+        with (out / f"sweep_{label}.csv").open("w", newline="") as handle:
+            writer = csv.writer(handle)
+            writer.writerow([label, "rate_hz", "contour_mean", "contour_sd", "contour_max", "within_pct", "diverged"])
+            for p in points:
+                writer.writerow(
+                    [p.value, p.rate, p.contour_mean, p.contour_sd, p.contour_max, p.within_pct, p.diverged]
+                )
+        ok = [p for p in points if not p.diverged]
+        plot_sweep(label, np.array([p.value for p in ok]), np.array([p.contour_mean for p in ok]),
+                   np.array([p.contour_sd for p in ok]), np.array([p.contour_max for p in ok]),
+                   out / f"sweep_{label}.png", f"PD-SMC {args.robot}/{args.contour}: {label}")
+        print(f"wrote {out}/sweep_{label}.csv and .png", file=sys.stderr)
+    return 0
