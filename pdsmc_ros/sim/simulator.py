@@ -10,7 +10,6 @@ from __future__ import annotations
 import os
 import time
 from collections.abc import Callable, Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
 
 import numpy as np
@@ -176,33 +175,25 @@ def simulate_many(
     progress: Callable[[int, int, RunResult], None] | None = None,
     scheduler: str | None = None,
 ) -> list[RunResult]:
-    """Simulate several runs, on ``workers`` processes (default: all cores), or on the Dask
-    cluster of ``scheduler`` (``tcp://HOST:PORT``, :mod:`pdsmc_ros.engine`)."""
-    results: list[RunResult | None] = [None] * len(specs)
-    if scheduler is not None:
-        from ..engine import dask_client, run_tasks
+    """Simulate several runs on the project's one parallel engine (:mod:`pdsmc_ros.engine`):
+    a local Dask cluster of ``workers`` processes (default: all cores), or the cluster of
+    ``scheduler`` (``tcp://HOST:PORT``); one worker or one run: in this process."""
+    from ..engine import dask_client, run_tasks
 
-        with dask_client(scheduler) as client:
-            for done, (i, result) in enumerate(run_tasks(client, simulate, [(spec,) for spec in specs]), start=1):
-                results[i] = result
-                if progress:
-                    progress(done, len(specs), result)
-        return results  # type: ignore[return-value]
-    # a process per run at the most: a pool forks all its workers up front
+    results: list[RunResult | None] = [None] * len(specs)
     workers = min(workers or os.cpu_count() or 1, max(len(specs), 1))
-    if workers == 1 or len(specs) == 1:
+    if scheduler is None and (workers == 1 or len(specs) == 1):
         for i, spec in enumerate(specs):
             results[i] = simulate(spec)
             if progress:
                 progress(i + 1, len(specs), results[i])  # type: ignore[arg-type]
         return results  # type: ignore[return-value]
-    # longest runs first keeps both cores busy until the end
+    # longest runs first keeps every worker busy until the end
     order = sorted(range(len(specs)), key=lambda i: -specs[i].contour_model().duration)
-    with ProcessPoolExecutor(max_workers=workers) as pool:
-        futures = {pool.submit(simulate, specs[i]): i for i in order}
-        for done, future in enumerate(as_completed(futures), start=1):
-            i = futures[future]
-            results[i] = future.result()
+    with dask_client(scheduler, workers) as client:
+        tasks = run_tasks(client, simulate, [(specs[i],) for i in order])
+        for done, (k, result) in enumerate(tasks, start=1):
+            results[order[k]] = result
             if progress:
-                progress(done, len(specs), results[i])  # type: ignore[arg-type]
+                progress(done, len(specs), result)
     return results  # type: ignore[return-value]
