@@ -572,11 +572,13 @@ def test_a_diverging_arm_fails_the_plant_the_script_and_is_marked_by_analyze(ros
     stops with an error and exit 1, run_experiment.sh exits 1 saying so, analyze marks the bag."""
     out = tmp_path / "diverged"
     env = run_env(ros_env, out)
-    proc = subprocess.Popen(["bash", str(SCRIPT), *REALTIME_FIVE_BAR, "--mode", "realtime", "--duration-factor", "4",
+    # 80 s of contour: the divergence ends the run as soon as the pusher publishes (a loaded machine took
+    # longer to start the pusher than a 16 s run lasted, and the run then ended well)
+    proc = subprocess.Popen(["bash", str(SCRIPT), *REALTIME_FIVE_BAR, "--mode", "realtime", "--duration-factor", "20",
                              "--param", "enforce_limits:=false", "--out", str(out), "--timeout", "200"],
                             env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
     wait_steps(out, 20)  # the run is going: its bag will hold steps to analyse
-    pusher = subprocess.Popen([sys.executable, "-c", PUSHER, "60"], env=env, stdout=subprocess.PIPE,
+    pusher = subprocess.Popen([sys.executable, "-c", PUSHER, "150"], env=env, stdout=subprocess.PIPE,
                               stderr=subprocess.PIPE, text=True, start_new_session=True)
     try:
         _, err = wait_finish(proc)
