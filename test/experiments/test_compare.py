@@ -154,6 +154,12 @@ def test_registered_laws_params_files_and_a_diverging_law(laws: None, tmp_path: 
     assert rows["runaway"]["values"] is None and rows["runaway"]["best"] == [] and rows["pd"]["diverged"] == ""
     # the comparison's figures leave the diverged run out (its NaN samples would set their scales)
     assert len(list(out.glob("*.png"))) == 3
+    # a law outside the thesis's three is drawn with its label and a colour none of the three has
+    from pdsmc_ros.thesis.plots import CONTROLLER_STYLE, controller_style
+
+    label, colour, line = controller_style("pd_scaled")
+    assert label == "PD x kappa" and line == "-." and colour not in {c for _, c, _ in CONTROLLER_STYLE.values()}
+    assert controller_style("runaway")[1] not in {colour, None} and controller_style("pd") == CONTROLLER_STYLE["pd"]
 
 
 def test_bad_input_is_one_line_exit_2_and_writes_nothing(laws: None, tmp_path: Path,  # noqa: ARG001
