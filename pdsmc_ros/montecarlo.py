@@ -241,7 +241,7 @@ def write_outputs(rows: Sequence[Mapping[str, Any]], summary: Mapping[str, Any],
 def plot_distribution(rows: Sequence[Mapping[str, Any]], controllers: Sequence[str], bound: float,
                       path: Path, title: str) -> Path:
     """Distribution of the runs' mean contour error, every controller on one axes."""
-    from .thesis.plots import CONTROLLER_STYLE, _pyplot, _save
+    from .thesis.plots import _pyplot, _save, controller_style
 
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(7.5, 4.0))
@@ -252,7 +252,7 @@ def plot_distribution(rows: Sequence[Mapping[str, Any]], controllers: Sequence[s
         bins = np.geomspace(max(np.min(finite[finite > 0]), 1e-12), np.max(finite), 40) if np.all(finite > 0) \
             else 40
         for controller, v in values.items():
-            label, colour, _ = CONTROLLER_STYLE.get(controller, (controller, None, "-"))
+            label, colour, _ = controller_style(controller)
             ax.hist(v[np.isfinite(v)], bins=bins, histtype="step", lw=1.4, color=colour, label=label)
         if np.all(finite > 0):
             ax.set_xscale("log")

@@ -16,7 +16,7 @@ CORE = ["pdsmc_ros/bag", "pdsmc_ros/thesis", "pdsmc_ros/robots", "pdsmc_ros/cont
         "pdsmc_ros/presets.py", "pdsmc_ros/trajectories", "pdsmc_ros/urdf.py",
         "pdsmc_ros/engine.py", "pdsmc_ros/montecarlo.py", "pdsmc_ros/tuning.py", "pdsmc_ros/live_view.py",
         "pdsmc_ros/kernel_cache.py", "pdsmc_ros/settings.py", "pdsmc_ros/runtime",
-        "pdsmc_ros/resources.py", "pdsmc_ros/scores.py"]
+        "pdsmc_ros/resources.py", "pdsmc_ros/scores.py", "pdsmc_ros/experiments"]
 
 
 def mypy() -> list[str]:

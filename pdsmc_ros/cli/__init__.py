@@ -1,5 +1,5 @@
 """The ``pdsmc`` command: simulate, reproduce the thesis, check gains, tune, sweep, Monte Carlo,
-analyse bags, check the machine for real time. One module per subcommand (``add_parser``
+compare laws, analyse bags, check the machine for real time. One module per subcommand (``add_parser``
 registers it, ``run`` runs it).
 
 Every error is one line on stderr naming the input and what is allowed, with
@@ -15,10 +15,10 @@ from collections.abc import Callable, Sequence
 from .. import __version__, rt_check
 from ..arguments import EXIT_FAILURE, EXIT_USAGE, OneLineParser
 from ..errors import InvalidInputError, PdsmcError
-from . import analyze, check_gains, montecarlo, reproduce, simulate, sweep, tune
+from . import analyze, check_gains, compare, montecarlo, reproduce, simulate, sweep, tune
 from .options import spec_from_args
 
-SUBCOMMANDS = (simulate, reproduce, analyze, sweep, check_gains, montecarlo, tune, rt_check)
+SUBCOMMANDS = (simulate, reproduce, analyze, sweep, check_gains, montecarlo, compare, tune, rt_check)
 """The modules of the subcommands, in ``--help``'s order."""
 
 __all__ = ["EXIT_FAILURE", "EXIT_USAGE", "analyze_main", "build_parser", "main", "spec_from_args"]

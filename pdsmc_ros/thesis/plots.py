@@ -100,7 +100,25 @@ def _save(fig: Any, path: Path) -> Path:
 
 CONTROLLER_STYLE = {"pd": ("PD", "tab:blue", "-"), "smc": ("SMC", "tab:orange", "--"),
                     "pdsmc": ("PD-SMC", "tab:green", "-")}
-"""Label, colour and line of each controller in the comparison figures."""
+"""Label, colour and line of the thesis's controllers in the comparison figures."""
+
+OTHER_COLOURS = ("tab:red", "tab:purple", "tab:brown", "tab:pink", "tab:olive", "tab:cyan", "tab:gray")
+"""Colours of the other registered laws, in registration order (none of the thesis's three)."""
+
+
+def controller_style(controller: str) -> tuple[str, str | None, str]:
+    """Label, colour and line of ``controller``: the thesis's own, or for another registered law its
+    label and a colour of :data:`OTHER_COLOURS` by registration order, dash-dotted (an unregistered
+    name: its name and the next colour of matplotlib's cycle)."""
+    if controller in CONTROLLER_STYLE:
+        return CONTROLLER_STYLE[controller]
+    from ..control import law_label, law_names
+
+    others = [name for name in law_names() if name not in CONTROLLER_STYLE]
+    if controller not in others:
+        return controller, None, "-"
+    i = others.index(controller)
+    return law_label(controller), OTHER_COLOURS[i % len(OTHER_COLOURS)], ("-.", ":")[i // len(OTHER_COLOURS) % 2]
 
 
 def plot_controllers(runs: Sequence[tuple[str, Samples]], robot: str, name: str, bound: float,
@@ -118,7 +136,7 @@ def plot_controllers(runs: Sequence[tuple[str, Samples]], robot: str, name: str,
     runs = sorted(runs, key=lambda run: order.index(run[0]) if run[0] in order else len(order))
 
     def style(controller: str) -> dict[str, Any]:
-        label, colour, line = CONTROLLER_STYLE.get(controller, (controller, None, "-"))
+        label, colour, line = controller_style(controller)
         return {"label": label, "color": colour, "linestyle": line, "lw": 0.9}
 
     fig, ax = plt.subplots(figsize=(7.5, 3.8))
