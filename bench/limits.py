@@ -27,7 +27,7 @@ import numpy as np
 from numba import njit
 
 from pdsmc_ros.control import ControlLaw
-from pdsmc_ros.control.laws import law_torque
+from pdsmc_ros.control.dispatch import law_torque
 from pdsmc_ros.control.safety import DivergenceCheck
 from pdsmc_ros.presets import make_run
 from pdsmc_ros.robots import compiled as robot_compiled
@@ -40,7 +40,7 @@ from pdsmc_ros.sim.simulator import _reference_samples
 
 @njit(inline="always")
 def _unchecked(kind, p, code, gains, smc_model, model_kind, model_p, q0, qd0, refs, h, sample_every,  # noqa: ANN001, ANN202, PLR0913
-               out_q, out_qd, out_tau, work):
+               out_q, out_qd, out_tau, work, state):
     n = robot_compiled.size(kind, q0.shape[0])
     steps = refs.shape[0] - 1
     stages, rest = carve(work, n)
@@ -49,7 +49,7 @@ def _unchecked(kind, p, code, gains, smc_model, model_kind, model_p, q0, qd0, re
     tau = np.empty(n)
     for k in range(steps + 1):
         law_torque(code, gains, smc_model, model_kind, model_p, q, qd, refs[k, 0], refs[k, 1], refs[k, 2], tau,
-                   work, n)
+                   work, n, state, h)
         if k % sample_every == 0:
             j = k // sample_every
             for i in range(n):
@@ -62,16 +62,16 @@ def _unchecked(kind, p, code, gains, smc_model, model_kind, model_p, q0, qd0, re
 
 @njit
 def _unchecked_serial(p, code, gains, smc_model, model_kind, model_p, q0, qd0, refs, h, sample_every,  # noqa: ANN001, ANN202, PLR0913
-                      out_q, out_qd, out_tau, work):
+                      out_q, out_qd, out_tau, work, state):
     _unchecked(SERIAL_3R, p, code, gains, smc_model, model_kind, model_p, q0, qd0, refs, h, sample_every,
-               out_q, out_qd, out_tau, work)
+               out_q, out_qd, out_tau, work, state)
 
 
 @njit
 def _unchecked_parallel(p, code, gains, smc_model, model_kind, model_p, q0, qd0, refs, h, sample_every,  # noqa: ANN001, ANN202, PLR0913
-                        out_q, out_qd, out_tau, work):
+                        out_q, out_qd, out_tau, work, state):
     _unchecked(PARALLEL_5R, p, code, gains, smc_model, model_kind, model_p, q0, qd0, refs, h, sample_every,
-               out_q, out_qd, out_tau, work)
+               out_q, out_qd, out_tau, work, state)
 
 
 UNCHECKED = {SERIAL_3R: _unchecked_serial, PARALLEL_5R: _unchecked_parallel}
@@ -90,13 +90,13 @@ def measure(robot: str, repeats: int) -> tuple[float, float, float, float, bool]
     setup = (p, law.code, law.gains, law.smc_model, law.model_kind, law.model_params)
 
     def unchecked() -> None:
-        UNCHECKED[kind](*setup, refs[0, 0].copy(), np.zeros(n), refs, h, every, *outs, work)
+        UNCHECKED[kind](*setup, refs[0, 0].copy(), np.zeros(n), refs, h, every, *outs, work, law.state)
 
     def production() -> None:
         check = DivergenceCheck.for_robot(plant)
         counts = np.zeros(n + 2, dtype=np.int64)
         _CLOSED_LOOPS[kind](*setup, refs[0, 0].copy(), np.zeros(n), refs, h, every, plant.effort_limits,
-                            check.bounds, check.first, check.at, counts, *outs, work)
+                            check.bounds, check.first, check.at, counts, *outs, work, law.state)
 
     unchecked()
     before = [o.copy() for o in outs]

@@ -3,12 +3,13 @@
 Adding a law: a :class:`LawEntry` declaring its gains (:class:`GainSpec`), its numpy form
 and its linear part, registered with :func:`register_law` (see :mod:`.laws`); preset gains in
 ``config/gains.yaml`` are optional, a compiled form too (one branch in
-:func:`.laws.compiled_torque`).
+:func:`.dispatch.law_torque`).
 """
 
 from .gains import Gains
 from .law import ControlLaw
-from .laws import PD, PDSMC, SMC, compiled_torque
+from .dispatch import compiled_torque
+from .laws import PD, PDSMC, SMC
 from .registry import (
     GAINS,
     LAWS,

@@ -7,9 +7,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..errors import InvalidInputError
 from ..robots import compiled as robot_compiled
 from ..robots.base import FloatArray, Manipulator
-from .laws import compiled_torque
+from .dispatch import compiled_torque
 from .registry import LawSetup, law
 
 if TYPE_CHECKING:
@@ -35,12 +36,21 @@ class ControlLaw:
         The model estimate's scales (model-based laws).
     model : Manipulator
         The nominal robot known to the law.
+    h : float
+        The period (s) a law with internal state (:attr:`LawEntry.state_size`) integrates it
+        with, once per :meth:`torque` call: the run's control period ``1 / rate`` (the
+        controller node's nominal period, whatever its real ticks' jitter).
     """
 
-    def __init__(self, name: str, gains: FloatArray, smc_model: FloatArray, model: Manipulator) -> None:
+    def __init__(self, name: str, gains: FloatArray, smc_model: FloatArray, model: Manipulator,
+                 h: float = 0.0) -> None:
         self.entry = law(name)
-        self.setup = LawSetup(np.ascontiguousarray(gains, dtype=float), model, np.asarray(smc_model, dtype=float))
-        self.n = self.setup.gains.shape[1]
+        gains = np.ascontiguousarray(gains, dtype=float)
+        self.n = gains.shape[1]
+        if self.entry.state_size and not (np.isfinite(h) and h > 0.0):
+            raise InvalidInputError(f"control law {name!r} integrates a state: its period h must be > 0 s, got {h!r}")
+        state = np.zeros((self.entry.state_size, self.n))
+        self.setup = LawSetup(gains, model, np.asarray(smc_model, dtype=float), state, float(h))
         self.compiled = self.entry.code is not None and model.kernel is not None
         self.code = -1 if self.entry.code is None else self.entry.code
         if self.compiled:
@@ -50,7 +60,8 @@ class ControlLaw:
     @classmethod
     def from_spec(cls, spec: LawRun) -> ControlLaw:
         """The law of a run."""
-        return cls(spec.controller, spec.gains.matrix(), spec.smc_model_vector(), spec.nominal_model())
+        return cls(spec.controller, spec.gains.matrix(), spec.smc_model_vector(), spec.nominal_model(),
+                   1.0 / spec.rate)
 
     @property
     def gains(self) -> FloatArray:
@@ -60,6 +71,21 @@ class ControlLaw:
     def smc_model(self) -> FloatArray:
         return self.setup.smc_model
 
+    @property
+    def state(self) -> FloatArray:
+        """The internal state, shape ``(state_size, n)`` (updated in place by :meth:`torque`)."""
+        return self.setup.state
+
+    @property
+    def h(self) -> float:
+        """The period (s) the state is integrated with."""
+        return self.setup.h
+
+    def reset(self) -> ControlLaw:
+        """The internal state back to zero (a controller activated anew)."""
+        self.setup.state[:] = 0.0
+        return self
+
     def torque(self, q: Vector, qd: Vector, q_ref: Vector, qd_ref: Vector, qdd_ref: Vector) -> FloatArray:
         """Torque (N m) for the measured state and the reference (new array)."""
         x = np.array([*q, *qd, *q_ref, *qd_ref, *qdd_ref])  # 5 sequences of n floats: float64
@@ -67,14 +93,14 @@ class ControlLaw:
             return np.asarray(self.entry.torque(self.setup, *x.reshape(5, self.n)), dtype=float)
         tau = np.empty(self.n)
         compiled_torque(self.code, self.setup.gains, self.setup.smc_model, self.model_kind, self.model_params,
-                        x, tau, self._work)
+                        x, tau, self._work, self.setup.state, self.setup.h)
         return tau
 
     def warm_up(self, q: FloatArray, qd: FloatArray) -> ControlLaw:
         """Load the compiled law now with one torque at a valid state (discarded).
 
         The first call in a process loads the kernel from numba's cache; a
-        real-time controller would otherwise stall on its first tick.
+        real-time controller would otherwise stall on its first tick. The state is reset after.
         """
         self.torque(q, qd, q, qd, np.zeros(self.n))
-        return self
+        return self.reset()

@@ -7,7 +7,9 @@ since ``s' = -s`` the signs below are its Eq. (3.15) rewritten.
 
 The numpy forms are the readable reference (one state, shape ``(n,)``); the
 compiled forms (numba, scalar loops, no allocation) are what the simulator
-and the nodes run. Tests prove both agree to 1e-12.
+and the nodes run, through :func:`pdsmc_ros.control.dispatch.law_torque`. Tests
+prove both agree to 1e-12. :func:`model_part` (the SMC's model terms) is shared
+with the model-based laws of :mod:`.baselines` and :mod:`.sliding`.
 """
 
 from __future__ import annotations
@@ -38,7 +40,7 @@ from .registry import (
 PD = 0
 SMC = 1
 PDSMC = 2
-"""Codes of the compiled forms."""
+"""Codes of the compiled forms (:func:`pdsmc_ros.control.dispatch.law_torque`)."""
 
 # --------------------------------------------------------------------------- #
 # The thesis's gains (Tables 4.16 / 4.33), one spec each
@@ -126,8 +128,8 @@ def smc_linear_gains(g: FloatArray, smc_model: FloatArray, mass: FloatArray) -> 
 # Compiled forms (one state; scratch from ``work``)
 # --------------------------------------------------------------------------- #
 @njit(cache=True, inline="always")
-def _errors(g, q, qd, q_ref, qd_ref, e, ed, sat, n):  # noqa: ANN001, ANN202, PLR0913
-    """``e``, ``edot`` (Eq. 3.2) and ``sat(s / phi)`` (Eq. 3.45)."""
+def errors(g, q, qd, q_ref, qd_ref, e, ed, sat, n):  # noqa: ANN001, ANN201, PLR0913
+    """``e``, ``edot`` (Eq. 3.2) and ``sat(s / phi)`` (Eq. 3.45) of the thesis laws' gain matrix."""
     for i in range(n):
         e[i] = q_ref[i] - q[i]
         ed[i] = qd_ref[i] - qd[i]
@@ -140,19 +142,29 @@ def _errors(g, q, qd, q_ref, qd_ref, e, ed, sat, n):  # noqa: ANN001, ANN202, PL
 
 
 @njit(cache=True, inline="always")
-def _pd(g, e, ed, tau, n):  # noqa: ANN001, ANN202
+def pd(g, e, ed, tau, n):  # noqa: ANN001, ANN201
+    """PD, Eq. (3.4)."""
     for i in range(n):
         tau[i] = g[KP, i] * e[i] + g[KD, i] * ed[i]
 
 
 @njit(cache=True, inline="always")
-def _pdsmc(g, e, ed, sat, tau, n):  # noqa: ANN001, ANN202
+def pdsmc(g, e, ed, sat, tau, n):  # noqa: ANN001, ANN201
+    """PD-SMC, Eq. (3.44)."""
     for i in range(n):
         tau[i] = g[KP, i] * e[i] + g[KD, i] * ed[i] + g[KS, i] * sat[i]
 
 
 @njit(cache=True)
-def _smc(g, m, kind, p, q, qd, q_ref, qd_ref, qdd_ref, e, ed, sat, tau, work):  # noqa: ANN001, ANN202, PLR0913
+def model_part(m, kind, p, q, qd, q_ref, qd_ref, a, v, tau, work):  # noqa: ANN001, ANN201, PLR0913
+    """The model estimate's torque, ``Mhat a + Chat v + Ghat + s_B B v``, into ``tau`` (Eq. 3.15's model terms).
+
+    ``Mhat = s_M Mbar`` (``s_M M`` without the motor inertia), ``Chat = s_C C``, ``Ghat = s_G G``
+    of the nominal robot ``(kind, p)`` at the measured state, or at the desired one
+    (``m`` is :attr:`LawSetup.smc_model`); ``a`` and ``v`` are the law's: the SMC's
+    ``qdd_r`` and ``qd_r``, the computed torque's commanded acceleration and the velocity.
+    ``work`` holds ``3 n + n^2`` floats and the robot's scratch.
+    """
     n = q.shape[0]
     qm = q
     qdm = qd
@@ -161,67 +173,40 @@ def _smc(g, m, kind, p, q, qd, q_ref, qd_ref, qdd_ref, e, ed, sat, tau, work):  
         qdm = qd_ref
     bias = work[0:n]
     grav = work[n : 2 * n]
-    qdd_r = work[2 * n : 3 * n]
-    qd_r = work[3 * n : 4 * n]
-    cor = work[4 * n : 5 * n]
-    mass = work[5 * n : 5 * n + n * n].reshape((n, n))
-    rest = work[5 * n + n * n :]
+    cor = work[2 * n : 3 * n]
+    mass = work[3 * n : 3 * n + n * n].reshape((n, n))
+    rest = work[3 * n + n * n :]
     robot.terms(kind, p, qm, qdm, mass, bias, rest)
     if m[WITH_MOTOR_INERTIA] == 0.0:
         for i in range(n):
             mass[i, i] -= robot.motor_inertia(kind, p, i)
     robot.gravity(kind, p, qm, grav, rest)
-    for i in range(n):
-        qdd_r[i] = qdd_ref[i] + g[LAM, i] * ed[i]
-        qd_r[i] = qd_ref[i] + g[LAM, i] * e[i]
-    robot.coriolis_times(kind, p, qm, qdm, qd_r, cor, rest)
+    robot.coriolis_times(kind, p, qm, qdm, v, cor, rest)
     for i in range(n):
         acc = 0.0
         for j in range(n):
-            acc += mass[i, j] * qdd_r[j]
+            acc += mass[i, j] * a[j]
         tau[i] = (
             m[S_MASS] * acc
             + m[S_CORIOLIS] * cor[i]
             + m[S_GRAVITY] * grav[i]
-            + m[S_DAMPING] * robot.damping(kind, p, i) * qd_r[i]
-            + g[KS, i] * sat[i]
+            + m[S_DAMPING] * robot.damping(kind, p, i) * v[i]
         )
 
 
-@njit(cache=True, inline="always")
-def law_torque(code, gains, smc_model, kind, p, q, qd, q_ref, qd_ref, qdd_ref, tau, work, n):  # noqa: ANN001, ANN201, PLR0913
-    """:func:`compiled_torque` with its inputs as separate vectors of ``n`` joints.
-
-    What a compiled loop calls: ``n`` is its constant joint count (loops of known length)
-    and the reference rows are views of its samples (nothing copied).
-    """
-    e = work[0:n]
-    ed = work[n : 2 * n]
-    sat = work[2 * n : 3 * n]
-    _errors(gains, q, qd, q_ref, qd_ref, e, ed, sat, n)
-    if code == PD:
-        _pd(gains, e, ed, tau, n)
-    elif code == PDSMC:
-        _pdsmc(gains, e, ed, sat, tau, n)
-    elif code == SMC:
-        _smc(gains, smc_model, kind, p, q, qd, q_ref, qd_ref, qdd_ref, e, ed, sat, tau, work[3 * n :])
-
-
 @njit(cache=True)
-def compiled_torque(code, gains, smc_model, kind, p, x, tau, work):  # noqa: ANN001, ANN201
-    """The law ``code`` (``PD``, ``SMC``, ``PDSMC``) for one state, into ``tau``.
-
-    ``x`` holds the inputs one after the other, ``q, qd, q_d, qd_d, qdd_d`` (``5 n`` floats:
-    from Python each argument of a compiled call costs about 0.1 us, and one array built from
-    a flat list about half what five arrays or one built from nested tuples cost).
-    ``gains`` is :attr:`LawSetup.gains`, ``smc_model`` :attr:`LawSetup.smc_model`,
-    ``(kind, p)`` the nominal robot's compiled form
-    (:func:`pdsmc_ros.robots.compiled.pack`), ``work`` from
-    :func:`pdsmc_ros.robots.compiled.workspace`.
-    """
-    n = tau.shape[0]
-    law_torque(code, gains, smc_model, kind, p, x[0:n], x[n : 2 * n], x[2 * n : 3 * n], x[3 * n : 4 * n],
-               x[4 * n : 5 * n], tau, work, n)
+def smc(g, m, kind, p, q, qd, q_ref, qd_ref, qdd_ref, e, ed, sat, tau, work):  # noqa: ANN001, ANN201, PLR0913
+    """SMC, Eq. (3.15): the model part with ``qdd_r = qdd_d + lambda edot``, ``qd_r = qd_d + lambda e``,
+    plus ``Ks sat(s / phi)`` (added last: the same roundings as the equation's sum in its order)."""
+    n = q.shape[0]
+    qdd_r = work[0:n]
+    qd_r = work[n : 2 * n]
+    for i in range(n):
+        qdd_r[i] = qdd_ref[i] + g[LAM, i] * ed[i]
+        qd_r[i] = qd_ref[i] + g[LAM, i] * e[i]
+    model_part(m, kind, p, q, qd, q_ref, qd_ref, qdd_r, qd_r, tau, work[2 * n :])
+    for i in range(n):
+        tau[i] += g[KS, i] * sat[i]
 
 
 register_law(LawEntry("pd", "PD", (GAIN_KP, GAIN_KD), pd_torque, "Eq. (3.4)", PD, pd_linear_gains,

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -115,15 +115,26 @@ class LawSetup:
         The nominal robot known to the law (model-based laws).
     smc_model : ndarray, shape (6,)
         The model estimate's scales (:data:`SMC_MODEL_KEYS`).
+    state : ndarray, shape (state_size, n)
+        The law's internal state (:attr:`LawEntry.state_size` floats per joint: an integrator's),
+        updated in place by each torque call; zeros for a fresh law.
+    h : float
+        The period (s) the state is integrated with (one torque call per period).
     """
 
     gains: FloatArray
     model: Manipulator
     smc_model: FloatArray
+    state: FloatArray = field(default_factory=lambda: np.zeros((0, 0)))
+    h: float = 0.0
 
 
 NumpyLaw = Callable[[LawSetup, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray], FloatArray]
 """``torque(setup, q, qd, q_ref, qd_ref, qdd_ref)`` for one state (shape ``(n,)``)."""
+
+PresetDerivation = Callable[[Mapping[str, FloatArray], Manipulator, FloatArray], Mapping[str, FloatArray]]
+"""``(source gains by name, nominal model, start configuration) -> this law's gains by name``: a law's
+presets derived from another law's (:attr:`LawEntry.presets_from`)."""
 
 LinearGains = Callable[[FloatArray, FloatArray, FloatArray], tuple[FloatArray, FloatArray]]
 """``(gains, smc_model, mass) -> (Kp_eff, Kd_eff)``: the law's linear part inside its boundary layer."""
@@ -163,7 +174,7 @@ class LawEntry:
     equation : str
         Where it is written (thesis equation).
     code : int or None
-        The code of its compiled form in :func:`pdsmc_ros.control.laws.compiled_torque`
+        The code of its compiled form in :func:`pdsmc_ros.control.dispatch.law_torque`
         (None: numpy only).
     linear_gains : callable or None
         Its linear part, for the discrete stability check
@@ -173,6 +184,15 @@ class LawEntry:
         does not use hold :attr:`GainSpec.neutral` unless given); empty: ``gains``.
     model_based : bool
         It uses the nominal model's estimate (``--smc-reading``, ``smc_reading:=``).
+    state_size : int
+        Floats of internal state per joint (an integrator: :attr:`LawSetup.state`); 0: none.
+        The state is integrated once per torque call with the control period ``h``.
+    presets_from : str or None
+        Without presets of its own in ``config/gains.yaml``, the law takes those of this law:
+        the gains both declare as they are, the rest from ``derive_presets``.
+    derive_presets : callable or None
+        :data:`PresetDerivation`: its gains from ``presets_from``'s (and from the nominal model
+        at the reference's start), for its presets and ``pdsmc tune``'s starting point.
     """
 
     name: str
@@ -184,8 +204,13 @@ class LawEntry:
     linear_gains: LinearGains | None = None
     rows: tuple[GainSpec | str, ...] = ()
     model_based: bool = False
+    state_size: int = 0
+    presets_from: str | None = None
+    derive_presets: PresetDerivation | None = None
 
     def __post_init__(self) -> None:
+        if self.state_size < 0:
+            raise InvalidInputError(f"control law {self.name!r}: state_size must be >= 0, got {self.state_size}")
         if not self.name or not self.gains:
             raise InvalidInputError(f"control law {self.name!r}: needs a name and its gains, got {self.gains}")
         gains = _resolve(self.gains, self.name)
@@ -211,6 +236,18 @@ class LawEntry:
     def row_specs(self) -> tuple[GainSpec, ...]:
         """:attr:`rows` as declarations."""
         return tuple(g for g in self.rows if isinstance(g, GainSpec))
+
+    def presets_of(self, source: Mapping[str, Sequence[float] | float], model: Manipulator,
+                   q0: FloatArray) -> dict[str, list[float]]:
+        """Its gains from :attr:`presets_from`'s ``source``: the gains both declare as given,
+        then :attr:`derive_presets`' (``model``: the nominal robot, ``q0``: the reference's start)."""
+        names = {g.name for g in self.row_specs}
+        out = {k: [float(x) for x in np.atleast_1d(v)] for k, v in source.items() if k in names}
+        if self.derive_presets is not None:
+            arrays = {k: np.atleast_1d(np.asarray(v, dtype=float)) for k, v in source.items()}
+            derived = self.derive_presets(arrays, model, np.asarray(q0, dtype=float))
+            out.update({k: [float(x) for x in np.atleast_1d(v)] for k, v in derived.items()})
+        return out
 
 
 LAWS: dict[str, LawEntry] = {}
@@ -258,6 +295,27 @@ def law(name: str) -> LawEntry:
 def law_label(name: str) -> str:
     """How tables print the law ``name``."""
     return law(name).label
+
+
+def compiled_numpy_form(code: int) -> NumpyLaw:
+    """The numpy form of a law written once, compiled (issue 27): its compiled form called from
+    Python for one state (the nominal robot must have a compiled form; every packaged robot has)."""
+
+    def torque(setup: LawSetup, q: FloatArray, qd: FloatArray, q_ref: FloatArray, qd_ref: FloatArray,
+               qdd_ref: FloatArray) -> FloatArray:
+        from ..robots import compiled  # noqa: PLC0415 - the compiled forms sit above the registry
+        from .dispatch import compiled_torque  # noqa: PLC0415
+
+        if setup.model.kernel is None:
+            raise ConfigError(f"this control law is written in compiled form only; robot {setup.model.name!r} "
+                              "has none (a robot with a compiled form: serial_3r, parallel_5r, a URDF arm)")
+        kind, p = compiled.pack(setup.model)
+        tau = np.empty(len(q))
+        compiled_torque(code, setup.gains, setup.smc_model, kind, p, np.concatenate([q, qd, q_ref, qd_ref, qdd_ref]),
+                        tau, compiled.workspace(len(q)), setup.state, setup.h)
+        return tau
+
+    return torque
 
 
 def smc_model_vector(smc_model: Mapping[str, float]) -> FloatArray:

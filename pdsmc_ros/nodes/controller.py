@@ -12,6 +12,8 @@ torques on ``/effort_controller/commands`` (``data[i]`` for ``joints[i]``, clamp
 arm's effort limits), ``~/controller_state``, ``/pdsmc/run_description`` (latched) and
 ``/diagnostics``. Lockstep pairs the state and the reference of each step (no hold: the
 plant waits for its command). Stopping (signal, lifecycle, stale inputs) publishes one zero command.
+A law with internal state (an integrator: ``sta``, ``ismc``) starts from zero at each activation
+and integrates it once per command with the nominal period ``1 / rate`` (not the measured one).
 """
 
 from __future__ import annotations
@@ -118,6 +120,8 @@ class ControllerNode(CommandingEntity):
 
     def on_activate(self, state: LifecycleState) -> TransitionCallbackReturn:
         self.latest.activate()  # real time: hold the first state that comes from now on
+        if self.law is not None:
+            self.law.reset()  # a stateful law's integrator starts from zero
         return super().on_activate(state)
 
     def on_deactivate(self, state: LifecycleState) -> TransitionCallbackReturn:
@@ -130,7 +134,9 @@ class ControllerNode(CommandingEntity):
     def apply_gains(self, gains: Gains) -> None:
         self.spec = self.gain_updates.spec
         if self.law is not None:
-            self.law = ControlLaw.from_spec(self.spec)  # one attribute store: a tick uses the old or the new
+            law = ControlLaw.from_spec(self.spec)
+            law.state[:] = self.law.state  # a stateful law keeps integrating across a gain change
+            self.law = law  # one attribute store: a tick uses the old or the new
         self.node.get_logger().info(f"gains changed: {gains.as_dict()}")
 
     def hold(self, why: str) -> None:

@@ -16,7 +16,7 @@ from numba import njit
 from numpy.typing import NDArray
 
 from ..control.law import ControlLaw
-from ..control.laws import law_torque
+from ..control.dispatch import law_torque
 from ..control.safety import DivergenceCheck, watch
 from ..robots import compiled as robot_compiled
 from ..robots.base import FloatArray, Manipulator
@@ -28,23 +28,23 @@ from .rk4 import carve, rk4_advance, rk4_step
 
 @njit(cache=True)
 def _closed_loop_serial_3r(p, code, gains, smc_model, model_kind, model_p, q0, qd0, refs, h, sample_every,  # noqa: ANN001, ANN202, PLR0913
-                           limit, bounds, first, at, counts, out_q, out_qd, out_tau, work):
+                           limit, bounds, first, at, counts, out_q, out_qd, out_tau, work, state):
     _loop(SERIAL_3R, p, code, gains, smc_model, model_kind, model_p, q0, qd0, refs, h, sample_every,
-          limit, bounds, first, at, counts, out_q, out_qd, out_tau, work)
+          limit, bounds, first, at, counts, out_q, out_qd, out_tau, work, state)
 
 
 @njit(cache=True)
 def _closed_loop_parallel_5r(p, code, gains, smc_model, model_kind, model_p, q0, qd0, refs, h, sample_every,  # noqa: ANN001, ANN202, PLR0913
-                             limit, bounds, first, at, counts, out_q, out_qd, out_tau, work):
+                             limit, bounds, first, at, counts, out_q, out_qd, out_tau, work, state):
     _loop(PARALLEL_5R, p, code, gains, smc_model, model_kind, model_p, q0, qd0, refs, h, sample_every,
-          limit, bounds, first, at, counts, out_q, out_qd, out_tau, work)
+          limit, bounds, first, at, counts, out_q, out_qd, out_tau, work, state)
 
 
 @njit(cache=True)
 def _closed_loop_serial_chain(p, code, gains, smc_model, model_kind, model_p, q0, qd0, refs, h, sample_every,  # noqa: ANN001, ANN202, PLR0913
-                              limit, bounds, first, at, counts, out_q, out_qd, out_tau, work):
+                              limit, bounds, first, at, counts, out_q, out_qd, out_tau, work, state):
     _loop(SERIAL_CHAIN, p, code, gains, smc_model, model_kind, model_p, q0, qd0, refs, h, sample_every,
-          limit, bounds, first, at, counts, out_q, out_qd, out_tau, work)
+          limit, bounds, first, at, counts, out_q, out_qd, out_tau, work, state)
 
 
 # one compiled loop per robot code, its dynamics inlined: a process compiles (or loads) only the robots it runs
@@ -56,7 +56,7 @@ _CLOSED_LOOPS = {SERIAL_3R: _closed_loop_serial_3r, PARALLEL_5R: _closed_loop_pa
 @njit(cache=True, inline="always")
 def _loop(  # noqa: ANN202, PLR0913
     kind, p, code, gains, smc_model, model_kind, model_p, q0, qd0, refs, h, sample_every,
-    limit, bounds, first, at, counts, out_q, out_qd, out_tau, work,
+    limit, bounds, first, at, counts, out_q, out_qd, out_tau, work, state,
 ):  # noqa: ANN001
     n = robot_compiled.size(kind, q0.shape[0])
     steps = refs.shape[0] - 1
@@ -77,7 +77,7 @@ def _loop(  # noqa: ANN202, PLR0913
                     at[3, i] = qd[i]
                 return
         law_torque(code, gains, smc_model, model_kind, model_p, q, qd, refs[k, 0], refs[k, 1], refs[k, 2], tau,
-                   work, n)
+                   work, n, state, h)
         # np.clip(tau, -limit, limit) written out; a period counts as saturated when it is applied
         for i in range(n):
             if tau[i] > limit[i]:
@@ -137,7 +137,8 @@ def run_loop(
     plant : Manipulator
         The simulated robot.
     law : ControlLaw
-        The controller.
+        The controller; a law with internal state starts from its state as it is (zeros for
+        a new law) and integrates it with ``h``, in place.
     q0 : ndarray, shape (n,)
         Initial joint angles (the rates start at zero).
     refs : ndarray, shape (N + 1, 3, n)
@@ -175,7 +176,8 @@ def run_loop(
         kind, p = robot_compiled.pack(plant)
         _CLOSED_LOOPS[kind](p, law.code, law.gains, law.smc_model, law.model_kind, law.model_params,
                               np.array(q0, dtype=float), np.zeros(n), refs, h, sample_every, limit, check.bounds,
-                              check.first, check.at, counts, out_q, out_qd, out_tau, robot_compiled.workspace(n))
+                              check.first, check.at, counts, out_q, out_qd, out_tau, robot_compiled.workspace(n),
+                              law.state)
     else:
         _numpy_loop(plant, law, q0, refs, h, sample_every, limit, check, counts, (out_q, out_qd, out_tau))
     outcome = LoopOutcome(counts[:n].tolist(), warnings=check.new_warnings(1.0 / h))

@@ -1,0 +1,53 @@
+"""The compiled laws behind one call: :func:`law_torque` dispatches on a law's code.
+
+Every law with a compiled form (:attr:`LawEntry.code`) adds one branch here; the compiled
+closed loop (:mod:`pdsmc_ros.sim.loop`) inlines :func:`law_torque`, and Python (the nodes,
+:class:`~pdsmc_ros.control.ControlLaw`) calls :func:`compiled_torque`. A law with internal
+state (:attr:`LawEntry.state_size`) reads and updates ``state`` (shape ``(state_size, n)``,
+in place) and integrates it with the control period ``h``: the torque of instant ``k`` uses
+the state of instant ``k``, which then steps to ``k + 1`` (explicit Euler, once per call).
+"""
+
+from __future__ import annotations
+
+from numba import njit
+
+from .laws import PD, PDSMC, SMC, errors, pd, pdsmc, smc
+
+
+@njit(cache=True, inline="always")
+def law_torque(code, gains, smc_model, kind, p, q, qd, q_ref, qd_ref, qdd_ref, tau, work, n, state, h):  # noqa: ANN001, ANN201, PLR0913
+    """:func:`compiled_torque` with its inputs as separate vectors of ``n`` joints.
+
+    What a compiled loop calls: ``n`` is its constant joint count (loops of known length)
+    and the reference rows are views of its samples (nothing copied).
+    """
+    e = work[0:n]
+    ed = work[n : 2 * n]
+    sat = work[2 * n : 3 * n]
+    if code == PD:
+        errors(gains, q, qd, q_ref, qd_ref, e, ed, sat, n)
+        pd(gains, e, ed, tau, n)
+    elif code == PDSMC:
+        errors(gains, q, qd, q_ref, qd_ref, e, ed, sat, n)
+        pdsmc(gains, e, ed, sat, tau, n)
+    elif code == SMC:
+        errors(gains, q, qd, q_ref, qd_ref, e, ed, sat, n)
+        smc(gains, smc_model, kind, p, q, qd, q_ref, qd_ref, qdd_ref, e, ed, sat, tau, work[3 * n :])
+
+
+@njit(cache=True)
+def compiled_torque(code, gains, smc_model, kind, p, x, tau, work, state, h):  # noqa: ANN001, ANN201, PLR0913
+    """The law ``code`` for one state, into ``tau``; its internal ``state`` stepped by ``h``.
+
+    ``x`` holds the inputs one after the other, ``q, qd, q_d, qd_d, qdd_d`` (``5 n`` floats:
+    from Python each argument of a compiled call costs about 0.1 us, and one array built from
+    a flat list about half what five arrays or one built from nested tuples cost).
+    ``gains`` is :attr:`LawSetup.gains`, ``smc_model`` :attr:`LawSetup.smc_model`,
+    ``(kind, p)`` the nominal robot's compiled form
+    (:func:`pdsmc_ros.robots.compiled.pack`), ``work`` from
+    :func:`pdsmc_ros.robots.compiled.workspace`, ``state`` :attr:`LawSetup.state`.
+    """
+    n = tau.shape[0]
+    law_torque(code, gains, smc_model, kind, p, x[0:n], x[n : 2 * n], x[2 * n : 3 * n], x[3 * n : 4 * n],
+               x[4 * n : 5 * n], tau, work, n, state, h)
