@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from numba import njit
 
+from .baselines import CTC, PDG, ctc, pdg
 from .laws import PD, PDSMC, SMC, errors, pd, pdsmc, smc
 
 
@@ -34,6 +35,11 @@ def law_torque(code, gains, smc_model, kind, p, q, qd, q_ref, qd_ref, qdd_ref, t
     elif code == SMC:
         errors(gains, q, qd, q_ref, qd_ref, e, ed, sat, n)
         smc(gains, smc_model, kind, p, q, qd, q_ref, qd_ref, qdd_ref, e, ed, sat, tau, work[3 * n :])
+    elif code == PDG:
+        errors(gains, q, qd, q_ref, qd_ref, e, ed, sat, n)
+        pdg(gains, smc_model, kind, p, q, q_ref, e, ed, tau, work[3 * n :])
+    elif code == CTC:
+        ctc(gains, smc_model, kind, p, q, qd, q_ref, qd_ref, qdd_ref, tau, work)
 
 
 @njit(cache=True)
