@@ -14,6 +14,7 @@ from numba import njit
 
 from .baselines import CTC, PDG, ctc, pdg
 from .laws import PD, PDSMC, SMC, errors, pd, pdsmc, smc
+from .sliding import ISMC, STA, ismc, sta
 
 
 @njit(cache=True, inline="always")
@@ -40,6 +41,10 @@ def law_torque(code, gains, smc_model, kind, p, q, qd, q_ref, qd_ref, qdd_ref, t
         pdg(gains, smc_model, kind, p, q, q_ref, e, ed, tau, work[3 * n :])
     elif code == CTC:
         ctc(gains, smc_model, kind, p, q, qd, q_ref, qd_ref, qdd_ref, tau, work)
+    elif code == STA:
+        sta(gains, smc_model, kind, p, q, qd, q_ref, qd_ref, qdd_ref, tau, work, state, h)
+    elif code == ISMC:
+        ismc(gains, smc_model, kind, p, q, qd, q_ref, qd_ref, qdd_ref, tau, work, state, h)
 
 
 @njit(cache=True)

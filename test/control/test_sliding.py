@@ -1,0 +1,106 @@
+"""Super-twisting and integral sliding mode: their equations, their states' integration, their presets."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from pdsmc_ros.control import ControlLaw, law
+from pdsmc_ros.control.stability import effective_gains
+from pdsmc_ros.presets import make_run, preset_gains
+from pdsmc_ros.sim import simulate
+
+ROBOT_CONTOURS = [("serial_3r", "circle"), ("parallel_5r", "circle"), ("ur5", "circle")]
+
+
+def _model_part(spec, q, qd, a, v):  # noqa: ANN001, ANN202
+    """The SMC's model terms (Eq. 3.15) with the numpy model: s_M Mbar a + s_C C v + s_G G + s_B B v."""
+    model, s = spec.nominal_model(), spec.smc_model_vector()
+    return (s[0] * model.mass_matrix(q) @ a + s[1] * model.coriolis_matrix(q, qd) @ v + s[2] * model.gravity(q)
+            + s[3] * model.B * v)
+
+
+def _states(spec, count: int, seed: int):  # noqa: ANN001, ANN202
+    rng = np.random.default_rng(seed)
+    ref = spec.reference().sample(rng.uniform(0, spec.contour_model().duration, count))
+    n = spec.robot_model().n
+    for k in range(count):
+        yield ref.q[k] + rng.normal(0, 2e-3, n), ref.qd[k] + rng.normal(0, 2e-2, n), ref.q[k], ref.qd[k], ref.qdd[k]
+
+
+@pytest.mark.parametrize(("robot", "contour"), ROBOT_CONTOURS)
+def test_sta_follows_its_equation_and_its_state_integrates_k2_sign_s(robot: str, contour: str) -> None:
+    spec = make_run(robot, contour, "sta", smc_model={"damping": 1.0})
+    control = ControlLaw.from_spec(spec)
+    k1, k2, lam = (np.array(spec.gains[k]) for k in ("k1", "k2", "lam"))
+    v = np.zeros(spec.robot_model().n)
+    for q, qd, q_ref, qd_ref, qdd_ref in _states(spec, 12, 8):
+        e, ed = q_ref - q, qd_ref - qd
+        s = lam * e + ed
+        expected = (_model_part(spec, q, qd, qdd_ref + lam * ed, qd_ref + lam * e)
+                    + k1 * np.sqrt(np.abs(s)) * np.sign(s) + v)
+        np.testing.assert_allclose(control.torque(q, qd, q_ref, qd_ref, qdd_ref), expected, rtol=1e-12, atol=1e-9)
+        v = v + control.h * k2 * np.sign(s)  # the state after the call: v + h k2 sign(s)
+        np.testing.assert_allclose(control.state[0], v, rtol=1e-13, atol=1e-15)
+
+
+@pytest.mark.parametrize(("robot", "contour"), ROBOT_CONTOURS)
+def test_ismc_follows_its_equation_and_its_state_integrates_e(robot: str, contour: str) -> None:
+    spec = make_run(robot, contour, "ismc")
+    control = ControlLaw.from_spec(spec)
+    ks, lam, phi = (np.array(spec.gains[k]) for k in ("ks", "lam", "phi"))
+    z = np.zeros(spec.robot_model().n)
+    for q, qd, q_ref, qd_ref, qdd_ref in _states(spec, 12, 9):
+        e, ed = q_ref - q, qd_ref - qd
+        qd_r = qd_ref + 2 * lam * e + lam**2 * z
+        expected = (_model_part(spec, q, qd, qdd_ref + 2 * lam * ed + lam**2 * e, qd_r)
+                    + ks * np.clip((ed + 2 * lam * e + lam**2 * z) / phi, -1, 1))
+        np.testing.assert_allclose(control.torque(q, qd, q_ref, qd_ref, qdd_ref), expected, rtol=1e-12, atol=1e-9)
+        z = z + control.h * e
+        np.testing.assert_allclose(control.state[0], z, rtol=1e-13, atol=1e-15)
+
+
+def test_sta_torque_is_continuous_in_s() -> None:
+    """No switching in the torque: across s = 0 it moves by k1 sqrt(|s|) (the SMC's by 2 Ks at phi -> 0)."""
+    spec = make_run("parallel_5r", "circle", "sta")
+    ref = spec.reference().sample([1.0])
+    tau = []
+    for ds in (-1e-10, 1e-10):
+        control = ControlLaw.from_spec(spec)
+        qd = ref.qd[0] - ds  # s = edot = ds
+        tau.append(control.torque(ref.q[0], qd, ref.q[0], ref.qd[0], ref.qdd[0]))
+    k1 = np.array(spec.gains["k1"])
+    assert np.all(np.abs(tau[1] - tau[0]) <= 2 * k1 * 1e-5 + 1e-6)
+
+
+@pytest.mark.parametrize(("robot", "contour"), ROBOT_CONTOURS)
+def test_presets_derive_from_the_smc(robot: str, contour: str) -> None:
+    smc = preset_gains(robot, contour, "smc")
+    ks, phi = np.array(smc["ks"]), np.array(smc["phi"])
+    sta = preset_gains(robot, contour, "sta")
+    np.testing.assert_allclose(np.array(sta["k1"]) * np.sqrt(phi), ks, rtol=1e-12)  # = Ks at |s| = phi
+    np.testing.assert_allclose(sta["k2"], 1.1 * (np.array(sta["k1"]) / 1.5) ** 2, rtol=1e-12)  # Levant's pair
+    assert sta["lam"] == smc["lam"]
+    ismc = preset_gains(robot, contour, "ismc")
+    assert ismc.as_dict() == {k: list(smc[k]) for k in ("ks", "lam", "phi")}
+    high = make_run(robot, contour, "sta", scenario="high_smc")
+    np.testing.assert_allclose(high.gains["k1"], 1.5 * np.array(sta["k1"]), rtol=1e-12)  # scaled as Ks
+
+
+def test_linear_parts() -> None:
+    spec = make_run("serial_3r", "circle", "ismc")
+    mass = spec.robot_model().mass_matrix(spec.reference().sample([0.0]).q[0])
+    kp, kd = effective_gains(spec, mass)  # type: ignore[misc]
+    ks, lam, phi = (np.diag(spec.gains[k]) for k in ("ks", "lam", "phi"))
+    np.testing.assert_allclose(kp, 0.9 * mass @ lam @ lam + 2 * ks / np.diag(phi)[:, None] * np.diag(lam)[None, :]
+                               * np.eye(3), rtol=1e-12)
+    np.testing.assert_allclose(kd, 1.8 * mass @ lam + np.diag(np.diag(ks) / np.diag(phi)), rtol=1e-12)
+    assert effective_gains(make_run("serial_3r", "circle", "sta"), mass) is None
+    assert law("sta").state_size == law("ismc").state_size == 1
+
+
+def test_ismc_removes_the_smcs_steady_error_of_the_gravity_estimate() -> None:
+    """Inside its boundary layer the SMC keeps a steady error on the five-bar; the integral removes most of it."""
+    smc = simulate(make_run("parallel_5r", "circle", "smc"))
+    ismc = simulate(make_run("parallel_5r", "circle", "ismc"))
+    assert ismc.metrics.contour_mean < 0.5 * smc.metrics.contour_mean
