@@ -268,27 +268,20 @@ def scenario_names() -> tuple[str, ...]:
 
 
 def preset_gains(robot: str, contour: str, controller: str) -> Gains:
-    """Gains of Table 4.16 / 4.33 for this robot, contour and controller.
-
-    A law without presets of its own that declares :attr:`LawEntry.presets_from` takes that
-    law's (:meth:`LawEntry.presets_of`), derived at the reference's start for this contour
-    (``csv`` and ``joints``, which take the linear group's gains: at the start of the robot's
-    first linear contour).
-    """
+    """Gains of Table 4.16 / 4.33 for this robot, contour and controller; a law without its own that
+    declares :attr:`LawEntry.presets_from` takes that law's (:meth:`LawEntry.presets_of`), derived at
+    this contour's start (``csv``, ``joints``: at the start of the robot's first linear contour)."""
     entry = law(controller)
     cls = ROBOTS[resolve_robot(robot)]
     contours = load_config("contours")[contour_set(robot)]
-    if contour in ("csv", "joints"):
-        group = "linear"
-    else:
-        group = contours[contour]["gain_group"]
+    group = "linear" if contour in ("csv", "joints") else contours[contour]["gain_group"]
     source = cls.settings.get("gains", robot) if issubclass(cls, UrdfRobot) else robot
     tables = source if isinstance(source, dict) else load_config("gains").get(source, {})
     table = tables.get(group, {}).get(controller)
     other = tables.get(group, {}).get(entry.presets_from) if entry.presets_from else None
     if table is None and other is not None:
         start = contour if contour in contours else next(c for c in contours if contours[c]["gain_group"] == group)
-        table = entry.presets_of(other, make_robot(robot), _start_configuration(robot, start, cls))
+        table = entry.presets_of(other, make_robot(robot), _start_configuration(robot, start, id(cls)))
     if table is None:
         raise MissingGainsError(f"config/gains.yaml has no {controller} gains for {robot} ({group} contours); "
                           "give the gains, or let `pdsmc tune` propose them")
@@ -296,10 +289,11 @@ def preset_gains(robot: str, contour: str, controller: str) -> Gains:
 
 
 @functools.lru_cache(maxsize=64)
-def _start_configuration(robot: str, contour: str, cls: type) -> FloatArray:  # noqa: ARG001 - cls: the cache key
-    """The joint reference's first point of a preset contour (the class in the key: a name may
-    be registered anew in a process)."""
-    return JointReference(make_robot(robot), build_contour(robot, contour)).sample([0.0]).q[0]
+def _start_configuration(robot: str, contour: str, cls: int) -> FloatArray:  # noqa: ARG001 - cls: the cache key
+    """The joint reference's first point of a preset contour (``cls``, the class's id, keys a name
+    registered anew)."""
+    start: FloatArray = JointReference(make_robot(robot), build_contour(robot, contour)).sample([0.0]).q[0]
+    return start
 
 
 def run_gains(robot: str, contour: str, controller: str, *, gains: Gains | None = None,

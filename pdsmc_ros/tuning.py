@@ -32,8 +32,8 @@ from .robots import ROBOTS
 from .robots.catalog import resolve_robot
 from .settings import CONTROLLER_PARAMETERS, node_parameters
 
-SWEPT = ("kp", "kd", "ks", "lam")
-"""The gains the recipe sweeps, in its order (phi keeps its starting value)."""
+SWEPT = ("kp", "kd", "ks", "lam", "omega_n", "k1", "k2")
+"""The gains the recipe sweeps, in its order (phi and zeta keep their starting values)."""
 FACTORS = (0.5, 0.7, 1.4, 2.0)
 """Multipliers tried on one swept gain (all joints at once) per round."""
 BOUNDARY_LAYER = 0.25
@@ -102,7 +102,9 @@ def starting_gains(spec: RunSpec, w: float | None = None) -> Gains:
     ``Ks / phi = 2 m w`` (the same damping as the PD). The PD-SMC's theorem (Eq. 3.19) compares
     the smallest gain with the largest inertia: its ``Ks_i`` is raised above ``max |tau_d,i|``,
     ``Kd`` above ``lambda_M(K + C^T) / 2``, phi widened to keep ``Ks / phi <= Kd`` (the damping of
-    the start), and lambda lowered until the rest hold.
+    the start), and lambda lowered until the rest hold. A law whose presets derive from another's
+    (:attr:`LawEntry.derive_presets`) derives its start from these values (the computed torque:
+    ``omega_n = sqrt(Kp / Mbar_ii)`` at the reference's start, ``zeta = 1``).
     """
     reference = spec.reference()
     t = np.linspace(0.0, reference.duration, 13)
@@ -112,6 +114,9 @@ def starting_gains(spec: RunSpec, w: float | None = None) -> Gains:
     values = {"kp": m * w * w, "kd": 2.0 * m * w, "ks": 2.0 * m * w * BOUNDARY_LAYER,
               "lam": np.full_like(m, w / 2.0), "phi": np.full_like(m, BOUNDARY_LAYER)}
     entry = law(spec.controller)
+    if entry.derive_presets is not None:  # a law whose presets derive from another's: from this recipe's
+        derived = entry.presets_of(dict(values), spec.nominal_model(), reference.sample([0.0]).q[0])
+        values.update({k: np.asarray(v, dtype=float) for k, v in derived.items()})
     for g in entry.specs:  # a gain the recipe does not set starts where its law declares
         values.setdefault(g.name, np.full(len(m) if g.per_joint else 1, g.neutral if g.start is None else g.start))
     needed = entry.gain_names

@@ -6,9 +6,9 @@ and its linear part, registered with :func:`register_law` (see :mod:`.laws`); pr
 :func:`.dispatch.law_torque`).
 """
 
+from .dispatch import compiled_torque
 from .gains import Gains
 from .law import ControlLaw
-from .dispatch import compiled_torque
 from .laws import PD, PDSMC, SMC
 from .registry import (
     GAINS,

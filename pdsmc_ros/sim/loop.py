@@ -15,8 +15,8 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from ..control.law import ControlLaw
 from ..control.dispatch import law_torque
+from ..control.law import ControlLaw
 from ..control.safety import DivergenceCheck, watch
 from ..robots import compiled as robot_compiled
 from ..robots.base import FloatArray, Manipulator
