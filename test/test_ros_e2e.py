@@ -179,7 +179,7 @@ def test_orchestration_reports_failed_node(ros_env: dict, tmp_path: Path) -> Non
     assert proc.returncode != 0
     # every node validates its parameters; the first to refuse is named and the rest stopped
     assert re.search(r"node '(plant|trajectory|controller|recorder)' failed \(exit 2\)", proc.stderr)
-    assert "unknown controller 'lqr'; choose one of: pd, smc, pdsmc" in proc.stderr
+    assert "unknown controller 'lqr'; choose one of: pd, smc, pdsmc, pdg, ctc, sta, ismc" in proc.stderr
     assert "failed nodes:" in proc.stderr
 
 

@@ -329,7 +329,7 @@ def test_cli_simulate_json_has_documented_keys() -> None:
         (["--robot", "scara", "--contour", "circle", "--controller", "pd"],
          "unknown robot 'scara'; allowed: serial_3r, parallel_5r, ur5, ur10, ur3, panda, or a path to a .urdf file"),
         (["--robot", "serial_3r", "--contour", "circle", "--controller", "lqr"],
-         "unknown controller 'lqr'; choose one of: pd, smc, pdsmc"),
+         "unknown controller 'lqr'; choose one of: pd, smc, pdsmc, pdg, ctc, sta, ismc"),
         (["--robot", "serial_3r", "--contour", "star", "--controller", "pd"], "unknown contour for serial_3r 'star'"),
         (
             ["--robot", "serial_3r", "--contour", "circle", "--controller", "pd", "--scenario", "x"],
