@@ -273,14 +273,14 @@ def preset_gains(robot: str, contour: str, controller: str) -> Gains:
     this contour's start (``csv``, ``joints``: at the start of the robot's first linear contour)."""
     entry = law(controller)
     cls = ROBOTS[resolve_robot(robot)]
-    contours = load_config("contours")[contour_set(robot)]
+    contours = load_config("contours").get(contour_set(robot), {})
     group = "linear" if contour in ("csv", "joints") else contours[contour]["gain_group"]
     source = cls.settings.get("gains", robot) if issubclass(cls, UrdfRobot) else robot
     tables = source if isinstance(source, dict) else load_config("gains").get(source, {})
     table = tables.get(group, {}).get(controller)
     other = tables.get(group, {}).get(entry.presets_from) if entry.presets_from else None
-    if table is None and other is not None:
-        start = contour if contour in contours else next(c for c in contours if contours[c]["gain_group"] == group)
+    start = contour if contour in contours else next((c for c, v in contours.items() if v["gain_group"] == group), None)
+    if table is None and other is not None and start is not None:
         table = entry.presets_of(other, make_robot(robot), _start_configuration(robot, start, id(cls)))
     if table is None:
         raise MissingGainsError(f"config/gains.yaml has no {controller} gains for {robot} ({group} contours); "
