@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from law_inputs import states
 
 from pdsmc_ros.control import ControlLaw, law
 from pdsmc_ros.control.stability import effective_gains
@@ -16,20 +17,12 @@ EXACT = {"mass": 1.0, "coriolis": 1.0, "gravity": 1.0, "damping": 1.0, "motor_in
 ROBOT_CONTOURS = [("serial_3r", "circle"), ("parallel_5r", "circle"), ("ur5", "circle")]
 
 
-def _states(spec, count: int, seed: int):  # noqa: ANN001, ANN202
-    rng = np.random.default_rng(seed)
-    ref = spec.reference().sample(rng.uniform(0, spec.contour_model().duration, count))
-    n = spec.robot_model().n
-    for k in range(count):
-        yield ref.q[k] + rng.normal(0, 2e-3, n), ref.qd[k] + rng.normal(0, 2e-2, n), ref.q[k], ref.qd[k], ref.qdd[k]
-
-
 @pytest.mark.parametrize(("robot", "contour"), ROBOT_CONTOURS)
 def test_pdg_is_the_pd_plus_the_estimated_gravity(robot: str, contour: str) -> None:
     spec = make_run(robot, contour, "pdg")
     model, control = spec.nominal_model(), ControlLaw.from_spec(spec)
     kp, kd = np.array(spec.gains["kp"]), np.array(spec.gains["kd"])
-    for q, qd, q_ref, qd_ref, qdd_ref in _states(spec, 10, 3):
+    for q, qd, q_ref, qd_ref, qdd_ref in states(spec, 10, 3):
         expected = kp * (q_ref - q) + kd * (qd_ref - qd) + 1.1 * model.gravity(q)  # s_G = 1.1 (gains.yaml)
         np.testing.assert_allclose(control.torque(q, qd, q_ref, qd_ref, qdd_ref), expected, rtol=1e-12, atol=1e-10)
 
@@ -41,7 +34,7 @@ def test_pdg_at_rest_on_the_reference_is_the_gravity(robot: str, contour: str) -
     model, control = spec.nominal_model(), ControlLaw.from_spec(spec)
     rng = np.random.default_rng(7)
     zero = np.zeros(model.n)
-    for q, *_ in _states(spec, 10, 4):
+    for q, *_ in states(spec, 10, 4):
         tau = control.torque(q, zero, q, zero, rng.normal(0, 1, model.n))  # qdd_d does not enter
         np.testing.assert_allclose(tau, model.gravity(q), rtol=1e-12, atol=1e-12)
 
@@ -64,7 +57,7 @@ def test_ctc_follows_its_equation(robot: str, contour: str, reading: dict) -> No
     model, control = spec.nominal_model(), ControlLaw.from_spec(spec)
     s = spec.smc_model_vector()  # mass, coriolis, gravity, damping scales
     w, z = np.array(spec.gains["omega_n"]), np.array(spec.gains["zeta"])
-    for q, qd, q_ref, qd_ref, qdd_ref in _states(spec, 10, 5):
+    for q, qd, q_ref, qd_ref, qdd_ref in states(spec, 10, 5):
         a = qdd_ref + 2 * z * w * (qd_ref - qd) + w * w * (q_ref - q)
         expected = (s[0] * model.mass_matrix(q) @ a + s[1] * model.coriolis_matrix(q, qd) @ qd
                     + s[2] * model.gravity(q) + s[3] * model.B * qd)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from law_inputs import states
 
 from pdsmc_ros.control import ControlLaw, law
 from pdsmc_ros.control.stability import effective_gains
@@ -20,21 +21,13 @@ def _model_part(spec, q, qd, a, v):  # noqa: ANN001, ANN202
             + s[3] * model.B * v)
 
 
-def _states(spec, count: int, seed: int):  # noqa: ANN001, ANN202
-    rng = np.random.default_rng(seed)
-    ref = spec.reference().sample(rng.uniform(0, spec.contour_model().duration, count))
-    n = spec.robot_model().n
-    for k in range(count):
-        yield ref.q[k] + rng.normal(0, 2e-3, n), ref.qd[k] + rng.normal(0, 2e-2, n), ref.q[k], ref.qd[k], ref.qdd[k]
-
-
 @pytest.mark.parametrize(("robot", "contour"), ROBOT_CONTOURS)
 def test_sta_follows_its_equation_and_its_state_integrates_k2_sign_s(robot: str, contour: str) -> None:
     spec = make_run(robot, contour, "sta", smc_model={"damping": 1.0})
     control = ControlLaw.from_spec(spec)
     k1, k2, lam = (np.array(spec.gains[k]) for k in ("k1", "k2", "lam"))
     v = np.zeros(spec.robot_model().n)
-    for q, qd, q_ref, qd_ref, qdd_ref in _states(spec, 12, 8):
+    for q, qd, q_ref, qd_ref, qdd_ref in states(spec, 12, 8):
         e, ed = q_ref - q, qd_ref - qd
         s = lam * e + ed
         expected = (_model_part(spec, q, qd, qdd_ref + lam * ed, qd_ref + lam * e)
@@ -50,7 +43,7 @@ def test_ismc_follows_its_equation_and_its_state_integrates_e(robot: str, contou
     control = ControlLaw.from_spec(spec)
     ks, lam, phi = (np.array(spec.gains[k]) for k in ("ks", "lam", "phi"))
     z = np.zeros(spec.robot_model().n)
-    for q, qd, q_ref, qd_ref, qdd_ref in _states(spec, 12, 9):
+    for q, qd, q_ref, qd_ref, qdd_ref in states(spec, 12, 9):
         e, ed = q_ref - q, qd_ref - qd
         qd_r = qd_ref + 2 * lam * e + lam**2 * z
         expected = (_model_part(spec, q, qd, qdd_ref + 2 * lam * ed + lam**2 * e, qd_r)
