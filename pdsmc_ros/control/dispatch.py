@@ -24,19 +24,29 @@ def law_torque(code, gains, smc_model, kind, p, q, qd, q_ref, qd_ref, qdd_ref, t
     What a compiled loop calls: ``n`` is its constant joint count (loops of known length)
     and the reference rows are views of its samples (nothing copied).
     """
+    if code >= PDG:  # a law beside the thesis's (codes 3 and up: its gain matrix has other rows)
+        _beside_the_thesis(code, gains, smc_model, kind, p, q, qd, q_ref, qd_ref, qdd_ref, tau, work, n, state, h)
+        return
     e = work[0:n]
     ed = work[n : 2 * n]
     sat = work[2 * n : 3 * n]
+    errors(gains, q, qd, q_ref, qd_ref, e, ed, sat, n)
     if code == PD:
-        errors(gains, q, qd, q_ref, qd_ref, e, ed, sat, n)
         pd(gains, e, ed, tau, n)
     elif code == PDSMC:
-        errors(gains, q, qd, q_ref, qd_ref, e, ed, sat, n)
         pdsmc(gains, e, ed, sat, tau, n)
     elif code == SMC:
-        errors(gains, q, qd, q_ref, qd_ref, e, ed, sat, n)
         smc(gains, smc_model, kind, p, q, qd, q_ref, qd_ref, qdd_ref, e, ed, sat, tau, work[3 * n :])
-    elif code == PDG:
+
+
+@njit(cache=True)
+def _beside_the_thesis(code, gains, smc_model, kind, p, q, qd, q_ref, qd_ref, qdd_ref, tau, work, n, state, h):  # noqa: ANN001, ANN202, PLR0913
+    """The laws beside the thesis's, behind one call: the thesis laws' path stays what the compiled
+    loop inlined before they came (bench/kernel.py within its noise of main's)."""
+    e = work[0:n]
+    ed = work[n : 2 * n]
+    sat = work[2 * n : 3 * n]
+    if code == PDG:
         errors(gains, q, qd, q_ref, qd_ref, e, ed, sat, n)
         pdg(gains, smc_model, kind, p, q, q_ref, e, ed, tau, work[3 * n :])
     elif code == CTC:
