@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import os
 import shutil
+import signal
+import subprocess
 import sys
 from pathlib import Path
 
@@ -51,3 +53,16 @@ def node_log_tails(out: Path, lines: int = 25) -> str:
         tail = log.read_text(errors="replace").splitlines()[-lines:]
         parts.append(f"--- {log.name} (last {len(tail)} lines)\n" + "\n".join(tail))
     return "\n".join(parts) or f"(no node logs in {logs})"
+
+
+def stop_process(proc: subprocess.Popen, *, grace_s: float = 20.0) -> tuple[int, str]:
+    """End a process the test started, by its PID: SIGINT (a node's clean stop), SIGKILL if it has
+    not ended after ``grace_s``. Returns its exit status and its piped output ("" if not piped)."""
+    if proc.poll() is None:
+        os.kill(proc.pid, signal.SIGINT)
+    try:
+        out, _ = proc.communicate(timeout=grace_s)
+    except subprocess.TimeoutExpired:
+        os.kill(proc.pid, signal.SIGKILL)
+        out, _ = proc.communicate(timeout=10)
+    return proc.returncode, out or ""

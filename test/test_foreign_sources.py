@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import next_domain
+from conftest import next_domain, stop_process
 
 from pdsmc_ros.control import ControlLaw, Gains
 from pdsmc_ros.control.stability import check_rate
@@ -351,12 +351,7 @@ def test_standard_trajectory_lifecycle_and_deactivate(ros_env: dict, domain: int
         assert proc.poll() is None, log.read_text()
     finally:
         driver.close()
-        if proc.poll() is None:
-            os.kill(proc.pid, signal.SIGINT)
-            try:
-                proc.wait(timeout=20)
-            except subprocess.TimeoutExpired:
-                stop(proc)
+        stop_process(proc)
 
 
 @pytest.mark.timeout(90)
@@ -377,12 +372,7 @@ def test_lockstep_controller_survives_a_wall_stamped_state(ros_env: dict, domain
         assert driver.efforts == []
     finally:
         driver.close()
-        if proc.poll() is None:
-            os.kill(proc.pid, signal.SIGINT)
-            try:
-                proc.wait(timeout=20)
-            except subprocess.TimeoutExpired:
-                stop(proc)
+        stop_process(proc)
 
 
 @pytest.mark.timeout(90)
@@ -417,12 +407,7 @@ def test_trajectory_node_keeps_its_own_clock_next_to_a_wall_stamped_plant(
         assert abs(newest / RATE - elapsed) < 0.25, (newest, elapsed)
     finally:
         driver.close()
-        if proc.poll() is None:
-            os.kill(proc.pid, signal.SIGINT)
-            try:
-                proc.wait(timeout=20)
-            except subprocess.TimeoutExpired:
-                stop(proc)
+        stop_process(proc)
 
 
 @pytest.mark.timeout(90)
@@ -472,9 +457,4 @@ def test_lockstep_controller_follows_a_standard_trajectory_in_sim_time(
         assert "points until t" in log.read_text() and proc.poll() is None
     finally:
         driver.close()
-        if proc.poll() is None:
-            os.kill(proc.pid, signal.SIGINT)
-            try:
-                proc.wait(timeout=20)
-            except subprocess.TimeoutExpired:
-                stop(proc)
+        stop_process(proc)

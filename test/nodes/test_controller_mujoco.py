@@ -9,8 +9,6 @@ runs its processes in a DDS domain of its own and stops them by PID.
 
 from __future__ import annotations
 
-import os
-import signal
 import subprocess
 import threading
 import time
@@ -19,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import next_domain
+from conftest import next_domain, stop_process
 
 pytest.importorskip("rclpy")
 pytest.importorskip("mujoco")
@@ -149,13 +147,7 @@ def start(ros_env: dict, domain: int, log: Path, executable: str, *params: str) 
 
 
 def stop(proc: subprocess.Popen) -> None:
-    if proc.poll() is None:
-        os.kill(proc.pid, signal.SIGINT)
-        try:
-            proc.wait(timeout=20)
-        except subprocess.TimeoutExpired:
-            os.kill(proc.pid, signal.SIGKILL)
-            proc.wait(timeout=10)
+    stop_process(proc)
 
 
 def controller(ros_env: dict, domain: int, log: Path, joints: list[str] = NAMES, *params: str) -> subprocess.Popen:

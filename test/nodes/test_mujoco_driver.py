@@ -7,15 +7,13 @@ its PID and given a timeout.
 
 from __future__ import annotations
 
-import os
-import signal
 import subprocess
 import time
 from collections.abc import Iterator
 
 import numpy as np
 import pytest
-from conftest import next_domain
+from conftest import next_domain, stop_process
 
 rclpy = pytest.importorskip("rclpy")
 pytest.importorskip("mujoco")
@@ -97,14 +95,7 @@ def start(env: dict[str, str], *params: str) -> subprocess.Popen:
 
 
 def stop(proc: subprocess.Popen) -> tuple[int, str]:
-    if proc.poll() is None:
-        proc.send_signal(signal.SIGINT)
-    try:
-        out, _ = proc.communicate(timeout=20)
-    except subprocess.TimeoutExpired:
-        os.kill(proc.pid, signal.SIGKILL)
-        out, _ = proc.communicate(timeout=10)
-    return proc.returncode, out
+    return stop_process(proc)
 
 
 def positions(msg: JointState) -> np.ndarray:

@@ -20,7 +20,7 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
-from conftest import next_domain
+from conftest import next_domain, stop_process
 
 rclpy = pytest.importorskip("rclpy")
 
@@ -86,14 +86,8 @@ def start_trajectory(env: dict[str, str], params: list[str], prefix: list[str] |
 
 def stop(proc: subprocess.Popen) -> str:
     if proc.poll() is None:
-        os.kill(proc.pid, signal.SIGCONT)
-        proc.send_signal(signal.SIGINT)
-    try:
-        out, _ = proc.communicate(timeout=20)
-    except subprocess.TimeoutExpired:
-        proc.kill()
-        out, _ = proc.communicate(timeout=10)
-    return out
+        os.kill(proc.pid, signal.SIGCONT)  # a test may have stopped it (SIGSTOP)
+    return stop_process(proc)[1]
 
 
 def privileged() -> bool:
