@@ -1,27 +1,33 @@
-"""The robots' compiled forms behind one interface: dispatch on the robot's code (numba).
+"""The robots' compiled forms behind one interface: one table, dispatch made from it (numba).
 
-Each robot with a compiled form (``Manipulator.kernel`` not None) contributes
-one line to each dispatch function below; everything else -- the plant's RK4
-step, the control laws, the closed loop -- calls only these functions, with the
-robot's flat parameter array from :meth:`Manipulator.pack`.
+Each robot with a compiled form (``Manipulator.kernel`` not None) has one entry in
+:data:`COMPILED`: its code and a :class:`CompiledRobot` naming its functions, all with
+the signatures below. Everything else -- the plant's RK4 step, the control laws, the
+closed loop -- calls only this module's functions, with the robot's flat parameter
+array from :meth:`Manipulator.pack`. Adding a compiled robot is that one entry; a code
+with no entry raises ``ValueError`` (never another robot's parameters).
 
 Why compiled at all: a 10 kHz loop written with small numpy arrays spends most
 of its time in per-call overhead (docs/PERFORMANCE.md). The functions allocate
 nothing; temporaries live in a caller-owned scratch array (:func:`workspace`).
 
 The hot path -- the four forward-dynamics calls of an RK4 step -- is chosen at
-compile time instead: :func:`accelerations` and :func:`size` take the robot
-code as a constant (callers branch once on it and pass ``SERIAL_3R``,
-``PARALLEL_5R`` or ``SERIAL_CHAIN``), so each loop is compiled per robot with
-that robot's terms inlined, a thesis arm's joint count is a constant and every
-loop over the joints unrolls. Scratch is carved once per run, not per call.
-bench/kernel.py measures the result against the same arithmetic unrolled by
-hand (docs/PERFORMANCE.md).
+compile time: when the robot code is a compile-time constant (callers make one
+compiled function per code of :data:`COMPILED`: ``sim.rk4``, ``sim.loop``),
+:func:`dispatch` calls that robot's function directly, so each loop is compiled per
+robot with its terms inlined, a thesis arm's joint count is a constant
+(:func:`size`) and every loop over the joints unrolls. A code known only at run
+time goes through a chain of comparisons generated from the table.
+bench/kernel.py measures the result against the same arithmetic unrolled by hand
+(docs/PERFORMANCE.md).
 """
 
 from __future__ import annotations
 
-import math
+import inspect
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numba import njit
@@ -33,12 +39,55 @@ from . import parallel_5r_kernels as five_bar
 from . import serial_3r as serial
 from . import spatial_kernels as chain
 from .base import FloatArray, Manipulator
-from .parallel_5r_kernels import PARALLEL_5R
-from .serial_3r import SERIAL_3R
-from .spatial_kernels import SERIAL_CHAIN, workspace_size
+from .spatial_kernels import workspace_size
 
 OUTPUTS_SIZE = 6
 """Floats of :func:`outputs`: end effector (x, y), passive joints and their rates."""
+
+
+@dataclass(frozen=True)
+class CompiledRobot:
+    """One robot's compiled functions (numba), each with the signature given here.
+
+    Attributes
+    ----------
+    joints : int
+        Its number of joints when fixed (a thesis arm: the loops over them unroll), else 0.
+    terms : ``(p, q, qd, mass, bias, work)``
+        ``mass = Mbar(q)`` (motor inertia included), ``bias = C(q, qd) qd + G(q)``.
+    accelerations : ``(p, q, qd, tau, out, work)``
+        Eq. (4.1): ``qdd = Mbar^{-1} (tau - C qd - B qd - G)``.
+    coriolis_times : ``(p, q, qd, v, out, work)``
+        ``C(q, qd) v``.
+    gravity : ``(p, q, out, work)``
+        ``G(q)``.
+    damping, motor_inertia : ``(p, i) -> float``
+        ``B_i`` and ``J_i``.
+    outputs : ``(p, q, qd, out, work)``
+        End effector ``(x, y)`` into ``out[0:2]``; a robot with passive joints also their
+        angles ``out[2:4]`` and rates ``out[4:6]``.
+    """
+
+    joints: int
+    terms: Callable[..., None]
+    accelerations: Callable[..., None]
+    coriolis_times: Callable[..., None]
+    gravity: Callable[..., None]
+    damping: Callable[..., float]
+    motor_inertia: Callable[..., float]
+    outputs: Callable[..., None]
+
+
+COMPILED: dict[int, CompiledRobot] = {
+    serial.SERIAL_3R: CompiledRobot(serial.N, serial.terms, serial.accelerations, serial.coriolis_times,
+                                    serial.gravity, serial.damping, serial.motor_inertia, serial.outputs),
+    five_bar.PARALLEL_5R: CompiledRobot(five_bar.N, five_bar.terms, five_bar.accelerations,
+                                        five_bar.coriolis_times, five_bar.gravity, five_bar.damping,
+                                        five_bar.motor_inertia, five_bar.outputs),
+    chain.SERIAL_CHAIN: CompiledRobot(0, chain.terms, chain.accelerations, chain.coriolis_times, chain.gravity,
+                                      chain.damping, chain.motor_inertia, chain.outputs),
+}
+"""Every robot's compiled form by its code (``Manipulator.kernel``): the one place to add one."""
 
 
 def workspace(n: int = 3) -> FloatArray:
@@ -50,14 +99,96 @@ def pack(robot: Manipulator) -> tuple[int, FloatArray]:
     """``(code, flat parameters)`` of ``robot``'s compiled form."""
     if robot.kernel is None:
         raise TypeError(f"robot {robot.name!r} has no compiled form")
+    if robot.kernel not in COMPILED:
+        raise TypeError(f"robot {robot.name!r}: code {robot.kernel} has no entry in robots.compiled.COMPILED")
     return robot.kernel, robot.pack()
 
 
-_FIXED_SIZE = {SERIAL_3R: serial.N, PARALLEL_5R: five_bar.N}
+# --------------------------------------------------------------------------- #
+# Dispatch, made from the table
+# --------------------------------------------------------------------------- #
+def dispatch(kind: int, function: str, *args: Any) -> Any:
+    """Call robot ``kind``'s compiled ``function`` (a field of :class:`CompiledRobot`) with ``args``.
+
+    Compiled code only (:func:`numba.extending.overload`). ``function`` must be a
+    constant; a constant ``kind`` resolves to the robot's own function at compile
+    time, a run-time ``kind`` is compared with each code of :data:`COMPILED` in turn.
+
+    Raises
+    ------
+    ValueError
+        A run-time ``kind`` with no entry in :data:`COMPILED`.
+    TypingError
+        At compile time: a constant ``kind`` with no entry, or an unknown ``function``.
+    """
+    raise NotImplementedError("dispatch() is called from compiled code only")
+
+
+def _caller(fn: Any) -> Callable[..., Any]:
+    """A compiled ``call(args)`` that is ``fn(*args)`` for ``fn``'s number of parameters (numba inlines
+    no call with ``*args``, and the thesis arms' small functions are inlined)."""
+    arity = len(inspect.signature(fn.py_func).parameters)
+    if arity == 2:
+        return njit(inline="always")(lambda args: fn(args[0], args[1]))
+    if arity == 4:
+        return njit(inline="always")(lambda args: fn(args[0], args[1], args[2], args[3]))
+    if arity == 5:
+        return njit(inline="always")(lambda args: fn(args[0], args[1], args[2], args[3], args[4]))
+    if arity == 6:
+        return njit(inline="always")(lambda args: fn(args[0], args[1], args[2], args[3], args[4], args[5]))
+    raise TypeError(f"{fn.py_func.__qualname__}: {arity} parameters; CompiledRobot's functions take 2, 4, 5 or 6")
+
+
+def _chain(entries: tuple[tuple[int, CompiledRobot], ...], function: str) -> Callable[..., Any]:
+    """A compiled ``f(kind, args)``: the first entry whose code is ``kind`` runs ``function(*args)``;
+    after the last, an unknown code raises."""
+    code, robot = entries[0]
+    call = _caller(getattr(robot, function))
+    if len(entries) == 1:
+        def last(kind, args):  # noqa: ANN001, ANN202
+            if kind != code:
+                raise ValueError("unknown robot code: it has no entry in robots.compiled.COMPILED")
+            return call(args)
+        return njit(last)
+    rest = _chain(entries[1:], function)
+
+    def link(kind, args):  # noqa: ANN001, ANN202
+        if kind == code:
+            return call(args)
+        return rest(kind, args)
+    return njit(link)
+
+
+_CHAINS: dict[str, Callable[..., Any]] = {}
+
+
+@overload(dispatch, prefer_literal=True)
+def _dispatch(kind, function, *args):  # noqa: ANN001, ANN002, ANN202
+    if not isinstance(function, types.StringLiteral):
+        return None  # numba tries again with the constant's literal type
+    if function.literal_value not in CompiledRobot.__annotations__ or function.literal_value == "joints":
+        raise TypingError(f"dispatch: the function must be a constant field of CompiledRobot, got {function}")
+    name = function.literal_value
+    if isinstance(kind, types.IntegerLiteral):
+        if kind.literal_value not in COMPILED:
+            raise TypingError(f"dispatch: robot code {kind.literal_value} has no entry in robots.compiled.COMPILED")
+        call = _caller(getattr(COMPILED[kind.literal_value], name))
+
+        def direct(kind, function, *args):  # noqa: ANN001, ANN002, ANN202, ARG001
+            return call(args)
+        return direct
+    if name not in _CHAINS:
+        _CHAINS[name] = _chain(tuple(COMPILED.items()), name)
+    chained = _CHAINS[name]
+
+    def by_code(kind, function, *args):  # noqa: ANN001, ANN002, ANN202, ARG001
+        return chained(kind, args)
+    return by_code
 
 
 def size(kind: int, n: int) -> int:
-    """Joints of robot ``kind``: the thesis arms' constant when ``kind`` is a compile-time constant, else ``n``.
+    """Joints of robot ``kind``: the robot's constant when ``kind`` is a compile-time constant and
+    the robot's joints are fixed, else ``n``.
 
     Compiled code only (:func:`numba.extending.overload`).
     """
@@ -66,111 +197,11 @@ def size(kind: int, n: int) -> int:
 
 @overload(size, inline="always")
 def _size(kind, n):  # noqa: ANN001, ANN202
-    fixed = _FIXED_SIZE.get(kind.literal_value, 0) if isinstance(kind, types.IntegerLiteral) else 0
+    robot = COMPILED.get(kind.literal_value) if isinstance(kind, types.IntegerLiteral) else None
+    fixed = robot.joints if robot is not None else 0
     if fixed:
         return lambda kind, n: fixed
     return lambda kind, n: n
-
-
-# --------------------------------------------------------------------------- #
-# Dispatch: one line per robot
-# --------------------------------------------------------------------------- #
-@njit(cache=True)
-def terms(kind, p, q, qd, mass, bias, work):  # noqa: ANN001, ANN201
-    """``Mbar(q)`` (motor inertia included) and ``C(q, qd) qd + G(q)``."""
-    if kind == SERIAL_3R:
-        serial.terms(p, q, qd, mass, bias, work)
-    elif kind == PARALLEL_5R:
-        five_bar.terms(p, q, qd, mass, bias, work)
-    elif kind == SERIAL_CHAIN:
-        chain.terms(p, q, qd, mass, bias, work)
-
-
-@njit(cache=True)
-def coriolis_times(kind, p, q, qd, v, out, work):  # noqa: ANN001, ANN201
-    """``C(q, qd) v``."""
-    if kind == SERIAL_3R:
-        serial.coriolis_times(p, q, qd, v, out, work)
-    elif kind == PARALLEL_5R:
-        five_bar.coriolis_times(p, q, qd, v, out, work)
-    elif kind == SERIAL_CHAIN:
-        chain.coriolis_times(p, q, qd, v, out, work)
-
-
-@njit(cache=True)
-def gravity(kind, p, q, out, work):  # noqa: ANN001, ANN201
-    """``G(q)``."""
-    if kind == SERIAL_3R:
-        serial.gravity(p, q, out)
-    elif kind == PARALLEL_5R:
-        five_bar.gravity(p, q, out, work)
-    elif kind == SERIAL_CHAIN:
-        chain.gravity(p, q, out, work)
-
-
-@njit(cache=True)
-def damping(kind, p, i):  # noqa: ANN001, ANN201
-    """Motor damping ``B_i``."""
-    if kind == SERIAL_3R:
-        return serial.damping(p, i)
-    if kind == SERIAL_CHAIN:
-        return chain.damping(p, i)
-    return five_bar.damping(p, i)
-
-
-@njit(cache=True)
-def motor_inertia(kind, p, i):  # noqa: ANN001, ANN201
-    """Motor inertia ``J_i``."""
-    if kind == SERIAL_3R:
-        return serial.motor_inertia(p, i)
-    if kind == SERIAL_CHAIN:
-        return chain.motor_inertia(p, i)
-    return five_bar.motor_inertia(p, i)
-
-
-@njit(cache=True)
-def outputs(kind, p, q, qd, out, work):  # noqa: ANN001, ANN201
-    """What the plant reports besides ``q``, ``qd``, into ``out`` (``OUTPUTS_SIZE`` floats).
-
-    ``out[0:2]``: end-effector ``(x, y)``; robots with passive joints: ``out[2:4]``
-    their angles and ``out[4:6]`` their rates. One call instead of a dozen small
-    numpy operations per published state.
-    """
-    if kind == SERIAL_3R:
-        serial.outputs(p, q, out)
-    elif kind == PARALLEL_5R:
-        five_bar.outputs(p, q, qd, out, work)
-    elif kind == SERIAL_CHAIN:
-        chain.outputs(p, q, out, work)
-
-
-# --------------------------------------------------------------------------- #
-# Any robot
-# --------------------------------------------------------------------------- #
-@njit(cache=True, inline="always")
-def solve_spd(m, b, out, work, n):  # noqa: ANN001, ANN201
-    """Solve ``m x = b`` for a small symmetric positive definite ``m`` of size ``n`` (Cholesky)."""
-    lower = work[0 : n * n]  # row-major; only the lower triangle is used
-    y = work[n * n : n * n + n]
-    for i in range(n):
-        for j in range(i + 1):
-            s = m[i, j]
-            for k in range(j):
-                s -= lower[i * n + k] * lower[j * n + k]
-            if i == j:
-                lower[i * n + i] = math.sqrt(s)
-            else:
-                lower[i * n + j] = s / lower[j * n + j]
-    for i in range(n):
-        s = b[i]
-        for k in range(i):
-            s -= lower[i * n + k] * y[k]
-        y[i] = s / lower[i * n + i]
-    for i in range(n - 1, -1, -1):
-        s = y[i]
-        for k in range(i + 1, n):
-            s -= lower[k * n + i] * out[k]
-        out[i] = s / lower[i * n + i]
 
 
 def accelerations(kind: int, p: FloatArray, q: FloatArray, qd: FloatArray, tau: FloatArray, out: FloatArray,
@@ -184,40 +215,62 @@ def accelerations(kind: int, p: FloatArray, q: FloatArray, qd: FloatArray, tau: 
     raise NotImplementedError("accelerations() is called from compiled code only")
 
 
-@njit(cache=True)
-def _serial_chain_accelerations(p, q, qd, tau, out, work):  # noqa: ANN001, ANN202
-    n = q.shape[0]
-    rhs = work[0:n]
-    mass = work[n : n + n * n].reshape((n, n))
-    rest = work[n + n * n :]
-    chain.terms(p, q, qd, mass, rhs, rest)
-    for i in range(n):
-        rhs[i] = tau[i] - rhs[i] - chain.damping(p, i) * qd[i]
-    solve_spd(mass, rhs, out, rest, n)
-
-
-_ACCELERATIONS = {SERIAL_3R: serial.accelerations, PARALLEL_5R: five_bar.accelerations,
-                  SERIAL_CHAIN: _serial_chain_accelerations}
-
-
 @overload(accelerations, inline="always")
 def _accelerations(kind, p, q, qd, tau, out, work):  # noqa: ANN001, ANN202, PLR0913
-    if not isinstance(kind, types.IntegerLiteral) or kind.literal_value not in _ACCELERATIONS:
-        raise TypingError(f"accelerations: the robot code must be a constant of {sorted(_ACCELERATIONS)}, got {kind}")
-    robot_accelerations = _ACCELERATIONS[kind.literal_value]
+    if not isinstance(kind, types.IntegerLiteral) or kind.literal_value not in COMPILED:
+        raise TypingError(f"accelerations: the robot code must be a constant of {sorted(COMPILED)}, got {kind}")
 
-    def impl(kind, p, q, qd, tau, out, work):  # noqa: ANN001, ANN202, PLR0913, ARG001
-        robot_accelerations(p, q, qd, tau, out, work)
+    def impl(kind, p, q, qd, tau, out, work):  # noqa: ANN001, ANN202, PLR0913
+        dispatch(kind, "accelerations", p, q, qd, tau, out, work)
 
     return impl
+
+
+# --------------------------------------------------------------------------- #
+# The interface, for a code known at run time (callable from Python too)
+# --------------------------------------------------------------------------- #
+@njit(cache=True)
+def terms(kind, p, q, qd, mass, bias, work):  # noqa: ANN001, ANN201
+    """``Mbar(q)`` (motor inertia included) and ``C(q, qd) qd + G(q)``."""
+    dispatch(kind, "terms", p, q, qd, mass, bias, work)
+
+
+@njit(cache=True)
+def coriolis_times(kind, p, q, qd, v, out, work):  # noqa: ANN001, ANN201
+    """``C(q, qd) v``."""
+    dispatch(kind, "coriolis_times", p, q, qd, v, out, work)
+
+
+@njit(cache=True)
+def gravity(kind, p, q, out, work):  # noqa: ANN001, ANN201
+    """``G(q)``."""
+    dispatch(kind, "gravity", p, q, out, work)
+
+
+@njit(cache=True)
+def damping(kind, p, i):  # noqa: ANN001, ANN201
+    """Motor damping ``B_i``."""
+    return dispatch(kind, "damping", p, i)
+
+
+@njit(cache=True)
+def motor_inertia(kind, p, i):  # noqa: ANN001, ANN201
+    """Motor inertia ``J_i``."""
+    return dispatch(kind, "motor_inertia", p, i)
+
+
+@njit(cache=True)
+def outputs(kind, p, q, qd, out, work):  # noqa: ANN001, ANN201
+    """What the plant reports besides ``q``, ``qd``, into ``out`` (``OUTPUTS_SIZE`` floats).
+
+    ``out[0:2]``: end-effector ``(x, y)``; robots with passive joints: ``out[2:4]``
+    their angles and ``out[4:6]`` their rates. One call instead of a dozen small
+    numpy operations per published state.
+    """
+    dispatch(kind, "outputs", p, q, qd, out, work)
 
 
 @njit(cache=True)
 def forward_dynamics(kind, p, q, qd, tau, out, work):  # noqa: ANN001, ANN201
     """Eq. (4.1): ``qdd = Mbar^{-1} (tau - C qd - B qd - G)`` into ``out``."""
-    if kind == SERIAL_3R:
-        accelerations(SERIAL_3R, p, q, qd, tau, out, work)
-    elif kind == PARALLEL_5R:
-        accelerations(PARALLEL_5R, p, q, qd, tau, out, work)
-    elif kind == SERIAL_CHAIN:
-        accelerations(SERIAL_CHAIN, p, q, qd, tau, out, work)
+    dispatch(kind, "accelerations", p, q, qd, tau, out, work)

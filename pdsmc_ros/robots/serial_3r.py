@@ -247,7 +247,7 @@ def coriolis_times(p, q, qd, v, out, work):  # noqa: ANN001, ANN201
 
 
 @njit(cache=True)
-def gravity(p, q, out):  # noqa: ANN001, ANN201
+def gravity(p, q, out, work):  # noqa: ANN001, ANN201, ARG001
     """``G(q)``."""
     acc = 0.0
     for i in range(3):
@@ -270,7 +270,7 @@ def damping(p, i):  # noqa: ANN001, ANN201
 
 
 @njit(cache=True)
-def outputs(p, q, out):  # noqa: ANN001, ANN201
+def outputs(p, q, qd, out, work):  # noqa: ANN001, ANN201, ARG001
     """End-effector ``(x, y)`` into ``out[0:2]`` (``PlanarChain.tip``, base at the origin)."""
     acc = 0.0
     x = 0.0

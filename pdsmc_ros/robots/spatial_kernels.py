@@ -74,6 +74,7 @@ from numpy.typing import ArrayLike
 
 from ..errors import InvalidInputError
 from .base import FloatArray
+from .kernel_math import solve_spd
 
 SERIAL_CHAIN = 2
 """Code of this compiled form (:mod:`pdsmc_ros.robots.compiled`): URDF serial arms."""
@@ -603,6 +604,20 @@ def coriolis_times(p, q, qd, v, out, work):  # noqa: ANN001, ANN201
 
 
 @njit(cache=True)
+def accelerations(p, q, qd, tau, out, work):  # noqa: ANN001, ANN201
+    """Eq. (4.1): ``qdd = Mbar^{-1} (tau - C qd - B qd - G)`` into ``out`` (:func:`terms`, then a
+    Cholesky solve)."""
+    n = q.shape[0]
+    rhs = work[0:n]
+    mass = work[n : n + n * n].reshape((n, n))
+    rest = work[n + n * n :]
+    terms(p, q, qd, mass, rhs, rest)
+    for i in range(n):
+        rhs[i] = tau[i] - rhs[i] - damping(p, i) * qd[i]
+    solve_spd(mass, rhs, out, n)
+
+
+@njit(cache=True)
 def motor_inertia(p, i):  # noqa: ANN001, ANN201
     """Motor inertia ``J_i``."""
     return p[HEADER_SIZE + i * JOINT_SIZE + J_ARMATURE]
@@ -645,7 +660,7 @@ def ee_pose(p, q, pos, rot, work):  # noqa: ANN001, ANN201
 
 
 @njit(cache=True)
-def outputs(p, q, out, work):  # noqa: ANN001, ANN201
+def outputs(p, q, qd, out, work):  # noqa: ANN001, ANN201, ARG001
     """End-effector position in the task plane into ``out[0:2]``: ``((x - o) . u, (x - o) . v)``."""
     _forward(p, q, work, 0)
     x, y, z = _ee_origin(p, work)

@@ -10,6 +10,7 @@ forms; the numpy loop, the same steps, otherwise.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from numba import njit
@@ -20,37 +21,18 @@ from ..control.law import ControlLaw
 from ..control.safety import DivergenceCheck, watch
 from ..robots import compiled as robot_compiled
 from ..robots.base import FloatArray, Manipulator
-from ..robots.parallel_5r_kernels import PARALLEL_5R
-from ..robots.serial_3r import SERIAL_3R
-from ..robots.spatial_kernels import SERIAL_CHAIN
 from .rk4 import carve, rk4_advance, rk4_step
 
 
-@njit(cache=True)
-def _closed_loop_serial_3r(p, code, gains, smc_model, model_kind, model_p, q0, qd0, refs, h, sample_every,  # noqa: ANN001, ANN202, PLR0913
-                           limit, bounds, first, at, counts, out_q, out_qd, out_tau, work, state):
-    _loop(SERIAL_3R, p, code, gains, smc_model, model_kind, model_p, q0, qd0, refs, h, sample_every,
-          limit, bounds, first, at, counts, out_q, out_qd, out_tau, work, state)
+def _closed_loop_for(kind: int) -> Any:
+    """The closed loop compiled for robot code ``kind`` (a constant of the closure: its dynamics inlined)."""
 
+    def closed_loop(p, code, gains, smc_model, model_kind, model_p, q0, qd0, refs, h, sample_every,  # noqa: ANN001, ANN202, PLR0913
+                    limit, bounds, first, at, counts, out_q, out_qd, out_tau, work, state):
+        _loop(kind, p, code, gains, smc_model, model_kind, model_p, q0, qd0, refs, h, sample_every,
+              limit, bounds, first, at, counts, out_q, out_qd, out_tau, work, state)
 
-@njit(cache=True)
-def _closed_loop_parallel_5r(p, code, gains, smc_model, model_kind, model_p, q0, qd0, refs, h, sample_every,  # noqa: ANN001, ANN202, PLR0913
-                             limit, bounds, first, at, counts, out_q, out_qd, out_tau, work, state):
-    _loop(PARALLEL_5R, p, code, gains, smc_model, model_kind, model_p, q0, qd0, refs, h, sample_every,
-          limit, bounds, first, at, counts, out_q, out_qd, out_tau, work, state)
-
-
-@njit(cache=True)
-def _closed_loop_serial_chain(p, code, gains, smc_model, model_kind, model_p, q0, qd0, refs, h, sample_every,  # noqa: ANN001, ANN202, PLR0913
-                              limit, bounds, first, at, counts, out_q, out_qd, out_tau, work, state):
-    _loop(SERIAL_CHAIN, p, code, gains, smc_model, model_kind, model_p, q0, qd0, refs, h, sample_every,
-          limit, bounds, first, at, counts, out_q, out_qd, out_tau, work, state)
-
-
-# one compiled loop per robot code, its dynamics inlined: a process compiles (or loads) only the robots it runs
-# (written out one per robot: numba caches no function a factory makes, and these must be cached)
-_CLOSED_LOOPS = {SERIAL_3R: _closed_loop_serial_3r, PARALLEL_5R: _closed_loop_parallel_5r,
-                 SERIAL_CHAIN: _closed_loop_serial_chain}
+    return njit(cache=True)(closed_loop)
 
 
 @njit(cache=True, inline="always")
@@ -94,6 +76,11 @@ def _loop(  # noqa: ANN202, PLR0913
                 out_tau[j, i] = tau[i]
         if k < steps:
             rk4_advance(kind, p, q, qd, tau, h, stages, rest)
+
+
+# one compiled loop per robot of the table, made from it: a process compiles (or loads) only the robots
+# it runs (numba caches a closure under its code and its cells' values: one entry per code)
+_CLOSED_LOOPS = {kind: _closed_loop_for(kind) for kind in robot_compiled.COMPILED}
 
 
 @dataclass

@@ -14,9 +14,6 @@ from numba import njit
 
 from ..robots import compiled as robot
 from ..robots.base import FloatArray, Manipulator
-from ..robots.parallel_5r_kernels import PARALLEL_5R
-from ..robots.serial_3r import SERIAL_3R
-from ..robots.spatial_kernels import SERIAL_CHAIN
 
 
 def rk4_step(
@@ -102,30 +99,20 @@ def carve(work, n):  # noqa: ANN001, ANN201
     return work[0 : STAGE_ROWS * n].reshape((STAGE_ROWS, n)), work[STAGE_ROWS * n :]
 
 
-@njit(cache=True)
-def _step_serial_3r(p, state, tau, h, work):  # noqa: ANN001, ANN202
-    n = tau.shape[0]
-    stages, rest = carve(work, n)
-    rk4_advance(SERIAL_3R, p, state[0:n], state[n : 2 * n], tau, h, stages, rest)
+def _step_for(kind: int) -> Callable[[FloatArray, FloatArray, FloatArray, float, FloatArray], None]:
+    """The RK4 step compiled for robot code ``kind`` (a constant of the closure: its dynamics inlined)."""
+
+    def step(p, state, tau, h, work):  # noqa: ANN001, ANN202
+        n = tau.shape[0]
+        stages, rest = carve(work, n)
+        rk4_advance(kind, p, state[0:n], state[n : 2 * n], tau, h, stages, rest)
+
+    return njit(cache=True)(step)
 
 
-@njit(cache=True)
-def _step_parallel_5r(p, state, tau, h, work):  # noqa: ANN001, ANN202
-    n = tau.shape[0]
-    stages, rest = carve(work, n)
-    rk4_advance(PARALLEL_5R, p, state[0:n], state[n : 2 * n], tau, h, stages, rest)
-
-
-@njit(cache=True)
-def _step_serial_chain(p, state, tau, h, work):  # noqa: ANN001, ANN202
-    n = tau.shape[0]
-    stages, rest = carve(work, n)
-    rk4_advance(SERIAL_CHAIN, p, state[0:n], state[n : 2 * n], tau, h, stages, rest)
-
-
-# one compiled entry per robot code: a process compiles (or loads) only the robots it runs
-# (written out one per robot: numba caches no function a factory makes, and these must be cached)
-_STEPS = {SERIAL_3R: _step_serial_3r, PARALLEL_5R: _step_parallel_5r, SERIAL_CHAIN: _step_serial_chain}
+# one compiled step per robot of the table, made from it: a process compiles (or loads) only the
+# robots it runs (numba caches a closure under its code and its cells' values: one entry per code)
+_STEPS = {kind: _step_for(kind) for kind in robot.COMPILED}
 
 
 def compiled_step(kind: int) -> Callable[[FloatArray, FloatArray, FloatArray, float, FloatArray], None]:

@@ -184,7 +184,7 @@ def test_the_end_effector_is_pinocchios(name: str) -> None:
         sk.ee_pose(p, q, pos2, rot, work)
         sk.ee_jacobian(p, q, jac, work)
         out = np.full(6, 7.0)
-        sk.outputs(p, q, out, work)
+        sk.outputs(p, q, q, out, work)
         want_pos, want_rot = ref.pose(q, ref.fid)
         close(pos, want_pos)
         np.testing.assert_array_equal(pos2, pos)

@@ -1,0 +1,70 @@
+"""The compiled robot dispatch (robots/compiled.py): made from one table, an unknown code is an error."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from numba import njit
+from numba.core.errors import TypingError
+
+from pdsmc_ros.robots import compiled, make_robot
+
+UNKNOWN = 99
+N = 3
+
+
+def _arguments() -> dict[str, tuple[object, ...]]:
+    p = make_robot("serial_3r").pack()
+    q = np.zeros(N)
+    work = compiled.workspace(N)
+    return {
+        "terms": (p, q, q, np.zeros((N, N)), np.zeros(N), work),
+        "coriolis_times": (p, q, q, q, np.zeros(N), work),
+        "gravity": (p, q, np.zeros(N), work),
+        "damping": (p, 0),
+        "motor_inertia": (p, 0),
+        "outputs": (p, q, q, np.zeros(compiled.OUTPUTS_SIZE), work),
+        "forward_dynamics": (p, q, q, q, np.zeros(N), work),
+    }
+
+
+@pytest.mark.parametrize("function", sorted(_arguments()))
+def test_an_unknown_robot_code_raises_in_every_dispatcher(function: str) -> None:
+    args = _arguments()[function]
+    dispatcher = getattr(compiled, function)
+    dispatcher(0, *args)  # a known code (the serial arm's) runs
+    with pytest.raises(ValueError, match="unknown robot code"):
+        dispatcher(UNKNOWN, *args)
+
+
+def test_a_known_code_gets_its_own_robots_parameters() -> None:
+    """The serial arm's B and J, not another robot's (the fall-through this table replaced)."""
+    robot = make_robot("serial_3r")
+    kind, p = compiled.pack(robot)
+    for i in range(robot.n):
+        assert compiled.damping(kind, p, i) == robot.B[i]
+        assert compiled.motor_inertia(kind, p, i) == robot.J[i]
+
+
+def test_every_table_entry_names_compiled_functions_of_one_signature() -> None:
+    for code, entry in compiled.COMPILED.items():
+        assert isinstance(code, int) and entry.joints >= 0
+        for field in ("terms", "accelerations", "coriolis_times", "gravity", "damping", "motor_inertia", "outputs"):
+            assert hasattr(getattr(entry, field), "py_func"), (code, field)
+
+
+def test_an_unknown_constant_code_fails_to_compile() -> None:
+    @njit
+    def accelerate(p, q, out, work):  # noqa: ANN001, ANN202
+        compiled.accelerations(UNKNOWN, p, q, q, q, out, work)
+
+    args = _arguments()["forward_dynamics"]
+    with pytest.raises(TypingError, match="robot code"):
+        accelerate(args[0], args[1], args[4], args[5])
+
+
+def test_pack_refuses_a_code_without_an_entry() -> None:
+    robot = make_robot("serial_3r")
+    robot.kernel = UNKNOWN  # type: ignore[misc]
+    with pytest.raises(TypeError, match="no entry"):
+        compiled.pack(robot)
