@@ -7,7 +7,7 @@ import numpy as np
 
 from .config import choice, load_config
 from .errors import ConfigError
-from .robots import ROBOTS, UrdfRobot, make_robot
+from .robots import make_robot
 from .robots.catalog import resolve_robot
 from .trajectories import (
     Contour,
@@ -28,10 +28,7 @@ def contour_names(robot: str) -> tuple[str, ...]:
 def contour_set(robot: str) -> str:
     """Whose contour presets ``robot`` runs: its own, or for a URDF arm the set its settings
     name (the serial arm's by default: the thesis's task-space contours)."""
-    cls = ROBOTS[resolve_robot(robot)]
-    if issubclass(cls, UrdfRobot):
-        return str(cls.settings.get("contours", "serial_3r"))
-    return robot
+    return make_robot(resolve_robot(robot)).contour_set()
 
 
 def build_contour(
@@ -48,22 +45,22 @@ def build_contour(
     longer side, centred on its task plane's origin; none: as they are) and CSV contours as
     given, in its task plane's coordinates.
     """
-    cls = ROBOTS[resolve_robot(robot)]
-    dim = cls.task_dim
+    model = make_robot(resolve_robot(robot))
+    dim = model.task_dim
     if name == "joints":
         if not waypoints_file:
             raise ConfigError("contour 'joints' needs a file of joint via points (--waypoints FILE: CSV "
                               "t, q1..qn or YAML points: [{t, q}])")
-        times, points = load_joint_waypoints(waypoints_file, cls.n)
-        return JointPathContour("joints", make_robot(robot), JointPath(times, points))
+        times, points = load_joint_waypoints(waypoints_file, model.n)
+        return JointPathContour("joints", model, JointPath(times, points))
     if name == "csv":
         if not waypoints_file:
             raise ConfigError("contour 'csv' needs a waypoints file (--waypoints FILE)")
         pts = load_waypoints_csv(waypoints_file, dim=dim)
         return SegmentContour("csv", pts, segment_duration, metric="nearest")
-    preset = _preset_contour(contour_set(robot), name, dim, ellipse_error)
-    size = cls.settings.get("contour_size") if issubclass(cls, UrdfRobot) else None
-    return preset.fitted(float(size)) if size else preset
+    preset = _preset_contour(model.contour_set(), name, dim, ellipse_error)
+    size = model.contour_size()
+    return preset.fitted(size) if size else preset
 
 
 def _preset_contour(robot: str, name: str, dim: int, ellipse_error: str) -> Contour:

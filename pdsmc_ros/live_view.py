@@ -23,7 +23,6 @@ import numpy as np
 
 from .bag.stamps import stamp_step, step_stamp
 from .presets import RunSpec
-from .robots import UrdfRobot
 from .robots.base import FloatArray
 from .robots.frames import LinkFrames, Transform
 
@@ -95,9 +94,7 @@ class LiveView:
 
     def world(self, xy: FloatArray) -> FloatArray:
         """Base-frame point of a task-plane point (the thesis arms' plane is the URDF's x-z)."""
-        if isinstance(self.robot, UrdfRobot):
-            return self.robot.plane.world(xy)
-        return np.array([xy[0], 0.0, xy[1]])
+        return self.robot.plane_to_base(xy)
 
     def frame(self) -> Frame | None:
         """The newest state as a frame, or None if there is none newer than the last shown."""

@@ -25,7 +25,7 @@ import numpy as np
 from .config import load_config, read_yaml
 from .errors import ConfigError
 from .presets import RunSpec, make_run
-from .robots import ROBOTS, UrdfRobot, make_robot, robot_params
+from .robots import make_robot, robot_params
 from .robots.base import RobotParams
 from .scores import SCORE_NAMES
 
@@ -116,7 +116,7 @@ def sample_plant(robot: str, spreads: Mapping[str, Spread], rng: np.random.Gener
     motor_b = float(_factor(rng, spreads.get("motor_damping"), 1)[0])
     payload_spread = spreads.get("payload")
     payload = float(rng.uniform(payload_spread.low, payload_spread.high)) if payload_spread is not None else 0.0
-    n = ROBOTS[robot].n
+    n = make_robot(robot).n
     error_spread = spreads.get("initial_error")
     initial = rng.normal(0.0, error_spread.sd, n) if error_spread is not None and error_spread.sd else np.zeros(n)
     varied = tuple(dataclasses.replace(link, mass=link.mass * mass[i], com=min(link.com * com[i], link.length),
@@ -178,7 +178,7 @@ def base_specs(robot: str, contour: str, controllers: Sequence[str], **options: 
         For an arm whose parameters cannot be drawn (a URDF arm) or an unknown name.
     """
     specs = [make_run(robot, contour, controller, **options) for controller in controllers]
-    if issubclass(ROBOTS[specs[0].robot], UrdfRobot):
+    if not make_robot(specs[0].robot).has_link_params:
         raise ConfigError(f"montecarlo draws the thesis arms' link and motor parameters; {robot!r} is a URDF "
                           "arm (not supported yet): use serial_3r or parallel_5r")
     return specs

@@ -7,7 +7,6 @@ in-process simulator, the ROS nodes (as parameters) and the bag metadata.
 
 from __future__ import annotations
 
-import dataclasses
 import functools
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -20,12 +19,11 @@ from .config import choice, load_config
 from .contour_presets import build_contour, contour_names, contour_set
 from .control.gains import Gains
 from .control.registry import SMC_MODEL_KEYS, law, smc_model_vector
-from .errors import ConfigError, MissingGainsError
-from .robots import ROBOTS, Manipulator, RobotParams, UrdfRobot, make_robot, robot_params, robot_settings
+from .errors import ConfigError, InvalidInputError, MissingGainsError
+from .robots import ROBOTS, Manipulator, RobotParams, make_robot, robot_settings
 from .robots.base import FloatArray
 from .robots.catalog import resolve_robot
 from .trajectories import Contour, JointReference
-from .urdf import robot_urdf
 
 __all__ = [
     "MAX_CONTROL_STEPS",
@@ -172,10 +170,7 @@ class RunSpec:
 
     def robot_description(self) -> str:
         """The URDF of the simulated robot (the plant's ``/robot_description``)."""
-        cls = ROBOTS[self.robot]
-        if issubclass(cls, UrdfRobot):
-            return cls.description()
-        return robot_urdf(self.robot, robot_params(self.robot), self.payload)
+        return make_robot(self.robot).description(self.payload)
 
     def reference(self) -> JointReference:
         return JointReference(self.robot_model(), self.contour_model())
@@ -218,7 +213,7 @@ class RunSpec:
             contour=data["contour"],
             controller=data["controller"],
             scenario=data.get("scenario", "nominal"),
-            gains=Gains.from_mapping(data["gains"], ROBOTS[robot].n, data["controller"]),
+            gains=Gains.from_mapping(data["gains"], make_robot(robot).n, data["controller"]),
             rate=float(data["control_rate_hz"]),
             sample_rate=float(data["sample_rate_hz"]),
             payload=float(data.get("payload_kg", 0.0)),
@@ -254,13 +249,10 @@ def control_steps(duration: float, rate: float) -> int:
 def loaded_params(robot: str, payload: float) -> RobotParams:
     """Parameters of ``robot`` with ``payload`` kg added to the mass of the link that carries
     the end-effector (the robot's ``payload_link``), at its centre of mass; its inertia unchanged."""
-    if issubclass(ROBOTS[robot], UrdfRobot):
-        raise ConfigError(f"robot {robot!r}: a payload on a URDF arm is a fixed link of its URDF")
-    params = robot_params(robot)
-    links = list(params.links)
-    k = ROBOTS[robot].payload_link
-    links[k] = dataclasses.replace(links[k], mass=links[k].mass + payload)
-    return dataclasses.replace(params, links=tuple(links))
+    try:
+        return make_robot(robot).payload_params(payload)
+    except InvalidInputError as exc:
+        raise ConfigError(str(exc)) from None
 
 
 def scenario_names() -> tuple[str, ...]:
@@ -272,26 +264,26 @@ def preset_gains(robot: str, contour: str, controller: str) -> Gains:
     declares :attr:`LawEntry.presets_from` takes that law's (:meth:`LawEntry.presets_of`), derived at
     this contour's start (``csv``, ``joints``: at the start of the robot's first linear contour)."""
     entry = law(controller)
-    cls = ROBOTS[resolve_robot(robot)]
-    contours = load_config("contours").get(contour_set(robot), {})
+    model = make_robot(resolve_robot(robot))
+    contours = load_config("contours").get(model.contour_set(), {})
     group = "linear" if contour in ("csv", "joints") else contours[contour]["gain_group"]
-    source = cls.settings.get("gains", robot) if issubclass(cls, UrdfRobot) else robot
-    tables = source if isinstance(source, dict) else load_config("gains").get(source, {})
+    source = model.gains_source()
+    tables = source if isinstance(source, Mapping) else load_config("gains").get(source, {})
     table = tables.get(group, {}).get(controller)
     other = tables.get(group, {}).get(entry.presets_from) if entry.presets_from else None
     start = contour if contour in contours else next((c for c, v in contours.items() if v["gain_group"] == group), None)
     if table is None and other is not None and start is not None:
-        table = entry.presets_of(other, make_robot(robot), _start_configuration(robot, start, id(cls)))
+        table = entry.presets_of(other, model, _start_configuration(robot, start, id(ROBOTS[resolve_robot(robot)])))
     if table is None:
         raise MissingGainsError(f"config/gains.yaml has no {controller} gains for {robot} ({group} contours); "
                           "give the gains, or let `pdsmc tune` propose them")
-    return Gains.from_mapping(table, cls.n, controller)
+    return Gains.from_mapping(table, model.n, controller)
 
 
 @functools.lru_cache(maxsize=64)
-def _start_configuration(robot: str, contour: str, cls: int) -> FloatArray:  # noqa: ARG001 - cls: the cache key
-    """The joint reference's first point of a preset contour (``cls``, the class's id, keys a name
-    registered anew)."""
+def _start_configuration(robot: str, contour: str, entry: int) -> FloatArray:  # noqa: ARG001 - entry: the cache key
+    """The joint reference's first point of a preset contour (``entry``, the id of what the registry
+    holds for the robot, keys a name registered anew)."""
     start: FloatArray = JointReference(make_robot(robot), build_contour(robot, contour)).sample([0.0]).q[0]
     return start
 
@@ -314,7 +306,7 @@ def run_gains(robot: str, contour: str, controller: str, *, gains: Gains | None 
         gain given by no layer.
     """
     entry = law(controller)
-    n = ROBOTS[resolve_robot(robot)].n
+    n = make_robot(resolve_robot(robot)).n
     try:
         base = (gains if gains is not None else preset_gains(robot, contour, controller)).as_dict()
     except MissingGainsError:

@@ -28,7 +28,7 @@ from .control.registry import gain_names, law
 from .control.stability import THEOREM_LAWS, check_gains, loop_delay
 from .errors import ConfigError, PdsmcError
 from .presets import RunSpec, make_run
-from .robots import ROBOTS
+from .robots import make_robot
 from .robots.catalog import resolve_robot
 from .settings import CONTROLLER_PARAMETERS, node_parameters
 
@@ -296,7 +296,7 @@ def _evaluator(spec: RunSpec, limit: np.ndarray, scheduler: str | None, requirem
 def _spec(robot: str, contour: str, controller: str, rate: float | None) -> RunSpec:
     """The run to tune: the robot's settings with placeholder gains (replaced per candidate)."""
     needed = law(controller).gain_names
-    n = ROBOTS[resolve_robot(robot)].n
+    n = make_robot(resolve_robot(robot)).n
     placeholder = Gains.from_mapping({k: [1.0] for k in needed}, n, controller)  # one value: every joint
     return make_run(robot, contour, controller, rate=rate, gains=placeholder)
 

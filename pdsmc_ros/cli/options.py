@@ -160,7 +160,7 @@ def spec_from_args(args: argparse.Namespace) -> RunSpec:
     params = None
     rate = args.rate
     if args.params_file:
-        from ..robots import ROBOTS
+        from ..robots import make_robot
         from ..robots.catalog import resolve_robot
         from ..tuning import controller_parameters, read_params_file
 
@@ -173,7 +173,7 @@ def spec_from_args(args: argparse.Namespace) -> RunSpec:
                                   f"{flags[key]}: give the same, or leave one out")
         if rate is None and given.get("rate"):  # the rate the file's gains were chosen for
             rate = positive_float(str(given["rate"]))
-        params = read_params_file(args.params_file, ROBOTS[resolve_robot(args.robot)].n, args.controller)
+        params = read_params_file(args.params_file, make_robot(resolve_robot(args.robot)).n, args.controller)
     return make_run(
         args.robot,
         args.contour,

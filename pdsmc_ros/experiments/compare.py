@@ -128,7 +128,7 @@ def law_specs(robot: str, contour: str, laws: Sequence[str], *, scenario: str = 
         (naming it and how to give them); gains that cannot be stable at the rate.
     """
     from ..control.stability import check_rate
-    from ..robots import ROBOTS
+    from ..robots import make_robot
     from ..robots.catalog import resolve_robot
     from ..tuning import read_params_file
 
@@ -138,7 +138,7 @@ def law_specs(robot: str, contour: str, laws: Sequence[str], *, scenario: str = 
     out = []
     for name in laws:
         path = files.get(name)
-        params = read_params_file(path, ROBOTS[resolve_robot(robot)].n, name) if path else None
+        params = read_params_file(path, make_robot(resolve_robot(robot)).n, name) if path else None
         try:
             spec = make_run(robot, contour, name, scenario=scenario, rate=rate, params=params,
                             smc_model=smc_reading(reading) if law(name).model_based else None)

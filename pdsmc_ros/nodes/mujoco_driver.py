@@ -29,8 +29,7 @@ from std_msgs.msg import Float64MultiArray, String
 from ..bag.cdr import decode_float64_multi_array, encode_joint_state
 from ..errors import CdrError, ConfigError, InvalidInputError
 from ..robots.catalog import allowed_robots, resolve_robot
-from ..robots.registry import ROBOTS
-from ..robots.urdf_robot import UrdfRobot
+from ..robots.registry import make_robot
 from ..runtime.joints import check_joint_names
 from ..sim.mujoco_driver import (
     JOINT_STATE_ORDERS,
@@ -107,8 +106,7 @@ class MujocoDriverNode:
 
         self.pub_state = GuardedPublisher(node.create_publisher(JointState, TOPIC_JOINT_STATES, STREAM_QOS), node)
         self.pub_urdf = node.create_publisher(String, TOPIC_ROBOT_DESCRIPTION, LATCHED_QOS)
-        cls = ROBOTS[robot]
-        self.pub_urdf.publish(String(data=cls.description() if issubclass(cls, UrdfRobot) else arm.urdf))
+        self.pub_urdf.publish(String(data=make_robot(robot).description()))
         self.inputs = Inputs(node, "realtime")
         self.inputs.subscribe(Float64MultiArray, TOPIC_EFFORT, self.on_command)
         self.ticks = 0

@@ -1,9 +1,11 @@
 """Robots: one module per robot (numpy model and compiled form side by side) and a registry.
 
-Adding a robot: a module here with a :class:`Manipulator` subclass decorated with
-:func:`register_robot`, its entry in ``config/robots.yaml``, an import below, and --
-if it has a compiled form -- one dispatch line per function in :mod:`.compiled`.
-A robot without a compiled form runs on the numpy path.
+Adding a robot: a :class:`Manipulator` subclass decorated with :func:`register_robot`
+(here or in any module: a test registers its own) and its entry in ``config/robots.yaml``
+(or the mapping given to :func:`register_robot`); a built-in one is imported below. A
+robot without a compiled form runs on the numpy path; one with a compiled form adds one
+entry to :data:`.compiled.COMPILED`. A URDF arm is no class: an instance of
+:class:`UrdfArm` (``robot:=`` a name of ``config/urdf_arms.yaml`` or a ``.urdf`` path).
 """
 
 # before any kernel runs: drop cached kernels built from other sources (see kernel_cache)
@@ -16,9 +18,10 @@ from .serial_3r import Serial3R  # noqa: E402, I001
 from .parallel_5r import FiveBarState, Parallel5R  # noqa: E402
 from .base import GRAVITY, FloatArray, LinkParams, Manipulator, RobotParams, as_vector  # noqa: E402
 from .chain import PlanarChain  # noqa: E402
-from .urdf_robot import UrdfRobot, from_urdf  # noqa: E402
+from .urdf_robot import UrdfArm, UrdfRobot, from_urdf  # noqa: E402
 from .registry import (  # noqa: E402
     ROBOTS,
+    RobotFactory,
     RobotSettings,
     make_robot,
     register_robot,
@@ -39,6 +42,7 @@ __all__ = [
     "Parallel5R",
     "PlanarChain",
     "RobotParams",
+    "RobotFactory",
     "RobotSettings",
     "Serial3R",
     "as_vector",
@@ -48,6 +52,7 @@ __all__ = [
     "robot_names",
     "robot_params",
     "robot_settings",
+    "UrdfArm",
     "UrdfRobot",
     "from_urdf",
     "unregister_robot",

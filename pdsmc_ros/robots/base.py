@@ -1,4 +1,5 @@
-"""What every robot is: its parameters and the :class:`Manipulator` interface (numpy only).
+"""What every robot is: the :class:`Manipulator` interface (numpy only); its parameters are
+:mod:`.params`' (re-exported here).
 
 Every function accepts a leading batch dimension: ``q`` of shape ``(..., n)``.
 A robot implements the underscored, unchecked methods; the public methods
@@ -9,19 +10,18 @@ without runs on the numpy path (see :mod:`pdsmc_ros.sim`).
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping
-from dataclasses import dataclass
 from typing import Any, ClassVar
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..errors import InvalidInputError
+from .params import GRAVITY, FloatArray, LinkParams, RobotParams, joint_limits, motor_array
 
-GRAVITY = 9.81
-"""Gravitational acceleration (m/s^2), acting along -y."""
-
-FloatArray = NDArray[np.float64]
+__all__ = ["GRAVITY", "FloatArray", "LinkParams", "Manipulator", "RobotParams", "as_vector", "diag", "joint_limits",
+           "motor_array", "suffix_sum"]
 
 
 def as_vector(value: ArrayLike, size: int, name: str) -> FloatArray:
@@ -52,105 +52,9 @@ def suffix_sum(x: FloatArray, axis: int) -> FloatArray:
     return np.flip(np.cumsum(flipped, axis=axis), axis=axis)
 
 
-# --------------------------------------------------------------------------- #
-# Planar serial chain
-# --------------------------------------------------------------------------- #
-@dataclass(frozen=True)
-class LinkParams:
-    """Structural parameters of one link (Tables 4.1 and 4.2).
-
-    Attributes
-    ----------
-    mass : float
-        Link mass (kg).
-    length : float
-        Joint-to-joint length (m).
-    com : float
-        Distance of the mass centre from the proximal joint, along the link (m).
-    inertia : float
-        Moment of inertia about the mass centre (kg m^2).
-    """
-
-    mass: float
-    length: float
-    com: float
-    inertia: float
-
-    def __post_init__(self) -> None:
-        for name in ("mass", "length", "com", "inertia"):
-            value = getattr(self, name)
-            if not np.isfinite(value) or value < 0.0:
-                raise InvalidInputError(f"link {name} must be a finite number >= 0, got {value!r}")
-        if self.length <= 0.0:
-            raise InvalidInputError(f"link length must be > 0, got {self.length!r}")
-
-
-
 def diag(values: FloatArray) -> FloatArray:
     """Diagonal matrices from the last axis of ``values``."""
     return values[..., :, None] * np.eye(values.shape[-1])
-
-
-# --------------------------------------------------------------------------- #
-# Robot parameters
-# --------------------------------------------------------------------------- #
-@dataclass(frozen=True)
-class RobotParams:
-    """Structural and motor parameters of a manipulator.
-
-    Attributes
-    ----------
-    links : tuple of LinkParams
-        Links in thesis numbering (Tables 4.1, 4.2).
-    motor_inertia, motor_damping : float
-        ``J_i`` (kg m^2) and ``B_i`` (N m s) of every actuated joint.
-    base_length : float
-        ``L5`` of the five-bar (m); unused by the serial arm.
-    gravity : float
-        Gravity along -y (m/s^2).
-    effort_limit, velocity_limit : tuple of float
-        Per actuated joint: the largest torque (N m) and rate (rad/s); empty: unknown (unlimited).
-    position_limit : tuple of (float, float)
-        Per actuated joint: lower and upper angle (rad); empty: unlimited (the planar arms'
-        joints turn freely).
-    """
-
-    links: tuple[LinkParams, ...]
-    motor_inertia: float
-    motor_damping: float
-    base_length: float = 0.0
-    gravity: float = GRAVITY
-    effort_limit: tuple[float, ...] = ()
-    velocity_limit: tuple[float, ...] = ()
-    position_limit: tuple[tuple[float, float], ...] = ()
-
-    @classmethod
-    def from_mapping(cls, data: Mapping[str, Any], *, name: str = "robot") -> RobotParams:
-        """Build from a YAML-style mapping (see ``config/robots.yaml``)."""
-        try:
-            links = tuple(
-                LinkParams(
-                    mass=float(link["mass"]),
-                    length=float(link["length"]),
-                    com=float(link["com"]),
-                    inertia=float(link["inertia"]),
-                )
-                for link in data["links"]
-            )
-            limits = data.get("limits") or {}
-            return cls(
-                links=links,
-                motor_inertia=float(data["motor_inertia"]),
-                motor_damping=float(data["motor_damping"]),
-                base_length=float(data.get("base_length", 0.0)),
-                gravity=float(data.get("gravity", GRAVITY)),
-                effort_limit=tuple(float(v) for v in limits.get("effort") or ()),
-                velocity_limit=tuple(float(v) for v in limits.get("velocity") or ()),
-                position_limit=tuple((float(lo), float(hi)) for lo, hi in limits.get("position") or ()),
-            )
-        except (KeyError, TypeError, ValueError, AttributeError) as exc:
-            raise InvalidInputError(f"{name}: malformed robot parameters ({exc})") from exc
-
 
 
 # --------------------------------------------------------------------------- #
@@ -167,14 +71,17 @@ class Manipulator:
     form in :mod:`pdsmc_ros.robots.compiled` (None: numpy only).
     """
 
-    name: ClassVar[str] = ""
-    n: ClassVar[int] = 0
-    task_dim: ClassVar[int] = 0
-    joint_names: ClassVar[tuple[str, ...]] = ()
-    passive_joint_names: ClassVar[tuple[str, ...]] = ()
-    payload_link: ClassVar[int] = -1
+    name: str = ""
+    n: int = 0
+    task_dim: int = 0
+    joint_names: tuple[str, ...] = ()
+    passive_joint_names: tuple[str, ...] = ()
+    payload_link: int = -1
     """Index (from 0) of the link that carries the end-effector (a ``link_com`` payload's link)."""
-    kernel: ClassVar[int | None] = None
+    kernel: int | None = None
+    has_link_params: ClassVar[bool] = True
+    """Whether the robot is built from a :class:`RobotParams` (links and motors) that a run may
+    vary (Monte Carlo, payloads); a URDF arm's are its URDF's."""
     params: RobotParams
     payload: float
     J: FloatArray
@@ -207,6 +114,51 @@ class Manipulator:
     def pack(self) -> FloatArray:
         """The flat parameter array of the compiled form (robots with a ``kernel`` only)."""
         raise NotImplementedError(f"{self.name} has no compiled form")
+
+    # -- what differs between kinds of robot ----------------------------------- #
+    def description(self, payload: float | None = None) -> str:
+        """The robot's URDF (the plant's ``/robot_description``), with ``payload`` kg at the end
+        effector (default: the robot's own payload).
+
+        Raises
+        ------
+        InvalidInputError
+            The robot has no URDF.
+        """
+        raise InvalidInputError(f"no URDF for robot {self.name!r}")
+
+    def model_source(self) -> tuple[str, float, FloatArray, tuple[str, ...]]:
+        """What a physics engine (MuJoCo) builds the robot from: its URDF, gravity along -z
+        (m/s^2), the motor inertia of each joint (kg m^2) and the joints locked at 0."""
+        return self.description(), self.params.gravity, self.J, ()
+
+    def payload_params(self, payload: float) -> RobotParams:
+        """The robot's parameters with ``payload`` kg added to the mass of the link that carries
+        the end effector (:attr:`payload_link`), at its centre of mass; its inertia unchanged."""
+        links = list(self.params.links)
+        k = self.payload_link
+        links[k] = dataclasses.replace(links[k], mass=links[k].mass + payload)
+        return dataclasses.replace(self.params, links=tuple(links))
+
+    def contour_set(self) -> str:
+        """Whose contour presets the robot runs (``config/contours.yaml``): its own."""
+        return self.name
+
+    def contour_size(self) -> float | None:
+        """The size (m) its contour presets are fitted to; None: as they are."""
+        return None
+
+    def gains_source(self) -> str | Mapping[str, Any]:
+        """Where its preset gains are: a robot's name in ``config/gains.yaml`` (its own), or the tables."""
+        return self.name
+
+    def home_configuration(self) -> FloatArray | None:
+        """The configuration a run starts from when it names none; None: the contour's start."""
+        return None
+
+    def plane_to_base(self, xy: FloatArray) -> FloatArray:
+        """The base-frame point of a task-plane point: the thesis arms' plane is the URDF's x-z."""
+        return np.array([xy[0], 0.0, xy[1]])
 
     # -- checked public API -------------------------------------------------- #
     def forward_kinematics(self, q: ArrayLike) -> FloatArray:
@@ -325,38 +277,3 @@ class Manipulator:
         """Angles and rates of unactuated joints (none for a serial arm)."""
         shape = q.shape[:-1] + (0,)
         return np.zeros(shape), np.zeros(shape)
-
-
-def joint_limits(params: RobotParams, n: int, name: str) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """``(effort, velocity, position)`` limits of ``params`` for ``n`` actuated joints (unknown: infinite).
-
-    Raises
-    ------
-    InvalidInputError
-        If a limit list does not have ``n`` entries, a magnitude is not > 0, or a lower
-        position limit is not below its upper one.
-    """
-    effort = np.full(n, np.inf)
-    velocity = np.full(n, np.inf)
-    position = np.tile([-np.inf, np.inf], (n, 1))
-    for label, given, out in (("effort", params.effort_limit, effort), ("velocity", params.velocity_limit, velocity)):
-        if not given:
-            continue
-        values = np.asarray(given, dtype=float)
-        if values.shape != (n,) or np.any(np.isnan(values)) or np.any(values <= 0.0):
-            raise InvalidInputError(f"{name}: limits.{label} needs {n} values > 0 (one per actuated joint), "
-                                    f"got {list(given)}")
-        out[:] = values
-    if params.position_limit:
-        pairs = np.asarray(params.position_limit, dtype=float)
-        if pairs.shape != (n, 2) or np.any(np.isnan(pairs)) or np.any(pairs[:, 0] >= pairs[:, 1]):
-            raise InvalidInputError(f"{name}: limits.position needs {n} pairs [lower, upper] with lower < upper "
-                                    f"(rad), got {[list(p) for p in params.position_limit]}")
-        position[:] = pairs
-    return effort, velocity, position
-
-
-def motor_array(value: float | FloatArray, n: int) -> FloatArray:
-    return np.asarray(value, dtype=float)[..., None] * np.ones(n)
-
-

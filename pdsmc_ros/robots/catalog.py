@@ -23,7 +23,7 @@ from ..errors import ConfigError, InvalidInputError
 from .options import OPTION_KEYS, SETTING_KEYS, check_entry
 from .registry import ROBOTS, register_robot, robot_names, unregister_robot
 from .task import TaskPlane
-from .urdf_robot import UrdfRobot, urdf_robot_class
+from .urdf_arm import UrdfArm, urdf_arm
 
 ROBOTS_DIR = "cmeel.prefix/share/example-robot-data/robots"
 """Where the example-robot-data wheel keeps its robots (relative to site-packages)."""
@@ -129,7 +129,7 @@ def register_description(xml: str, *, name: str = ROBOT_DESCRIPTION) -> str:
     return name
 
 
-def _register(name: str, source: Path | str, entry: Mapping[str, Any], where: str) -> type[UrdfRobot]:
+def _register(name: str, source: Path | str, entry: Mapping[str, Any], where: str) -> UrdfArm:
     check_entry(entry, where)
     options = {k: entry[k] for k in OPTION_KEYS if k in entry and entry[k] is not None}
     if "plane" in options:
@@ -141,8 +141,8 @@ def _register(name: str, source: Path | str, entry: Mapping[str, Any], where: st
         options["locked_joints"] = tuple(options["locked_joints"])
     settings = {**DEFAULT_SETTINGS, **{k: entry[k] for k in SETTING_KEYS if k in entry}}
     try:
-        cls = urdf_robot_class(source, name=name, settings=settings, options_label=where, **options)
+        arm = urdf_arm(source, name=name, settings=settings, options_label=where, **options)
     except InvalidInputError as exc:
         raise ConfigError(f"robot {name!r}: {exc}") from None
-    register_robot(cls, config=settings)
-    return cls
+    register_robot(arm, config=settings)
+    return arm

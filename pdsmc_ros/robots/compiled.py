@@ -12,12 +12,12 @@ of its time in per-call overhead (docs/PERFORMANCE.md). The functions allocate
 nothing; temporaries live in a caller-owned scratch array (:func:`workspace`).
 
 The hot path -- the four forward-dynamics calls of an RK4 step -- is chosen at
-compile time: when the robot code is a compile-time constant (callers make one
-compiled function per code of :data:`COMPILED`: ``sim.rk4``, ``sim.loop``),
-:func:`dispatch` calls that robot's function directly, so each loop is compiled per
-robot with its terms inlined, a thesis arm's joint count is a constant
-(:func:`size`) and every loop over the joints unrolls. A code known only at run
-time goes through a chain of comparisons generated from the table.
+compile time: :func:`accelerations` and :func:`size` take the robot code as a
+constant (callers make one compiled function per code of :data:`COMPILED`:
+``sim.rk4``, ``sim.loop``), so each loop is compiled per robot with that robot's
+terms inlined, a thesis arm's joint count is a constant and every loop over the
+joints unrolls. A code known only at run time goes through a chain of comparisons
+made from the table (:func:`by_code`), inlined into each function below.
 bench/kernel.py measures the result against the same arithmetic unrolled by hand
 (docs/PERFORMANCE.md).
 """
@@ -37,9 +37,11 @@ from numba.extending import overload
 
 from . import parallel_5r_kernels as five_bar
 from . import serial_3r as serial
-from . import spatial_kernels as chain
+from . import spatial_dynamics as chain
+from . import spatial_kernels as chain_kinematics
+from . import spatial_layout
 from .base import FloatArray, Manipulator
-from .spatial_kernels import workspace_size
+from .spatial_layout import workspace_size
 
 OUTPUTS_SIZE = 6
 """Floats of :func:`outputs`: end effector (x, y), passive joints and their rates."""
@@ -84,8 +86,9 @@ COMPILED: dict[int, CompiledRobot] = {
     five_bar.PARALLEL_5R: CompiledRobot(five_bar.N, five_bar.terms, five_bar.accelerations,
                                         five_bar.coriolis_times, five_bar.gravity, five_bar.damping,
                                         five_bar.motor_inertia, five_bar.outputs),
-    chain.SERIAL_CHAIN: CompiledRobot(0, chain.terms, chain.accelerations, chain.coriolis_times, chain.gravity,
-                                      chain.damping, chain.motor_inertia, chain.outputs),
+    spatial_layout.SERIAL_CHAIN: CompiledRobot(0, chain.terms, chain.accelerations, chain.coriolis_times,
+                                               chain.gravity, chain.damping, chain.motor_inertia,
+                                               chain_kinematics.outputs),
 }
 """Every robot's compiled form by its code (``Manipulator.kernel``): the one place to add one."""
 
@@ -107,23 +110,6 @@ def pack(robot: Manipulator) -> tuple[int, FloatArray]:
 # --------------------------------------------------------------------------- #
 # Dispatch, made from the table
 # --------------------------------------------------------------------------- #
-def dispatch(kind: int, function: str, *args: Any) -> Any:
-    """Call robot ``kind``'s compiled ``function`` (a field of :class:`CompiledRobot`) with ``args``.
-
-    Compiled code only (:func:`numba.extending.overload`). ``function`` must be a
-    constant; a constant ``kind`` resolves to the robot's own function at compile
-    time, a run-time ``kind`` is compared with each code of :data:`COMPILED` in turn.
-
-    Raises
-    ------
-    ValueError
-        A run-time ``kind`` with no entry in :data:`COMPILED`.
-    TypingError
-        At compile time: a constant ``kind`` with no entry, or an unknown ``function``.
-    """
-    raise NotImplementedError("dispatch() is called from compiled code only")
-
-
 def _caller(fn: Any) -> Callable[..., Any]:
     """A compiled ``call(args)`` that is ``fn(*args)`` for ``fn``'s number of parameters (numba inlines
     no call with ``*args``, and the thesis arms' small functions are inlined)."""
@@ -139,9 +125,11 @@ def _caller(fn: Any) -> Callable[..., Any]:
     raise TypeError(f"{fn.py_func.__qualname__}: {arity} parameters; CompiledRobot's functions take 2, 4, 5 or 6")
 
 
-def _chain(entries: tuple[tuple[int, CompiledRobot], ...], function: str) -> Callable[..., Any]:
-    """A compiled ``f(kind, args)``: the first entry whose code is ``kind`` runs ``function(*args)``;
-    after the last, an unknown code raises."""
+def by_code(function: str, entries: tuple[tuple[int, CompiledRobot], ...] | None = None) -> Callable[..., Any]:
+    """A compiled ``f(kind, args)`` made from the table: the robot whose code is ``kind`` runs its
+    ``function`` (a field of :class:`CompiledRobot`) on the tuple ``args``; a code with no entry
+    raises ``ValueError``. Inlined into its caller: a chain of comparisons, as if written by hand."""
+    entries = tuple(COMPILED.items()) if entries is None else entries
     code, robot = entries[0]
     call = _caller(getattr(robot, function))
     if len(entries) == 1:
@@ -149,41 +137,23 @@ def _chain(entries: tuple[tuple[int, CompiledRobot], ...], function: str) -> Cal
             if kind != code:
                 raise ValueError("unknown robot code: it has no entry in robots.compiled.COMPILED")
             return call(args)
-        return njit(last)
-    rest = _chain(entries[1:], function)
+        return njit(inline="always")(last)
+    rest = by_code(function, entries[1:])
 
     def link(kind, args):  # noqa: ANN001, ANN202
         if kind == code:
             return call(args)
         return rest(kind, args)
-    return njit(link)
+    return njit(inline="always")(link)
 
 
-_CHAINS: dict[str, Callable[..., Any]] = {}
-
-
-@overload(dispatch, prefer_literal=True)
-def _dispatch(kind, function, *args):  # noqa: ANN001, ANN002, ANN202
-    if not isinstance(function, types.StringLiteral):
-        return None  # numba tries again with the constant's literal type
-    if function.literal_value not in CompiledRobot.__annotations__ or function.literal_value == "joints":
-        raise TypingError(f"dispatch: the function must be a constant field of CompiledRobot, got {function}")
-    name = function.literal_value
-    if isinstance(kind, types.IntegerLiteral):
-        if kind.literal_value not in COMPILED:
-            raise TypingError(f"dispatch: robot code {kind.literal_value} has no entry in robots.compiled.COMPILED")
-        call = _caller(getattr(COMPILED[kind.literal_value], name))
-
-        def direct(kind, function, *args):  # noqa: ANN001, ANN002, ANN202, ARG001
-            return call(args)
-        return direct
-    if name not in _CHAINS:
-        _CHAINS[name] = _chain(tuple(COMPILED.items()), name)
-    chained = _CHAINS[name]
-
-    def by_code(kind, function, *args):  # noqa: ANN001, ANN002, ANN202, ARG001
-        return chained(kind, args)
-    return by_code
+_TERMS = by_code("terms")
+_CORIOLIS_TIMES = by_code("coriolis_times")
+_GRAVITY = by_code("gravity")
+_DAMPING = by_code("damping")
+_MOTOR_INERTIA = by_code("motor_inertia")
+_OUTPUTS = by_code("outputs")
+_ACCELERATIONS = by_code("accelerations")
 
 
 def size(kind: int, n: int) -> int:
@@ -220,8 +190,10 @@ def _accelerations(kind, p, q, qd, tau, out, work):  # noqa: ANN001, ANN202, PLR
     if not isinstance(kind, types.IntegerLiteral) or kind.literal_value not in COMPILED:
         raise TypingError(f"accelerations: the robot code must be a constant of {sorted(COMPILED)}, got {kind}")
 
-    def impl(kind, p, q, qd, tau, out, work):  # noqa: ANN001, ANN202, PLR0913
-        dispatch(kind, "accelerations", p, q, qd, tau, out, work)
+    robot_accelerations = COMPILED[kind.literal_value].accelerations
+
+    def impl(kind, p, q, qd, tau, out, work):  # noqa: ANN001, ANN202, PLR0913, ARG001
+        robot_accelerations(p, q, qd, tau, out, work)
 
     return impl
 
@@ -232,31 +204,31 @@ def _accelerations(kind, p, q, qd, tau, out, work):  # noqa: ANN001, ANN202, PLR
 @njit(cache=True)
 def terms(kind, p, q, qd, mass, bias, work):  # noqa: ANN001, ANN201
     """``Mbar(q)`` (motor inertia included) and ``C(q, qd) qd + G(q)``."""
-    dispatch(kind, "terms", p, q, qd, mass, bias, work)
+    _TERMS(kind, (p, q, qd, mass, bias, work))
 
 
 @njit(cache=True)
 def coriolis_times(kind, p, q, qd, v, out, work):  # noqa: ANN001, ANN201
     """``C(q, qd) v``."""
-    dispatch(kind, "coriolis_times", p, q, qd, v, out, work)
+    _CORIOLIS_TIMES(kind, (p, q, qd, v, out, work))
 
 
 @njit(cache=True)
 def gravity(kind, p, q, out, work):  # noqa: ANN001, ANN201
     """``G(q)``."""
-    dispatch(kind, "gravity", p, q, out, work)
+    _GRAVITY(kind, (p, q, out, work))
 
 
 @njit(cache=True)
 def damping(kind, p, i):  # noqa: ANN001, ANN201
     """Motor damping ``B_i``."""
-    return dispatch(kind, "damping", p, i)
+    return _DAMPING(kind, (p, i))
 
 
 @njit(cache=True)
 def motor_inertia(kind, p, i):  # noqa: ANN001, ANN201
     """Motor inertia ``J_i``."""
-    return dispatch(kind, "motor_inertia", p, i)
+    return _MOTOR_INERTIA(kind, (p, i))
 
 
 @njit(cache=True)
@@ -267,10 +239,10 @@ def outputs(kind, p, q, qd, out, work):  # noqa: ANN001, ANN201
     their angles and ``out[4:6]`` their rates. One call instead of a dozen small
     numpy operations per published state.
     """
-    dispatch(kind, "outputs", p, q, qd, out, work)
+    _OUTPUTS(kind, (p, q, qd, out, work))
 
 
 @njit(cache=True)
 def forward_dynamics(kind, p, q, qd, tau, out, work):  # noqa: ANN001, ANN201
     """Eq. (4.1): ``qdd = Mbar^{-1} (tau - C qd - B qd - G)`` into ``out``."""
-    dispatch(kind, "accelerations", p, q, qd, tau, out, work)
+    _ACCELERATIONS(kind, (p, q, qd, tau, out, work))

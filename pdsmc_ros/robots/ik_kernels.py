@@ -7,78 +7,21 @@ Jacobian, a step is ``dq = J^T (J J^T + d^2 I)^-1 e`` (more joints than rows or 
 many) or ``(J^T J + d^2 I)^-1 J^T e`` (fewer), with ``d`` zero once the error is
 small (Gauss-Newton: quadratic convergence to the tolerance). Steps are clipped to
 ``max_step`` so a step near a singularity stays local. The robot's kinematics are
-:mod:`.spatial_kernels`' (``p`` from :func:`.spatial_kernels.pack`).
+:mod:`.spatial_kernels`' (``p`` from :func:`.spatial_layout.pack`).
 """
 
 from __future__ import annotations
 
-import math
-
 from numba import njit
 
-from .spatial_kernels import POSE_SIZE, WORK_STRIDE, ee_jacobian, ee_pose, workspace_size
+from .kernel_math import rotation_vector, solve_spd
+from .spatial_kernels import ee_jacobian, ee_pose
+from .spatial_layout import POSE_SIZE, WORK_STRIDE, workspace_size
 
 
 def scratch_size(n: int) -> int:
     """Floats of scratch :func:`solve_points` needs for ``n`` joints."""
     return workspace_size(n) + 6 * n + 12 + 6 + 6 * n + 36 + 6 + 2 * n + 36
-
-
-@njit(cache=True)
-def rotation_vector(r, out):  # noqa: ANN001, ANN201
-    """``w`` with ``exp([w]x) = r`` (angle in [0, pi]) into ``out`` (as ``task.rotation_log``)."""
-    cos = (r[0, 0] + r[1, 1] + r[2, 2] - 1.0) / 2.0
-    cos = min(1.0, max(-1.0, cos))
-    angle = math.acos(cos)
-    sx = r[2, 1] - r[1, 2]
-    sy = r[0, 2] - r[2, 0]
-    sz = r[1, 0] - r[0, 1]
-    if angle < 1e-6:
-        out[0], out[1], out[2] = 0.5 * sx, 0.5 * sy, 0.5 * sz
-        return
-    if math.pi - angle < 1e-6:
-        best = 0
-        for i in range(1, 3):
-            if r[i, i] > r[best, best]:
-                best = i
-        kx = (r[best, 0] + (1.0 if best == 0 else 0.0)) / 2.0
-        ky = (r[best, 1] + (1.0 if best == 1 else 0.0)) / 2.0
-        kz = (r[best, 2] + (1.0 if best == 2 else 0.0)) / 2.0
-        norm = math.sqrt(kx * kx + ky * ky + kz * kz)
-        kx, ky, kz = kx / norm, ky / norm, kz / norm
-        if kx * sx + ky * sy + kz * sz < 0.0:
-            kx, ky, kz = -kx, -ky, -kz
-        out[0], out[1], out[2] = angle * kx, angle * ky, angle * kz
-        return
-    scale = angle / (2.0 * math.sin(angle))
-    out[0], out[1], out[2] = scale * sx, scale * sy, scale * sz
-
-
-@njit(cache=True)
-def _solve_spd(a, b, out, size):  # noqa: ANN001, ANN202
-    """``a x = b`` for the leading ``size`` x ``size`` block of an SPD ``a`` (Cholesky in place)."""
-    for i in range(size):
-        for j in range(i + 1):
-            s = a[i, j]
-            for k in range(j):
-                s -= a[i, k] * a[j, k]
-            if i == j:
-                if s <= 0.0:
-                    return False
-                a[i, i] = math.sqrt(s)
-            else:
-                a[i, j] = s / a[j, j]
-    for i in range(size):
-        s = b[i]
-        for k in range(i):
-            s -= a[i, k] * out[k]
-        out[i] = s / a[i, i]
-    for i in range(size - 1, -1, -1):
-        s = out[i]
-        for k in range(i + 1, size):
-            s -= a[k, i] * out[k]
-        out[i] = s / a[i, i]
-    return True
 
 
 @njit(cache=True)
@@ -92,7 +35,7 @@ def solve_points(p, x_d, r_d, seeds, chained, rows, basis, lower, upper, tol, ma
     """
     n = int(p[0])
     m = rows.shape[0]
-    base = WORK_STRIDE * n + POSE_SIZE  # spatial_kernels.workspace_size(n)
+    base = WORK_STRIDE * n + POSE_SIZE  # spatial_layout.workspace_size(n)
     jac = work[base:base + 6 * n].reshape((6, n))
     at = base + 6 * n
     pos = work[at:at + 3]
@@ -162,7 +105,7 @@ def solve_points(p, x_d, r_d, seeds, chained, rows, basis, lower, upper, tol, ma
                     for r in range(m):
                         s += jrows[r, i] * err6[rows[r]]
                     rhs[i] = s
-                if not _solve_spd(a, rhs, dq, size):
+                if not solve_spd(a, rhs, dq, size):
                     break
             else:
                 for i in range(m):
@@ -172,7 +115,7 @@ def solve_points(p, x_d, r_d, seeds, chained, rows, basis, lower, upper, tol, ma
                             s += jrows[i, c] * jrows[j, c]
                         a[i, j] = s
                     rhs[i] = err6[rows[i]]
-                if not _solve_spd(a, rhs, y, size):
+                if not solve_spd(a, rhs, y, size):
                     break
                 for c in range(n):
                     s = 0.0

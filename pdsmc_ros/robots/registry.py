@@ -1,25 +1,42 @@
 """Robots by name: the registry and their parameters from ``config/robots.yaml``.
 
-A robot module defines a :class:`~pdsmc_ros.robots.base.Manipulator` subclass and
-decorates it with :func:`register_robot`; its parameters and run settings live
-under its name in ``config/robots.yaml`` (or, for a robot defined outside the
-package, in the mapping given to :func:`register_robot`).
+The registry holds, per name, what builds the robot (a :class:`RobotFactory`): a
+:class:`~pdsmc_ros.robots.base.Manipulator` subclass decorated with
+:func:`register_robot`, or a URDF arm's :class:`~.urdf_arm.UrdfArm` (its model and
+settings, an instance). :func:`make_robot` builds the robot from its name; what differs
+between kinds of robot is a method or attribute of the robot. A robot's parameters and
+run settings live under its name in ``config/robots.yaml`` (or, for a robot defined
+outside the package, in the mapping given to :func:`register_robot`).
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Any, TypeVar
+from typing import Any, Protocol, TypeVar
 
 from ..config import choice, load_config
 from ..errors import ConfigError, InvalidInputError
 from .base import Manipulator, RobotParams
 
-RobotType = TypeVar("RobotType", bound=type[Manipulator])
 
-ROBOTS: dict[str, type[Manipulator]] = {}
-"""Registered robot classes by name, in registration order."""
+class RobotFactory(Protocol):
+    """What the registry holds for a robot: its name and how to build it."""
+
+    @property
+    def name(self) -> str:
+        """The name it is registered under."""
+        ...
+
+    def create(self, payload: float = 0.0, *, params: RobotParams | None = None) -> Manipulator:
+        """The robot carrying ``payload`` kg, with ``params`` (by default its configured ones)."""
+        ...
+
+
+Factory = TypeVar("Factory", bound=RobotFactory)
+
+ROBOTS: dict[str, RobotFactory] = {}
+"""What builds each registered robot, by name, in registration order."""
 
 _CONFIGS: dict[str, Mapping[str, Any]] = {}  # robots registered with their own configuration
 
@@ -45,31 +62,32 @@ class RobotSettings:
 
 
 def register_robot(
-    cls: RobotType | None = None, *, config: Mapping[str, Any] | None = None
-) -> RobotType | Callable[[RobotType], RobotType]:
-    """Register a robot class under its ``name`` (a class decorator).
+    robot: Factory | None = None, *, config: Mapping[str, Any] | None = None
+) -> Factory | Callable[[Factory], Factory]:
+    """Register a robot under its ``name`` (a class decorator, or a call with a URDF arm).
 
     Parameters
     ----------
-    cls : type
-        A :class:`Manipulator` subclass with a unique, non-empty ``name``.
+    robot : RobotFactory
+        A :class:`Manipulator` subclass, or a URDF arm (:class:`~.urdf_arm.UrdfArm`), with a
+        unique, non-empty ``name``.
     config : mapping, optional
         Its parameters and settings, in the shape of one entry of
         ``config/robots.yaml``; by default that entry is read from the file.
     """
 
-    def register(robot: RobotType) -> RobotType:
-        name = robot.name
+    def register(factory: Factory) -> Factory:
+        name = factory.name
         if not name or not isinstance(name, str):
-            raise InvalidInputError(f"robot class {robot.__name__} has no name")
-        if name in ROBOTS and ROBOTS[name] is not robot:
-            raise InvalidInputError(f"a robot named {name!r} is already registered ({ROBOTS[name].__name__})")
-        ROBOTS[name] = robot
+            raise InvalidInputError(f"robot {factory!r} has no name")
+        if name in ROBOTS and ROBOTS[name] is not factory:
+            raise InvalidInputError(f"a robot named {name!r} is already registered ({ROBOTS[name]!r})")
+        ROBOTS[name] = factory
         if config is not None:
             _CONFIGS[name] = dict(config)
-        return robot
+        return factory
 
-    return register if cls is None else register(cls)
+    return register if robot is None else register(robot)
 
 
 def unregister_robot(name: str) -> None:

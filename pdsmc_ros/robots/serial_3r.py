@@ -72,6 +72,12 @@ class Serial3R(Manipulator):
         parts = [c.W.ravel(), c.w, c.inertias, c.lengths, self.J, self.B, [c.gravity]]
         return np.concatenate([np.asarray(x, dtype=float).ravel() for x in parts])
 
+    def description(self, payload: float | None = None) -> str:
+        """The arm's URDF (:func:`pdsmc_ros.urdf.serial_urdf`)."""
+        from ..urdf import serial_urdf  # the URDF writer reads robots' parameters
+
+        return serial_urdf(self.name, self.params, self.payload if payload is None else payload)
+
     def _fk(self, q: FloatArray) -> FloatArray:
         xy = self.chain.tip(q)
         return np.concatenate([xy, np.sum(q, axis=-1, keepdims=True)], axis=-1)

@@ -18,6 +18,7 @@ from numpy.typing import ArrayLike
 
 from ..errors import InvalidInputError
 from .base import FloatArray, as_vector
+from .kernel_math import rotation_vector
 
 
 @dataclass(frozen=True)
@@ -84,18 +85,8 @@ def axis_rotation(axis: FloatArray, angle: FloatArray) -> FloatArray:
 
 
 def rotation_log(r: FloatArray) -> FloatArray:
-    """The rotation vector ``w`` with ``exp([w]x) = r`` (angle in [0, pi]) of one matrix."""
-    cos = np.clip((np.trace(r) - 1.0) / 2.0, -1.0, 1.0)
-    angle = float(np.arccos(cos))
-    skew = np.array([r[2, 1] - r[1, 2], r[0, 2] - r[2, 0], r[1, 0] - r[0, 1]])
-    if angle < 1e-6:
-        return 0.5 * skew  # sin(angle) ~ angle: w = vee(r - r^T) / 2, exact to O(angle^3)
-    if np.pi - angle < 1e-6:
-        # near a half turn: the axis from the symmetric part (r + I) / 2 = k k^T
-        sym = (r + np.eye(3)) / 2.0
-        k = sym[int(np.argmax(np.diag(sym)))]
-        k = k / np.linalg.norm(k)
-        if k @ skew < 0.0:
-            k = -k
-        return angle * k
-    return angle / (2.0 * np.sin(angle)) * skew
+    """The rotation vector ``w`` with ``exp([w]x) = r`` (angle in [0, pi]) of one matrix
+    (:func:`.kernel_math.rotation_vector`, the compiled form inverse kinematics uses)."""
+    out = np.empty(3)
+    rotation_vector(np.ascontiguousarray(r, dtype=float), out)
+    return out

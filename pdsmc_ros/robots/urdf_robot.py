@@ -1,16 +1,13 @@
 """Any serial arm from its URDF, with Pinocchio: dynamics, kinematics and the task plane.
 
-:func:`urdf_robot_class` turns a URDF into a robot class with the interface of the
-built-in ones (``name``, ``n``, ``joint_names``, ``mass_matrix``, ``coriolis_matrix``,
-``gravity``, ``forward_dynamics``, forward and inverse kinematics, Jacobian), so a
-registered URDF arm runs wherever ``serial_3r`` does; :func:`from_urdf` returns one
-instance. Conventions (issue 16): URDF ``<dynamics damping>`` is the motor damping
-``B`` (Pinocchio reads it, its ``aba`` does not apply it, so Eq. (4.1) adds it here);
-``armature`` is the motor inertia ``J`` (URDF has no element for it), added to the
-mass matrix's diagonal; ``<limit effort velocity lower upper>`` are the arm's
-:attr:`~.base.Manipulator.effort_limits`, ``velocity_limits`` and ``position_limits``
-(Pinocchio's ``effortLimit``, ``velocityLimit``, ``lower/upperPositionLimit``), each
-overridable by the options beside the URDF; gravity is URDF's, along -z.
+A :class:`UrdfRobot` is an instance built from an :class:`~.urdf_arm.UrdfArm` (the
+arm's model and settings, read once by :func:`~.urdf_arm.urdf_arm`), with the interface
+of the built-in robots (``name``, ``n``, ``joint_names``, ``mass_matrix``,
+``coriolis_matrix``, ``gravity``, ``forward_dynamics``, forward and inverse kinematics,
+Jacobian), so a registered URDF arm runs wherever ``serial_3r`` does; :func:`from_urdf`
+returns one. URDF ``<dynamics damping>`` is the motor damping ``B`` (Pinocchio reads
+it, its ``aba`` does not apply it, so Eq. (4.1) adds it here); ``armature`` is the motor
+inertia ``J``, added to the mass matrix's diagonal; gravity is URDF's, along -z.
 
 Task space: the thesis's planar contours run in a :class:`~.task.TaskPlane`. A task
 point is ``(u, v, pose)``: the end effector's plane coordinates and its rotation about
@@ -32,27 +29,23 @@ path (:meth:`UrdfRobot.ik_path`) and converged to :data:`IK_TOLERANCE`.
 
 from __future__ import annotations
 
-import contextlib
 import json
-import os
-import sys
-import tempfile
-from collections.abc import Callable, Iterator, Mapping, Sequence
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Any, ClassVar
-from xml.etree import ElementTree
+from typing import Any
 from xml.sax.saxutils import escape
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..errors import InvalidInputError, UnreachableError
-from . import ik_kernels, spatial_kernels
-from .base import FloatArray, Manipulator, RobotParams
-from .options import per_joint, position_pairs
+from . import ik_kernels, spatial_layout
+from .base import GRAVITY, FloatArray, Manipulator, RobotParams
 from .task import TaskPlane, axis_rotation, rotation_log
+from .urdf_arm import ORIENTATIONS, UrdfArm, load_model, pinocchio_module, urdf_arm
 
-ORIENTATIONS = ("contour", "held", "free")
+__all__ = ["ORIENTATIONS", "UrdfArm", "UrdfRobot", "from_urdf", "load_model", "task_solve", "urdf_arm"]
+
 IK_TOLERANCE = 1e-14
 """Task error (m and rad, largest row) at which inverse kinematics stops."""
 IK_MAX_ITERATIONS = 60
@@ -65,134 +58,50 @@ APPROACH_STEPS = 50
 """Intermediate targets from the home configuration to a path's first point."""
 
 
-def _pinocchio() -> Any:
-    try:
-        import pinocchio
-    except ImportError as exc:  # pragma: no cover - a runtime dependency since issue 16
-        raise InvalidInputError("URDF robots need Pinocchio (pip package 'pin'): run make setup") from exc
-    return pinocchio
-
-
-@contextlib.contextmanager
-def captured_stderr() -> Iterator[Callable[[], list[str]]]:
-    """Collect what C++ code (urdfdom's console bridge) writes to file descriptor 2, so a bad
-    URDF is our one line instead of the parser's several."""
-    sys.stderr.flush()
-    saved = os.dup(2)
-    with tempfile.TemporaryFile(mode="w+b") as sink:
-        os.dup2(sink.fileno(), 2)
-        lines: list[str] = []
-        try:
-            yield lambda: lines
-        finally:
-            os.dup2(saved, 2)
-            os.close(saved)
-            sink.seek(0)
-            lines.extend(sink.read().decode(errors="replace").splitlines())
-
-
-def load_model(source: str | Path, *, locked_joints: Sequence[str] = ()) -> tuple[Any, str, str]:
-    """``(model, label, urdf_text)`` of a URDF file or text, with ``locked_joints`` fixed at 0
-    (a gripper's fingers, say).
-
-    Raises
-    ------
-    InvalidInputError
-        One line naming the file and the problem: no such file, it does not parse, no movable
-        joint, a closed chain or a tree, a joint other than revolute or prismatic, an unknown
-        locked joint, a moving link without mass.
-    """
-    pin = _pinocchio()
-    text = str(source)
-    is_xml = text.lstrip().startswith("<")
-    label = "URDF text" if is_xml else f"URDF {text!r}"
-    if not is_xml:
-        path = Path(text)
-        if not path.is_file():
-            raise InvalidInputError(f"{label}: no such file")
-        try:
-            xml = path.read_text()
-        except (OSError, UnicodeDecodeError) as exc:
-            raise InvalidInputError(f"{label}: cannot read it ({exc})") from None
-    else:
-        xml = text
-    try:
-        ElementTree.fromstring(xml)
-    except ElementTree.ParseError as exc:
-        raise InvalidInputError(f"{label} does not parse: {exc}") from None
-    with captured_stderr() as messages:
-        try:
-            model = pin.buildModelFromXML(xml)
-        except (ValueError, RuntimeError) as exc:
-            model, error = None, str(exc).strip()
-    if model is None:
-        said = [line.strip() for line in messages() if line.strip()]
-        reason = said[0] if said else (error.splitlines()[0] if error else "not a URDF model")
-        raise InvalidInputError(f"{label} does not parse: {reason}")
-    if locked_joints:
-        unknown = [j for j in locked_joints if not model.existJointName(j)]
-        if unknown:
-            raise InvalidInputError(f"{label}: no joint {unknown[0]!r} to lock")
-        ids = [model.getJointId(j) for j in locked_joints]
-        model = pin.buildReducedModel(model, ids, pin.neutral(model))
-    if model.nv == 0:
-        raise InvalidInputError(f"{label}: no movable joint")
-    for i in range(1, model.njoints):
-        kind = model.joints[i].shortname()
-        if "UB" in kind:  # Pinocchio's unbounded revolute: (cos, sin) coordinates, nq = 2 nv
-            raise InvalidInputError(f"{label}: joint {model.names[i]!r} is continuous; only revolute and "
-                                    "prismatic joints are supported (make it type=\"revolute\" with <limit lower= "
-                                    "upper=>, or lock it with locked_joints)")
-        if not kind.startswith(("JointModelR", "JointModelP")):
-            raise InvalidInputError(f"{label}: joint {model.names[i]!r} is neither revolute nor prismatic "
-                                    f"({kind.removeprefix('JointModel')}); only those are supported")
-    branching = [model.names[i] for i in range(2, model.njoints) if model.parents[i] != i - 1]
-    if branching:
-        raise InvalidInputError(f"{label}: not a serial chain: joint {branching[0]!r} branches off "
-                                f"(lock the joints of other branches, e.g. a gripper's fingers)")
-    massless = [model.names[i] for i in range(1, model.njoints) if model.inertias[i].mass <= 0.0]
-    if massless:
-        raise InvalidInputError(f"{label}: the links moved by {massless} have no mass (an <inertial> is needed)")
-    return model, label, xml
-
-
 class UrdfRobot(Manipulator):
-    """A serial arm backed by a Pinocchio model (made by :func:`urdf_robot_class`).
+    """A serial arm backed by a Pinocchio model: an instance of an :class:`~.urdf_arm.UrdfArm`
+    (its model and settings, shared) with its own Pinocchio data.
 
-    The class carries the model and the task set-up; each instance its own Pinocchio
-    data. ``payload`` must be 0: a load is a fixed link of the URDF.
+    ``payload`` must be 0: a load is a fixed link of the URDF.
     """
 
-    task_dim: ClassVar[int] = 3
-    kernel: ClassVar[int | None] = spatial_kernels.SERIAL_CHAIN
-    model: ClassVar[Any]
-    urdf: ClassVar[str]
-    source: ClassVar[str]
-    ee_frame: ClassVar[str]
-    armature: ClassVar[FloatArray]
-    damping: ClassVar[FloatArray]
-    torque_limit: ClassVar[FloatArray]
-    """The same array as ``effort_limits`` (its name before the limits were on every robot)."""
-    velocity_limit: ClassVar[FloatArray]
-    lower_limit: ClassVar[FloatArray]
-    upper_limit: ClassVar[FloatArray]
-    home: ClassVar[FloatArray]
-    plane: ClassVar[TaskPlane]
-    orientation: ClassVar[str]
-    reference_rotation: ClassVar[FloatArray]
-    rows: ClassVar[NDArray[np.intp]]
-    settings: ClassVar[Mapping[str, Any]]
-    options: ClassVar[Mapping[str, Any]]
-    """The task options the class was made with, as plain data (its ``<pdsmc_ros>`` element)."""
+    task_dim = 3
+    kernel = spatial_layout.SERIAL_CHAIN
+    has_link_params = False
 
-    def __init__(self, payload: float = 0.0, *, params: RobotParams | None = None) -> None:  # noqa: ARG002
+    def __init__(self, arm: UrdfArm, payload: float = 0.0, *, params: RobotParams | None = None) -> None:  # noqa: ARG002
         if payload:
-            raise InvalidInputError(f"robot {self.name!r}: a payload on a URDF arm is a fixed link of its URDF "
+            raise InvalidInputError(f"robot {arm.name!r}: a payload on a URDF arm is a fixed link of its URDF "
                                     f"(got payload {payload!r} kg)")
+        self.arm = arm
+        self.name = arm.name
+        self.n = arm.n
+        self.joint_names = arm.joint_names
+        self.model: Any = arm.model
+        self.urdf: str = arm.urdf
+        self.source: str = arm.source
+        self.ee_frame: str = arm.ee_frame
+        self.armature: FloatArray = arm.armature
+        self.damping: FloatArray = arm.damping
+        self.effort_limits = arm.effort_limits
+        self.velocity_limits = arm.velocity_limits
+        self.position_limits = arm.position_limits
+        self.torque_limit: FloatArray = arm.effort_limits
+        """The same array as ``effort_limits`` (its name before the limits were on every robot)."""
+        self.velocity_limit: FloatArray = arm.velocity_limits
+        self.lower_limit: FloatArray = arm.position_limits[:, 0].copy()
+        self.upper_limit: FloatArray = arm.position_limits[:, 1].copy()
+        self.home: FloatArray = arm.home
+        self.plane: TaskPlane = arm.plane
+        self.orientation: str = arm.orientation
+        self.reference_rotation: FloatArray = arm.reference_rotation
+        self.rows: NDArray[np.intp] = arm.rows
+        self.settings: Mapping[str, Any] = arm.settings
+        self.options: Mapping[str, Any] = arm.options
         self.payload = 0.0
-        self.J = self.armature.copy()
-        self.B = self.damping.copy()
-        self._pin = _pinocchio()
+        self.J = arm.armature.copy()
+        self.B = arm.damping.copy()
+        self._pin = pinocchio_module()
         self.data = self.model.createData()
         self.ee_id = self.model.getFrameId(self.ee_frame)
         self._basis = self.plane.basis
@@ -200,28 +109,53 @@ class UrdfRobot(Manipulator):
         self._basis6[:3, :3] = self._basis6[3:, 3:] = self._basis
         self._packed: FloatArray | None = None
 
-    @classmethod
-    def description(cls) -> str:
+    def description(self, payload: float | None = None) -> str:  # noqa: ARG002
         """The URDF with this arm's task options and run settings in a ``<pdsmc_ros>`` element
         (URDF parsers ignore unknown elements, as ros2_control's), so a node given
-        ``robot:=/robot_description`` rebuilds the very same arm."""
+        ``robot:=/robot_description`` rebuilds the very same arm. A load is a link of the URDF:
+        ``payload`` is not used."""
         # preset gains are looked up by the arm's name unless its settings name another table
-        block = json.dumps({**cls.options, "gains": cls.name, **cls.settings}, sort_keys=True)
+        block = json.dumps({**self.options, "gains": self.name, **self.settings}, sort_keys=True)
         element = f"\n  <pdsmc_ros>{escape(block)}</pdsmc_ros>\n"
-        head, closing, tail = cls.urdf.rpartition("</robot>")
-        return head + element + closing + tail if closing else cls.urdf
+        head, closing, tail = self.urdf.rpartition("</robot>")
+        return head + element + closing + tail if closing else self.urdf
+
+    def model_source(self) -> tuple[str, float, FloatArray, tuple[str, ...]]:
+        return self.urdf, GRAVITY, np.asarray(self.armature, dtype=float), tuple(self.options.get("locked_joints", ()))
+
+    def payload_params(self, payload: float) -> RobotParams:
+        raise InvalidInputError(f"robot {self.name!r}: a payload on a URDF arm is a fixed link of its URDF")
+
+    def contour_set(self) -> str:
+        """The contour presets its settings name (the serial arm's by default: the thesis's task-space
+        contours)."""
+        return str(self.settings.get("contours", "serial_3r"))
+
+    def contour_size(self) -> float | None:
+        size = self.settings.get("contour_size")
+        return float(size) if size else None
+
+    def gains_source(self) -> str | Mapping[str, Any]:
+        source = self.settings.get("gains", self.name)
+        return source if isinstance(source, Mapping) else str(source)
+
+    def home_configuration(self) -> FloatArray | None:
+        return np.asarray(self.home, dtype=float).copy()
+
+    def plane_to_base(self, xy: FloatArray) -> FloatArray:
+        return self.plane.world(xy)
 
     def pack(self) -> FloatArray:
-        """Flat parameters of the compiled form (:func:`.spatial_kernels.pack`)."""
-        return spatial_kernels.pack(self.model, self.J, self.B, self.ee_id, self.plane.origin, self.plane.u,
+        """Flat parameters of the compiled form (:func:`.spatial_layout.pack`)."""
+        return spatial_layout.pack(self.model, self.J, self.B, self.ee_id, self.plane.origin, self.plane.u,
                                     self.plane.v)
 
     @classmethod
     def create(cls, payload: float = 0.0, *, params: RobotParams | None = None) -> UrdfRobot:
-        return cls(payload, params=params)
+        raise TypeError("a UrdfRobot is built from its arm: UrdfArm.create (or from_urdf)")
 
     def with_payload(self, payload: float) -> UrdfRobot:
-        return type(self)(payload)
+        return UrdfRobot(self.arm, payload)
 
     # -- per configuration, over any leading batch axes --------------------- #
     def _each(self, fn: Any, *arrays: FloatArray) -> FloatArray:
@@ -407,155 +341,7 @@ def task_solve(jac: FloatArray, b: FloatArray, damping: float) -> FloatArray:
     return np.linalg.solve(jac.T @ jac + damping * np.eye(n), jac.T @ b)
 
 
-def _structural_rows(model: Any, data: Any, ee_id: int, basis6: FloatArray) -> NDArray[np.bool_]:
-    """Task rows the arm cannot move in any configuration (a planar arm's out-of-plane rows)."""
-    pin = _pinocchio()
-    rng = np.random.default_rng(0)
-    lo = np.where(np.isfinite(model.lowerPositionLimit), model.lowerPositionLimit, -np.pi)
-    hi = np.where(np.isfinite(model.upperPositionLimit), model.upperPositionLimit, np.pi)
-    lo, hi = np.maximum(lo, -np.pi), np.minimum(hi, np.pi)
-    largest = np.zeros(6)
-    for _ in range(8):
-        q = rng.uniform(lo, hi)
-        pin.computeJointJacobians(model, data, q)
-        pin.updateFramePlacement(model, data, ee_id)
-        # eigenpy hands a one-joint arm's 6 x 1 Jacobian over as a vector
-        jac = basis6 @ np.reshape(pin.getFrameJacobian(model, data, ee_id, pin.LOCAL_WORLD_ALIGNED), (6, -1))
-        largest = np.maximum(largest, np.max(np.abs(jac), axis=1))
-    return largest < 1e-10
-
-
-def urdf_robot_class(
-    source: str | Path,
-    *,
-    name: str | None = None,
-    armature: ArrayLike | None = None,
-    ee_frame: str | None = None,
-    locked_joints: Sequence[str] = (),
-    home: ArrayLike | None = None,
-    plane: TaskPlane | None = None,
-    orientation: str | None = None,
-    settings: Mapping[str, Any] | None = None,
-    effort_limits: ArrayLike | None = None,
-    velocity_limits: ArrayLike | None = None,
-    position_limits: ArrayLike | None = None,
-    options_label: str | None = None,
-) -> type[UrdfRobot]:
-    """A robot class for the arm of a URDF file or text.
-
-    Parameters
-    ----------
-    source : str or Path
-        The URDF file, or its XML text (``/robot_description``).
-    name : str, optional
-        The robot's name; by default the URDF's.
-    armature : array_like, optional
-        Motor inertia ``J`` per movable joint (kg m^2), or one value for all; 0 by default.
-    ee_frame : str, optional
-        The end-effector frame; by default the URDF's last frame.
-    locked_joints : sequence of str
-        Joints held at 0 (a gripper's fingers): not part of the arm.
-    home : array_like, optional
-        The configuration a run's inverse kinematics starts from; all zeros by default.
-    plane : TaskPlane, optional
-        Where the contours run; by default the vertical plane through the end effector at
-        ``home``, facing the base (:meth:`TaskPlane.facing_base`).
-    orientation : str, optional
-        ``contour``, ``held`` or ``free`` (module docstring); chosen from the arm by default.
-    settings : mapping, optional
-        Run settings and presets (``control_rate``, ``sample_rate``, ``contour_bound``,
-        ``contour_size``, ``contours``, ``gains``), as a robot's entry of a catalog.
-    effort_limits, velocity_limits : array_like, optional
-        Per joint (or one for all), N m and rad/s, > 0 (``.inf``: unlimited); by default the
-        URDF's ``<limit effort velocity>``.
-    position_limits : array_like, optional
-        ``(n, 2)`` lower and upper limits (rad or m); by default the URDF's ``<limit lower upper>``.
-    options_label : str, optional
-        What the options' errors name (the options file); by default the URDF.
-
-    Raises
-    ------
-    InvalidInputError
-        One line naming the file and the problem (:func:`load_model`), an unknown
-        end-effector frame, a wrong armature, home or limit.
-    """
-    pin = _pinocchio()
-    model, label, xml = load_model(source, locked_joints=locked_joints)
-    frame = ee_frame or model.frames[model.nframes - 1].name
-    if not model.existFrame(frame):
-        raise InvalidInputError(f"{label}: no frame {frame!r} (frames: {[f.name for f in model.frames][1:]})")
-    n = model.nv
-    where = options_label or label
-    names = tuple(model.names[i] for i in range(1, model.njoints))
-    j = per_joint(0.0 if armature is None else armature, names, "armature", where, lowest=0.0, finite=True)
-    q_home = np.zeros(n) if home is None else per_joint(home, names, "home", where, finite=True, single=False)
-    effort = per_joint(model.effortLimit if effort_limits is None else effort_limits, names, "effort_limits",
-                       where, above=0.0)
-    velocity = per_joint(model.velocityLimit if velocity_limits is None else velocity_limits, names,
-                         "velocity_limits", where, above=0.0)
-    if position_limits is None:
-        position = np.stack([np.asarray(model.lowerPositionLimit, dtype=float),
-                             np.asarray(model.upperPositionLimit, dtype=float)], axis=-1)
-    else:
-        position = position_pairs(position_limits, names, where)
-    damping = np.asarray(model.damping, dtype=float).copy()
-    model.armature[:] = 0.0  # J is added by the robot, as for the built-in ones (Mbar = M + J)
-    data = model.createData()
-    ee_id = model.getFrameId(frame)
-    pin.framesForwardKinematics(model, data, q_home)
-    x_home = data.oMf[ee_id].translation.copy()
-    r_home = data.oMf[ee_id].rotation.copy()
-    placed = plane or TaskPlane.facing_base(x_home)
-    basis6 = np.zeros((6, 6))
-    basis6[:3, :3] = basis6[3:, 3:] = placed.basis
-    fixed = _structural_rows(model, data, ee_id, basis6)
-    planar = bool(fixed[2] and fixed[3] and fixed[4])
-    mode = orientation or ("contour" if planar else "held" if n >= 6 else "free")
-    if mode not in ORIENTATIONS:
-        raise InvalidInputError(f"orientation must be one of {', '.join(ORIENTATIONS)}, got {mode!r}")
-    wanted = {"contour": range(6), "held": range(6), "free": range(3)}[mode]
-    rows = np.array([r for r in wanted if not fixed[r]], dtype=np.intp)
-    if mode == "contour":
-        pin.framesForwardKinematics(model, data, np.zeros(n))
-        reference = data.oMf[ee_id].rotation.copy()  # pose 0: the zero configuration's orientation
-    else:
-        reference = r_home
-    robot_name = name or model.name
-    attrs = {
-        "name": robot_name,
-        "n": n,
-        "joint_names": names,
-        "model": model,
-        "urdf": xml,
-        "source": str(source) if not str(source).lstrip().startswith("<") else "",
-        "ee_frame": frame,
-        "armature": j,
-        "damping": damping,
-        "effort_limits": effort,
-        "velocity_limits": velocity,
-        "position_limits": position,
-        "torque_limit": effort,
-        "velocity_limit": velocity,
-        "lower_limit": position[:, 0].copy(),
-        "upper_limit": position[:, 1].copy(),
-        "home": q_home,
-        "plane": placed,
-        "orientation": mode,
-        "reference_rotation": reference,
-        "rows": rows,
-        "settings": dict(settings or {}),
-        "options": {
-            "armature": j.tolist(), "ee_frame": frame, "locked_joints": list(locked_joints),
-            "home": q_home.tolist(), "plane": placed.describe(), "orientation": mode,
-            **({} if effort_limits is None else {"effort_limits": effort.tolist()}),
-            **({} if velocity_limits is None else {"velocity_limits": velocity.tolist()}),
-            **({} if position_limits is None else {"position_limits": position.tolist()}),
-        },
-    }
-    return type(f"UrdfRobot[{robot_name}]", (UrdfRobot,), attrs)
-
-
 def from_urdf(source: str | Path, *, armature: ArrayLike | None = None, ee_frame: str | None = None,
               name: str | None = None, **options: Any) -> UrdfRobot:
-    """A robot from a URDF file (or the URDF text itself); see :func:`urdf_robot_class`."""
-    return urdf_robot_class(source, armature=armature, ee_frame=ee_frame, name=name, **options)()
+    """A robot from a URDF file (or the URDF text itself); see :func:`~.urdf_arm.urdf_arm`."""
+    return urdf_arm(source, armature=armature, ee_frame=ee_frame, name=name, **options).create()

@@ -188,14 +188,14 @@ def default_positions(robot: str) -> FloatArray:
     arm at the start of its ``circle`` contour -- where the ``plant`` node starts it, so a
     thesis run against the driver begins without an initial error."""
     from ..presets import build_contour
-    from ..robots.registry import ROBOTS, make_robot
-    from ..robots.urdf_robot import UrdfRobot
+    from ..robots.registry import make_robot
     from ..trajectories import JointReference
 
-    cls = ROBOTS[robot]
-    if issubclass(cls, UrdfRobot):
-        return np.asarray(cls.home, dtype=float).copy()
-    reference = JointReference(make_robot(robot), build_contour(robot, "circle"))
+    model = make_robot(robot)
+    home = model.home_configuration()
+    if home is not None:
+        return home
+    reference = JointReference(model, build_contour(robot, "circle"))
     return np.asarray(reference.sample([0.0]).q[0], dtype=float)
 
 

@@ -42,11 +42,9 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ..errors import InvalidInputError
-from ..robots.base import GRAVITY, FloatArray
+from ..robots.base import FloatArray
 from ..robots.catalog import resolve_robot
-from ..robots.registry import ROBOTS, robot_params
-from ..robots.urdf_robot import UrdfRobot
-from ..urdf import robot_urdf
+from ..robots.registry import make_robot, robot_params
 
 THESIS_ARMS = ("serial_3r", "parallel_5r")
 INTEGRATORS = ("rk4", "implicitfast", "euler")
@@ -105,14 +103,11 @@ class MujocoArm:
 def description(robot: str) -> tuple[str, float, FloatArray | float, tuple[str, ...]]:
     """``(urdf, gravity, armature, locked_joints)`` of a registered robot: what both our model
     and MuJoCo's are built from."""
-    cls = ROBOTS[resolve_robot(robot)]
-    if issubclass(cls, UrdfRobot):
-        locked = tuple(cls.options.get("locked_joints", ()))
-        return cls.urdf, GRAVITY, np.asarray(cls.armature, dtype=float), locked
-    if robot not in THESIS_ARMS:
-        raise InvalidInputError(f"robot {robot!r}: no description MuJoCo can load (a thesis arm or a URDF arm)")
-    params = robot_params(robot)
-    return robot_urdf(robot, params), params.gravity, params.motor_inertia, ()
+    try:
+        return make_robot(resolve_robot(robot)).model_source()
+    except InvalidInputError:
+        raise InvalidInputError(f"robot {robot!r}: no description MuJoCo can load (a thesis arm or a URDF arm)"
+                                ) from None
 
 
 def mujoco_urdf(urdf: str, *, locked_joints: tuple[str, ...] = (), planar: bool = False) -> str:
@@ -177,10 +172,10 @@ def build_model(robot: str, *, timestep: float = 1e-3, integrator: str = "rk4") 
         raise InvalidInputError(f"timestep must be > 0 s, got {timestep!r}")
     if integrator not in INTEGRATORS:
         raise InvalidInputError(f"integrator must be one of {', '.join(INTEGRATORS)}, got {integrator!r}")
-    cls = ROBOTS[resolve_robot(robot)]
+    ours = make_robot(resolve_robot(robot))
     urdf, gravity, armature, locked = description(robot)
-    joints = tuple(cls.joint_names)
-    passive = tuple(cls.passive_joint_names)
+    joints = tuple(ours.joint_names)
+    passive = tuple(ours.passive_joint_names)
     try:
         spec = mujoco.MjSpec.from_string(mujoco_urdf(urdf, locked_joints=locked, planar=robot in THESIS_ARMS))
     except ValueError as exc:

@@ -20,7 +20,7 @@ from ..control.registry import law
 from ..control.stability import rate_margin
 from ..errors import InvalidInputError
 from ..presets import RunSpec, make_run
-from ..robots import ROBOTS
+from ..robots import make_robot
 from ..sim import simulate_many
 
 BASELINE = {"kp": 5000.0, "kd": 1000.0, "ks": 5.0, "lam": 10.0, "phi": 0.5}
@@ -66,7 +66,7 @@ def sweep_specs(
         raise InvalidInputError(f"unknown sweep parameter {param!r}; choose one of: {', '.join(swept)}")
     if values is not None and (not values or any(not np.isfinite(v) or v < 0 for v in values)):
         raise InvalidInputError(f"sweep values must be finite numbers >= 0, got {values}")
-    n = ROBOTS[robot].n
+    n = make_robot(robot).n
     specs = []
     for value in values if values is not None else thesis_values(*RANGES[param]):
         gains = Gains.from_mapping({k: [v] * n for k, v in {**BASELINE, param: value}.items()}, n, "pdsmc")

@@ -9,7 +9,7 @@ pytest.importorskip("pinocchio")
 
 import pinocchio as pin  # noqa: E402
 
-from pdsmc_ros.robots import ROBOTS, robot_params  # noqa: E402
+from pdsmc_ros.robots import make_robot, robot_params  # noqa: E402
 from pdsmc_ros.robots.catalog import resolve_robot  # noqa: E402
 from pdsmc_ros.robots.frames import LinkFrames, compose  # noqa: E402
 from pdsmc_ros.urdf import robot_urdf  # noqa: E402
@@ -17,7 +17,7 @@ from pdsmc_ros.urdf import robot_urdf  # noqa: E402
 
 @pytest.mark.parametrize("arm", ["ur5", "panda", "parallel_5r"])
 def test_link_frames_are_pinocchio_forward_kinematics(arm: str) -> None:
-    urdf = robot_urdf(arm, robot_params(arm)) if arm == "parallel_5r" else ROBOTS[resolve_robot(arm)].urdf
+    urdf = robot_urdf(arm, robot_params(arm)) if arm == "parallel_5r" else make_robot(resolve_robot(arm)).urdf
     frames = LinkFrames(urdf)
     model = pin.buildModelFromXML(urdf)
     data = model.createData()

@@ -1,4 +1,4 @@
-"""The compiled serial-chain dynamics (spatial_kernels) against Pinocchio: mass matrix, bias, gravity,
+"""The compiled serial chain (spatial_layout, _kernels, _dynamics) against Pinocchio: mass matrix, bias, gravity,
 Christoffel Coriolis product, end-effector pose and Jacobian, on the sample manipulator, the thesis's
 planar arm, the UR5, the Panda and a chain with prismatic joints; and what pack refuses."""
 
@@ -15,7 +15,9 @@ import pytest
 pin = pytest.importorskip("pinocchio")
 
 from pdsmc_ros.robots import robot_params  # noqa: E402
-from pdsmc_ros.robots import spatial_kernels as sk  # noqa: E402
+from pdsmc_ros.robots import spatial_dynamics as dyn  # noqa: E402
+from pdsmc_ros.robots import spatial_kernels as kin  # noqa: E402
+from pdsmc_ros.robots import spatial_layout as lay  # noqa: E402
 from pdsmc_ros.urdf import robot_urdf  # noqa: E402
 
 TOL = 1e-10
@@ -92,7 +94,7 @@ MODELS: dict[str, Callable[[], tuple[Any, str]]] = {
 
 def scratch(n: int) -> np.ndarray:
     """``workspace_size(n)`` floats and a tail of sentinels, to catch writes beyond it."""
-    return np.full(sk.workspace_size(n) + 8, SENTINEL)
+    return np.full(lay.workspace_size(n) + 8, SENTINEL)
 
 
 def close(got: np.ndarray, want: np.ndarray) -> None:
@@ -135,7 +137,7 @@ class Reference:
 
 def packed(model: Any, frame: str | int, armature: Any = 0.0, damping: Any = 0.0) -> np.ndarray:
     fid = frame if isinstance(frame, int) else model.getFrameId(frame)
-    return sk.pack(model, armature, damping, fid, [0.1, -0.2, 0.3], unit([1.0, 0.0, 1.0]), [0.0, 1.0, 0.0])
+    return lay.pack(model, armature, damping, fid, [0.1, -0.2, 0.3], unit([1.0, 0.0, 1.0]), [0.0, 1.0, 0.0])
 
 
 @pytest.mark.parametrize("name", list(MODELS))
@@ -146,17 +148,17 @@ def test_the_dynamics_are_pinocchios(name: str) -> None:
     ref = Reference(model, frame)
     armature = np.linspace(0.05, 0.3, n)
     p = packed(model, frame, armature, np.linspace(0.5, 1.0, n))
-    assert p[sk.N_JOINTS] == n and p.shape == (sk.HEADER_SIZE + n * sk.JOINT_SIZE,)
+    assert p[lay.N_JOINTS] == n and p.shape == (lay.HEADER_SIZE + n * lay.JOINT_SIZE,)
     work = scratch(n)
     mass, bias, g, cv, cqd = np.empty((n, n)), np.empty(n), np.empty(n), np.empty(n), np.empty(n)
     rng = np.random.default_rng(2024)
     for _ in range(SAMPLES):
         q = rng.uniform(-np.pi, np.pi, n)
         qd, v = rng.uniform(-3.0, 3.0, (2, n))
-        sk.terms(p, q, qd, mass, bias, work)
-        sk.gravity(p, q, g, work)
-        sk.coriolis_times(p, q, qd, v, cv, work)
-        sk.coriolis_times(p, q, qd, qd, cqd, work)
+        dyn.terms(p, q, qd, mass, bias, work)
+        dyn.gravity(p, q, g, work)
+        dyn.coriolis_times(p, q, qd, v, cv, work)
+        dyn.coriolis_times(p, q, qd, qd, cqd, work)
         np.testing.assert_array_equal(mass, mass.T)
         close(mass - np.diag(armature), ref.mass(q))
         close(bias, ref.nle(q, qd))
@@ -174,17 +176,17 @@ def test_the_end_effector_is_pinocchios(name: str) -> None:
     n = model.nv
     ref = Reference(model, frame)
     p = packed(model, frame)
-    origin, u, v = p[sk.PLANE_ORIGIN:][:3], p[sk.PLANE_U:][:3], p[sk.PLANE_V:][:3]
+    origin, u, v = p[lay.PLANE_ORIGIN:][:3], p[lay.PLANE_U:][:3], p[lay.PLANE_V:][:3]
     work = scratch(n)
     pos, pos2, rot, jac = np.empty(3), np.empty(3), np.empty((3, 3)), np.empty((6, n))
     rng = np.random.default_rng(99)
     for _ in range(SAMPLES):
         q = rng.uniform(-np.pi, np.pi, n)
-        sk.ee_position(p, q, pos, work)
-        sk.ee_pose(p, q, pos2, rot, work)
-        sk.ee_jacobian(p, q, jac, work)
+        kin.ee_position(p, q, pos, work)
+        kin.ee_pose(p, q, pos2, rot, work)
+        kin.ee_jacobian(p, q, jac, work)
         out = np.full(6, 7.0)
-        sk.outputs(p, q, q, out, work)
+        kin.outputs(p, q, q, out, work)
         want_pos, want_rot = ref.pose(q, ref.fid)
         close(pos, want_pos)
         np.testing.assert_array_equal(pos2, pos)
@@ -201,19 +203,19 @@ def test_frames_before_the_last_joint(frame: str) -> None:
     n = model.nv
     ref = Reference(model, frame)
     p = packed(model, frame)
-    assert p[sk.EE_JOINT] == model.frames[ref.fid].parentJoint
+    assert p[lay.EE_JOINT] == model.frames[ref.fid].parentJoint
     work = scratch(n)
     pos, rot, jac = np.empty(3), np.empty((3, 3)), np.empty((6, n))
     rng = np.random.default_rng(5)
     for _ in range(SAMPLES):
         q = rng.uniform(-np.pi, np.pi, n)
-        sk.ee_pose(p, q, pos, rot, work)
-        sk.ee_jacobian(p, q, jac, work)
+        kin.ee_pose(p, q, pos, rot, work)
+        kin.ee_jacobian(p, q, jac, work)
         want_pos, want_rot = ref.pose(q, ref.fid)
         close(pos, want_pos)
         close(rot, want_rot)
         close(jac, ref.jacobian(q, ref.fid))
-    assert not np.any(jac[:, int(p[sk.EE_JOINT]):])  # joints after the frame's do not move it
+    assert not np.any(jac[:, int(p[lay.EE_JOINT]):])  # joints after the frame's do not move it
 
 
 def test_armature_and_damping() -> None:
@@ -224,15 +226,15 @@ def test_armature_and_damping() -> None:
     work = scratch(n)
     q, qd = np.linspace(-1.0, 1.0, n), np.linspace(2.0, -1.0, n)
     with_motors, without, bias, bias_bare = np.empty((n, n)), np.empty((n, n)), np.empty(n), np.empty(n)
-    sk.terms(p, q, qd, with_motors, bias, work)
-    sk.terms(bare, q, qd, without, bias_bare, work)
+    dyn.terms(p, q, qd, with_motors, bias, work)
+    dyn.terms(bare, q, qd, without, bias_bare, work)
     close(with_motors - without, np.diag(armature))
     np.testing.assert_array_equal(bias, bias_bare)  # damping is not in the bias
-    assert [sk.motor_inertia(p, i) for i in range(n)] == list(armature)
-    assert [sk.damping(p, i) for i in range(n)] == list(damping)
+    assert [dyn.motor_inertia(p, i) for i in range(n)] == list(armature)
+    assert [dyn.damping(p, i) for i in range(n)] == list(damping)
     scalar = packed(model, frame, 0.5, 2.0)
-    assert [sk.motor_inertia(scalar, i) for i in range(n)] == [0.5] * n
-    assert [sk.damping(scalar, i) for i in range(n)] == [2.0] * n
+    assert [dyn.motor_inertia(scalar, i) for i in range(n)] == [0.5] * n
+    assert [dyn.damping(scalar, i) for i in range(n)] == [2.0] * n
 
 
 def test_the_scratch_fits_the_compiled_modules_workspace() -> None:
@@ -240,7 +242,7 @@ def test_the_scratch_fits_the_compiled_modules_workspace() -> None:
 
     for n in range(1, 13):
         # forward_dynamics hands terms what is left after 2 n + n^2 floats
-        assert sk.workspace_size(n) <= workspace(n).size - 2 * n - n * n
+        assert lay.workspace_size(n) <= workspace(n).size - 2 * n - n * n
 
 
 def add_chain(model: Any, joints: list[Any], parent: int = 0) -> int:
@@ -276,15 +278,15 @@ def test_pack_refuses_bad_arguments() -> None:
     n, fid = model.nv, model.getFrameId(frame)
     plane = ([0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0])
     with pytest.raises(ValueError, match="armature"):
-        sk.pack(model, np.ones(n - 1), 0.0, fid, *plane)
+        lay.pack(model, np.ones(n - 1), 0.0, fid, *plane)
     with pytest.raises(ValueError, match="damping"):
-        sk.pack(model, 0.0, -np.ones(n), fid, *plane)
+        lay.pack(model, 0.0, -np.ones(n), fid, *plane)
     with pytest.raises(ValueError, match="no frame"):
-        sk.pack(model, 0.0, 0.0, model.nframes, *plane)
+        lay.pack(model, 0.0, 0.0, model.nframes, *plane)
     with pytest.raises(ValueError, match="orthonormal"):
-        sk.pack(model, 0.0, 0.0, fid, [0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0])
+        lay.pack(model, 0.0, 0.0, fid, [0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0])
     with pytest.raises(ValueError, match="plane_origin"):
-        sk.pack(model, 0.0, 0.0, fid, [0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0])
+        lay.pack(model, 0.0, 0.0, fid, [0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0])
     crooked = pin.Model()
     add_chain(crooked, [pin.JointModelRevoluteUnaligned(np.array([0.0, 1.0, 1.0]))])  # not normalised
     with pytest.raises(ValueError, match="non-unit axis"):

@@ -164,7 +164,8 @@ def test_cached_kernels_built_from_other_sources_are_dropped(tmp_path: Path, mon
     from pdsmc_ros import kernel_cache
 
     sources = kernel_cache.kernel_sources()
-    assert {p.name for p in sources} >= {"compiled.py", "loop.py", "spatial_kernels.py", "ik_kernels.py"}
+    assert {p.name for p in sources} >= {"compiled.py", "loop.py", "spatial_layout.py", "spatial_kernels.py",
+                                         "spatial_dynamics.py", "ik_kernels.py", "kernel_math.py"}
     cache = tmp_path / "cache"
     cache.mkdir()
     stale = cache / "loop._closed_loop_compiled-22.py311.nbi"
@@ -186,14 +187,13 @@ def test_cached_kernels_built_from_other_sources_are_dropped(tmp_path: Path, mon
 def test_the_published_description_rebuilds_the_same_arm() -> None:
     """A pdsmc_ros plant's /robot_description carries the arm's task options (<pdsmc_ros>), so a
     node given robot:=/robot_description follows the same references as one given robot:=ur5."""
-    from pdsmc_ros.robots import ROBOTS
     from pdsmc_ros.robots.catalog import ROBOT_DESCRIPTION, register_description
 
-    ur5 = ROBOTS[resolve_robot("ur5")]
+    ur5 = make_robot(resolve_robot("ur5"))
     xml = ur5.description()
     assert "<pdsmc_ros>" in xml and xml.rstrip().endswith("</robot>")
     assert register_description(xml) == ROBOT_DESCRIPTION
-    again = ROBOTS[ROBOT_DESCRIPTION]
+    again = make_robot(ROBOT_DESCRIPTION)
     assert again.joint_names == ur5.joint_names and again.orientation == ur5.orientation
     np.testing.assert_array_equal(again.home, ur5.home)
     np.testing.assert_array_equal(again.plane.origin, ur5.plane.origin)
@@ -203,7 +203,7 @@ def test_the_published_description_rebuilds_the_same_arm() -> None:
     np.testing.assert_array_equal(a.q, b.q)
     # an arm's URDF from another publisher (no <pdsmc_ros>): the defaults
     plain = register_description(ur5.urdf)
-    assert ROBOTS[plain].orientation == "held" and np.all(ROBOTS[plain].home == 0.0)
+    assert make_robot(plain).orientation == "held" and np.all(make_robot(plain).home == 0.0)
     with pytest.raises(ConfigError, match="does not parse"):
         register_description("<robot")
 
@@ -246,3 +246,22 @@ def test_a_one_joint_arm_is_loaded_and_what_it_cannot_do_is_one_line(tmp_path: P
     assert proc.returncode == 2 and "Traceback" not in proc.stderr, proc.stderr
     assert proc.stderr.strip().splitlines() == [proc.stderr.strip()]
     assert "one.urdf workspace" in proc.stderr
+
+
+def test_a_urdf_arm_is_an_instance_of_its_settings_not_a_class_made_at_run_time() -> None:
+    """The registry holds the arm (an UrdfArm instance); each robot built from it is a UrdfRobot
+    with the arm's settings and its own Pinocchio data; what differs from a thesis arm is a method."""
+    from pdsmc_ros.robots import ROBOTS, UrdfArm, UrdfRobot
+
+    name = resolve_robot("ur5")
+    assert isinstance(ROBOTS[name], UrdfArm)
+    a, b = make_robot(name), make_robot(name)
+    assert type(a) is UrdfRobot and type(b) is UrdfRobot and a.arm is b.arm and a.data is not b.data
+    assert a.n == 6 and a.joint_names == ROBOTS[name].joint_names
+    assert a.contour_set() == "serial_3r" and a.gains_source() == "ur5" and not a.has_link_params
+    np.testing.assert_array_equal(a.home_configuration(), a.home)
+    with pytest.raises(InvalidInputError, match="a payload on a URDF arm"):
+        a.payload_params(1.0)
+    serial = make_robot("serial_3r")
+    assert serial.contour_set() == "serial_3r" and serial.home_configuration() is None and serial.has_link_params
+    assert serial.payload_params(1.5).links[2].mass == robot_params("serial_3r").links[2].mass + 1.5
