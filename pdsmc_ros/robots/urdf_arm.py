@@ -303,26 +303,12 @@ def urdf_arm(
         reference = data.oMf[ee_id].rotation.copy()  # pose 0: the zero configuration's orientation
     else:
         reference = r_home
-    robot_name = name or model.name
+    source_file = str(source) if not str(source).lstrip().startswith("<") else ""
     return UrdfArm(
-        name=robot_name,
-        n=n,
-        joint_names=names,
-        model=model,
-        urdf=xml,
-        source=str(source) if not str(source).lstrip().startswith("<") else "",
-        ee_frame=frame,
-        armature=j,
-        damping=damping,
-        effort_limits=effort,
-        velocity_limits=velocity,
-        position_limits=position,
-        home=q_home,
-        plane=placed,
-        orientation=mode,
-        reference_rotation=reference,
-        rows=rows,
-        settings=dict(settings or {}),
+        name=name or model.name, n=n, joint_names=names, model=model, urdf=xml, source=source_file,
+        ee_frame=frame, armature=j, damping=damping, effort_limits=effort, velocity_limits=velocity,
+        position_limits=position, home=q_home, plane=placed, orientation=mode, reference_rotation=reference,
+        rows=rows, settings=dict(settings or {}),
         options={
             "armature": j.tolist(), "ee_frame": frame, "locked_joints": list(locked_joints),
             "home": q_home.tolist(), "plane": placed.describe(), "orientation": mode,
