@@ -8,7 +8,6 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from pathlib import Path
-from typing import ClassVar
 
 import numpy as np
 import pytest
@@ -52,11 +51,11 @@ TOY_CONFIG = {
 class Toy2R(Manipulator):
     """A planar 2R arm (x, y task point), numpy only: no compiled form."""
 
-    name: ClassVar[str] = "toy_2r"
-    n: ClassVar[int] = 2
-    task_dim: ClassVar[int] = 2
-    joint_names: ClassVar[tuple[str, ...]] = ("shoulder", "elbow")
-    payload_link: ClassVar[int] = 1
+    name = "toy_2r"
+    n = 2
+    task_dim = 2
+    joint_names = ("shoulder", "elbow")
+    payload_link = 1
 
     def __init__(self, payload: float = 0.0, *, params: RobotParams) -> None:
         super().__init__(payload, params=params)
