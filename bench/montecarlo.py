@@ -25,7 +25,7 @@ import sys
 import time
 
 from pdsmc_ros.engine import dask_client
-from pdsmc_ros.montecarlo import base_specs, load_uncertainty, run_sample
+from pdsmc_ros.experiments.montecarlo import base_specs, load_uncertainty, run_sample
 
 ROBOT, CONTOUR, CONTROLLERS = "parallel_5r", "circle", ("pd", "smc", "pdsmc")
 

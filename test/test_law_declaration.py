@@ -41,8 +41,8 @@ def pd_g_linear(g: FloatArray, smc_model: FloatArray, mass: FloatArray) -> tuple
 
 
 def pd_gains() -> dict[str, list[float]]:
-    """Kp and Kd stable at 500 Hz (tune's starting point, :func:`pdsmc_ros.tuning.starting_gains`)."""
-    from pdsmc_ros.tuning import starting_gains
+    """Kp and Kd stable at 500 Hz (tune's starting point, :func:`pdsmc_ros.experiments.tuning.starting_gains`)."""
+    from pdsmc_ros.experiments.tuning import starting_gains
 
     placeholder = {"kp": [1.0], "kd": [1.0], "kg": 1.0}
     start = starting_gains(make_run("serial_3r", "zigzag", "pd_g", rate=500.0, overrides=placeholder))

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from pdsmc_ros.errors import ConfigError
-from pdsmc_ros.montecarlo import base_specs, load_uncertainty, run_sample, sample_plant
+from pdsmc_ros.experiments.montecarlo import base_specs, load_uncertainty, run_sample, sample_plant
 
 pytest.importorskip("distributed")
 
@@ -50,7 +50,7 @@ def test_draws_depend_on_the_seed_and_the_run_alone_and_every_controller_shares_
 
 def test_every_csv_cell_is_a_plain_number_or_word(tmp_path: Path) -> None:
     """numpy 2's ``repr`` of a numpy scalar (``np.float64(0.75...)``) is not a number to a CSV reader."""
-    from pdsmc_ros.montecarlo import summarize, write_outputs
+    from pdsmc_ros.experiments.montecarlo import summarize, write_outputs
 
     spreads = load_uncertainty()
     specs = [dataclasses.replace(s, duration_factor=0.02) for s in base_specs("serial_3r", "circle", ["pd", "smc"])]

@@ -358,7 +358,7 @@ def test_a_ur5_with_tuned_gains_over_dds_equals_in_process(ros_env: dict, tmp_pa
     example-robot-data with it, and the bag is the in-process run with those gains."""
     import sys
 
-    from pdsmc_ros.tuning import read_params_file
+    from pdsmc_ros.experiments.tuning import read_params_file
 
     params = tmp_path / "ur5_pd.yaml"
     tuned = subprocess.run([sys.executable, "-m", "pdsmc_ros.cli", "tune", "--robot", "ur5", "--contour", "circle",

@@ -14,7 +14,7 @@ ROOT = Path(__file__).resolve().parent.parent
 CORE = ["pdsmc_ros/bag", "pdsmc_ros/thesis", "pdsmc_ros/robots", "pdsmc_ros/control", "pdsmc_ros/sim",
         "pdsmc_ros/config.py", "pdsmc_ros/errors.py", "pdsmc_ros/metrics.py",
         "pdsmc_ros/presets.py", "pdsmc_ros/trajectories", "pdsmc_ros/urdf.py",
-        "pdsmc_ros/engine.py", "pdsmc_ros/montecarlo.py", "pdsmc_ros/tuning.py", "pdsmc_ros/live_view.py",
+        "pdsmc_ros/engine.py", "pdsmc_ros/live_view.py",
         "pdsmc_ros/kernel_cache.py", "pdsmc_ros/settings.py", "pdsmc_ros/runtime",
         "pdsmc_ros/resources.py", "pdsmc_ros/scores.py", "pdsmc_ros/experiments"]
 

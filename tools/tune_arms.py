@@ -15,8 +15,8 @@ import yaml
 
 from pdsmc_ros.control.gains import Gains
 from pdsmc_ros.control.stability import check_gains
+from pdsmc_ros.experiments.tuning import tune
 from pdsmc_ros.presets import make_run
-from pdsmc_ros.tuning import tune
 
 # each gain group's contours: tuned on the first, every candidate checked on all of them
 GROUPS = {"linear": ("zigzag", "diamond"), "circle": ("circle",), "ellipse": ("ellipse",)}

@@ -29,8 +29,8 @@ from .options import name_list, positive_float, run_count, seed_value, worker_co
 
 if TYPE_CHECKING:
     from ..experiments.compare import Column, LawRow, LawSpec
+    from ..experiments.montecarlo import Spread
     from ..metrics import Samples
-    from ..montecarlo import Spread
 
 EXIT_DIVERGED = 1
 
@@ -140,7 +140,7 @@ def run(args: argparse.Namespace) -> int:
 
 def _check_montecarlo(args: argparse.Namespace, entries: Sequence[LawSpec]) -> dict[str, Spread]:
     """The spreads of ``--uncertainty`` and an arm whose parameters can be drawn (before any run)."""
-    from ..montecarlo import base_specs, load_uncertainty
+    from ..experiments.montecarlo import base_specs, load_uncertainty
 
     spreads = load_uncertainty(args.uncertainty)
     base_specs(args.robot, args.contour, [entries[0].name], rate=args.rate, needs_gains=False)

@@ -40,7 +40,14 @@ def run(args: argparse.Namespace) -> int:
     from ..control import law
     from ..control.stability import check_rate
     from ..engine import Progress, dask_client, run_tasks
-    from ..montecarlo import base_specs, load_uncertainty, plot_distribution, run_sample, summarize, write_outputs
+    from ..experiments.montecarlo import (
+        base_specs,
+        load_uncertainty,
+        plot_distribution,
+        run_sample,
+        summarize,
+        write_outputs,
+    )
 
     for controller in args.controllers:
         law(controller)

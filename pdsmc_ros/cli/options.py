@@ -160,9 +160,9 @@ def spec_from_args(args: argparse.Namespace) -> RunSpec:
     params = None
     rate = args.rate
     if args.params_file:
+        from ..experiments.tuning import controller_parameters, read_params_file
         from ..robots import make_robot
         from ..robots.catalog import resolve_robot
-        from ..tuning import controller_parameters, read_params_file
 
         given = controller_parameters(args.params_file)
         flags = {"robot": args.robot, "contour": args.contour, "type": args.controller, "scenario": args.scenario}
@@ -198,7 +198,7 @@ RUN_DEFAULTS = {"scenario": "nominal", "rate": None, "smc_reading": "literal", "
 
 def file_controller(path: str, controllers: list[str]) -> str:
     """The law whose gains a params file holds (its ``type``), one of ``controllers``."""
-    from ..tuning import controller_parameters
+    from ..experiments.tuning import controller_parameters
 
     controller = controller_parameters(path).get("type")
     if controller not in controllers:

@@ -33,7 +33,7 @@ def add_parser(sub: argparse._SubParsersAction, commands: dict) -> None:  # type
 
 def run(args: argparse.Namespace) -> int:
     from ..control import law
-    from ..tuning import Candidate, Requirement, tune, write_params_file
+    from ..experiments.tuning import Candidate, Requirement, tune, write_params_file
 
     def progress(candidate: Candidate) -> None:
         error = "-" if candidate.contour_mean is None else f"{candidate.contour_mean:.4e} m"

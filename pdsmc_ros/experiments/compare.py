@@ -130,7 +130,7 @@ def law_specs(robot: str, contour: str, laws: Sequence[str], *, scenario: str = 
     from ..control.stability import check_rate
     from ..robots import make_robot
     from ..robots.catalog import resolve_robot
-    from ..tuning import read_params_file
+    from .tuning import read_params_file
 
     for name in laws:
         law(name)
@@ -240,7 +240,7 @@ def params_by_law(paths: Sequence[str], laws: Sequence[str]) -> dict[str, str]:
     ConfigError
         A file without ``type``, for a law not compared, or two files for one law.
     """
-    from ..tuning import controller_parameters
+    from .tuning import controller_parameters
 
     out: dict[str, str] = {}
     for path in paths:

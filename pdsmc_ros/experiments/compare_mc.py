@@ -1,6 +1,6 @@
 """The comparison's Monte Carlo: every law against the same drawn plants, with bootstrap intervals.
 
-The plants are :mod:`pdsmc_ros.montecarlo`'s (:func:`~pdsmc_ros.montecarlo.sample_plant`: run
+The plants are :mod:`pdsmc_ros.experiments.montecarlo`'s (:func:`~pdsmc_ros.experiments.montecarlo.sample_plant`: run
 ``i`` draws from ``default_rng([seed, i])``, so ``pdsmc compare --runs N --seed K`` draws the
 plants of ``pdsmc montecarlo --runs N --seed K``) and every law runs on each (common random
 numbers); the runs go through the one engine (:mod:`pdsmc_ros.engine`, Dask). Each column of
@@ -18,10 +18,10 @@ from typing import Any
 
 import numpy as np
 
-from ..montecarlo import Spread
 from ..presets import RunSpec
 from .bootstrap import Interval, bootstrap_mean
 from .compare import Column, cell
+from .montecarlo import Spread
 
 
 def compare_plant(index: int, seed: int, specs: Sequence[RunSpec], spreads: Mapping[str, Spread]
@@ -29,10 +29,10 @@ def compare_plant(index: int, seed: int, specs: Sequence[RunSpec], spreads: Mapp
     """Run ``index``: one drawn plant, every law of ``specs`` on it; a row per law with the
     table's values (:func:`.compare.run_values`) and its ``status`` (``ok``, ``diverged`` or
     ``failed: ...``). A task of the engine (module level: workers import it)."""
-    from ..montecarlo import sample_plant
     from ..robots import make_robot
     from ..sim import simulate
     from .compare import run_values
+    from .montecarlo import sample_plant
 
     params, payload, initial, _ = sample_plant(specs[0].robot, spreads, np.random.default_rng([seed, index]))
     plant = make_robot(specs[0].robot, payload=payload, params=params)

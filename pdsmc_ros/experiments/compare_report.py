@@ -162,7 +162,7 @@ def write_report(report: Report, data: Mapping[str, Any], mc_rows: Sequence[Mapp
                  out: Path, fmt: str) -> list[Path]:
     """``compare.md`` (and ``compare.html`` for ``fmt == "html"``), ``compare.json`` and, with a Monte
     Carlo, ``compare_runs.csv`` (a row per run and law) into ``out``."""
-    from ..montecarlo import plain_cell
+    from .montecarlo import plain_cell
 
     written = [out / "compare.md", out / "compare.json"]
     written[0].write_text(to_markdown(report))

@@ -61,7 +61,7 @@ def simulate(spec: RunSpec, *, check_stability: bool = True, plant: Manipulator 
         Refuse gains that cannot be stable at the rate (before anything runs).
     plant : Manipulator, optional
         The simulated robot instead of ``spec.robot_model()`` (a plant that is not the model:
-        :mod:`pdsmc_ros.montecarlo`); the controller keeps ``spec``'s nominal model.
+        :mod:`pdsmc_ros.experiments.montecarlo`); the controller keeps ``spec``'s nominal model.
     initial_error : array_like, optional
         Added to the joint angles the run starts from (the reference's first point), rad.
 

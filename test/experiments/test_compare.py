@@ -68,7 +68,7 @@ def params_file(folder: Path, law: str, **gains: object) -> str:
 
 
 def serial_pd_gains() -> dict[str, list[float]]:
-    from pdsmc_ros.tuning import starting_gains
+    from pdsmc_ros.experiments.tuning import starting_gains
 
     start = starting_gains(make_run("serial_3r", "zigzag", "pd", rate=500.0))
     return {"kp": list(start["kp"]), "kd": list(start["kd"])}
@@ -202,7 +202,7 @@ def test_the_montecarlo_runs_montecarlos_plants_and_gives_intervals(tmp_path: Pa
     import dataclasses
 
     from pdsmc_ros.experiments.compare_mc import compare_plant
-    from pdsmc_ros.montecarlo import load_uncertainty, run_sample
+    from pdsmc_ros.experiments.montecarlo import load_uncertainty, run_sample
 
     # the plants of pdsmc montecarlo: run i of seed K is the same draw, every law on it
     specs = [dataclasses.replace(e.spec, duration_factor=0.05)

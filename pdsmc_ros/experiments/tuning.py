@@ -23,14 +23,14 @@ from typing import Any
 import numpy as np
 import yaml
 
-from .control.gains import Gains
-from .control.registry import gain_names, law
-from .control.stability import THEOREM_LAWS, check_gains, loop_delay
-from .errors import ConfigError, PdsmcError
-from .presets import RunSpec, make_run
-from .robots import make_robot
-from .robots.catalog import resolve_robot
-from .settings import CONTROLLER_PARAMETERS, node_parameters
+from ..control.gains import Gains
+from ..control.registry import gain_names, law
+from ..control.stability import THEOREM_LAWS, check_gains, loop_delay
+from ..errors import ConfigError, PdsmcError
+from ..presets import RunSpec, make_run
+from ..robots import make_robot
+from ..robots.catalog import resolve_robot
+from ..settings import CONTROLLER_PARAMETERS, node_parameters
 
 SWEPT = ("kp", "kd", "ks", "lam", "omega_n", "k1", "k2")
 """The gains the recipe sweeps, in its order (phi and zeta keep their starting values)."""
@@ -134,7 +134,7 @@ def _gains(values: Mapping[str, np.ndarray], needed: Sequence[str], controller: 
 def _inside_theorem(spec: RunSpec, values: dict[str, np.ndarray], needed: Sequence[str]) -> Gains:
     """``values`` moved inside Eq. (3.19): Ks and Kd raised to the bounds that do not depend on
     the gains (``max |tau_d,i|``, ``lambda_M(K + C^T) / 2``), then lambda halved until all hold."""
-    from .control.lyapunov import theorem_conditions
+    from ..control.lyapunov import theorem_conditions
 
     def conditions(v: Mapping[str, np.ndarray]) -> list:  # type: ignore[type-arg]
         return theorem_conditions(dataclasses.replace(spec, gains=_gains(v, needed, spec.controller)), points=101)
@@ -159,7 +159,7 @@ def evaluate(spec: RunSpec, gains: Gains, torque_limit: np.ndarray,
     """One candidate: refused if ``check-gains`` refuses it (:class:`Requirement`) for ``spec``
     or any run of ``also`` (other contours the gains will serve), else one in-process run with
     ``gains``: its contour error, or why it is refused."""
-    from .sim import simulate  # numba: only when a run is made
+    from ..sim import simulate  # numba: only when a run is made
 
     # without the clamp: a candidate that needs more than a joint's effort limit is refused below,
     # not run saturated (the clamp would hide what it needs)
@@ -281,7 +281,7 @@ def _evaluator(spec: RunSpec, limit: np.ndarray, scheduler: str | None, requirem
     if scheduler is None:
         yield lambda batch: [evaluate(spec, gains, limit, requirement, also) for gains in batch]
         return
-    from .engine import dask_client, run_tasks
+    from ..engine import dask_client, run_tasks
 
     with dask_client(scheduler) as client:
         def remote(batch: list[Gains]) -> list[Candidate]:

@@ -22,12 +22,12 @@ from typing import Any
 
 import numpy as np
 
-from .config import load_config, read_yaml
-from .errors import ConfigError
-from .presets import RunSpec, make_run
-from .robots import make_robot, robot_params
-from .robots.base import RobotParams
-from .scores import SCORE_NAMES
+from ..config import load_config, read_yaml
+from ..errors import ConfigError
+from ..presets import RunSpec, make_run
+from ..robots import make_robot, robot_params
+from ..robots.base import RobotParams
+from ..scores import SCORE_NAMES
 
 PARAMETERS = ("link_mass", "link_com", "link_inertia", "motor_inertia", "motor_damping", "payload",
               "initial_error")
@@ -150,7 +150,7 @@ def run_sample(index: int, seed: int, specs: Sequence[RunSpec], spreads: Mapping
     A task of the engine (module level: workers import it). A run that diverges or fails
     gives a row with the reason and NaN statistics instead of stopping the table.
     """
-    from .sim import simulate  # numba: in the worker
+    from ..sim import simulate  # numba: in the worker
 
     robot = specs[0].robot
     params, payload, initial, drawn = sample_plant(robot, spreads, np.random.default_rng([seed, index]))
@@ -241,7 +241,7 @@ def write_outputs(rows: Sequence[Mapping[str, Any]], summary: Mapping[str, Any],
 def plot_distribution(rows: Sequence[Mapping[str, Any]], controllers: Sequence[str], bound: float,
                       path: Path, title: str) -> Path:
     """Distribution of the runs' mean contour error, every controller on one axes."""
-    from .thesis.plots import _pyplot, _save, controller_style
+    from ..thesis.plots import _pyplot, _save, controller_style
 
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(7.5, 4.0))
