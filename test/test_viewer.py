@@ -72,13 +72,19 @@ async def watch(port: int, seconds: float) -> tuple[dict, dict, dict | None]:
                                   "subscriptions": [{"id": i, "channelId": c} for i, c in enumerate(ids)]}))
         counts: dict[str, int] = {}
         errors = None
-        start = time.monotonic()
-        while time.monotonic() - start < seconds:
+        # ``seconds`` from the first frame: the viewer serves before the run starts (the nodes warm
+        # their kernels up first), and a client may connect long before a frame
+        first_frame_by = time.monotonic() + 120
+        start: float | None = None
+        while start is None or time.monotonic() - start < seconds:
+            wait = seconds if start is not None else max(first_frame_by - time.monotonic(), 0.0)
             try:
-                message = await asyncio.wait_for(ws.recv(), seconds)
+                message = await asyncio.wait_for(ws.recv(), wait)
             except (asyncio.TimeoutError, websockets.ConnectionClosed):
                 break
             if isinstance(message, bytes) and message[0] == 1:  # messageData: subscription, log time, payload
+                if start is None:
+                    start = time.monotonic()
                 topic = channels[ids[int.from_bytes(message[1:5], "little")]]["topic"]
                 counts[topic] = counts.get(topic, 0) + 1
                 if topic == "/pdsmc/errors":
