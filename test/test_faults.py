@@ -151,10 +151,11 @@ def test_the_in_process_simulator_stops_a_diverged_run() -> None:
 def test_pdsmc_simulate_exits_1_in_one_line_when_the_run_diverges(monkeypatch: pytest.MonkeyPatch,
                                                                    capsys: pytest.CaptureFixture[str]) -> None:
     from pdsmc_ros import cli
+    from pdsmc_ros.cli import simulate as simulate_command
     from pdsmc_ros.sim import simulator
 
     spec = unstable_serial_run()
-    monkeypatch.setattr(cli, "_spec_from_args", lambda _args: spec)  # the gains injected
+    monkeypatch.setattr(simulate_command, "spec_from_args", lambda _args: spec)  # the gains injected
     monkeypatch.setattr(simulator, "check_rate", lambda *_a, **_k: None)  # past the stability check
     code = cli.main(["simulate", "--robot", "serial_3r", "--contour", "circle", "--controller", "pd",
                      "--no-enforce-limits"])
