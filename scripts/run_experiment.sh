@@ -195,12 +195,14 @@ trap 'echo "run_experiment.sh: interrupted, stopping nodes" >&2; stop_all; exit 
 # Real time: the plant's time starts with the first command, and the controller commands (holds)
 # as soon as its loop runs; a trajectory node whose loop starts later (locking memory can take
 # seconds) would miss the motion. So the process with the plant starts once every other loop
-# process says its loop runs ("real time: ..." in its log), or has ended, or after 120 s.
+# process says its loop runs ("real time: ..." in its log), or waits for the arm the plant
+# publishes (--from-description: it cannot run before the plant), or has ended, or after 120 s.
 wait_for_loops() {
   local deadline=$((SECONDS + 120)) proc
   for proc in "${ORDER[@]}"; do
     [[ "$proc" == recorder || "$proc" == viewer ]] && continue
-    while kill -0 "${PIDS[$proc]}" 2>/dev/null && ! grep -q ']: real time: ' "$LOGS/$proc.log" 2>/dev/null \
+    while kill -0 "${PIDS[$proc]}" 2>/dev/null \
+        && ! grep -q -e ']: real time: ' -e ']: waiting for the arm on ' "$LOGS/$proc.log" 2>/dev/null \
         && [[ $SECONDS -lt $deadline ]]; do
       sleep 0.1
     done
