@@ -84,8 +84,7 @@ def loop_steps_per_s(spec, *, compiled: bool, repeats: int = 3) -> float:  # noq
     robot = spec.robot_model()
     if not compiled:
         robot = type(f"{type(robot).__name__}(numpy)", (type(robot),), {"kernel": None})()
-    law = ControlLaw.from_spec(spec)
-    law.compiled = compiled  # False: the law's numpy form, with the model's Pinocchio terms
+    law = ControlLaw.from_spec(spec)  # not compiled: the robot's Pinocchio terms behind robots.python_form
     steps = refs.shape[0] - 1
     every = spec.sample_every
     best = float("inf")

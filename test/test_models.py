@@ -12,12 +12,25 @@ from pdsmc_ros.errors import (
     SingularConfigurationError,
     UnreachableError,
 )
-from pdsmc_ros.robots import Parallel5R, Serial3R, make_robot, robot_params
-from pdsmc_ros.sim import PlantStepper, rk4_step
+from pdsmc_ros.robots import Manipulator, Parallel5R, Serial3R, make_robot, robot_params
+from pdsmc_ros.sim import PlantStepper
 
 SERIAL_3R_PARAMS = robot_params("serial_3r")
 PARALLEL_5R_PARAMS = robot_params("parallel_5r")
 RNG_SEED = 20151
+
+
+def rk4_step(robot: Manipulator, q: np.ndarray, qd: np.ndarray, tau: np.ndarray,
+             h: float) -> tuple[np.ndarray, np.ndarray]:
+    """A classical RK4 step of Eq. (4.1) over a batch of states, written here from the numpy model
+    (the package's step is compiled, one state at a time: this is its independent reference)."""
+    f = robot.forward_dynamics
+    a1 = f(q, qd, tau)
+    a2 = f(q + 0.5 * h * qd, qd + 0.5 * h * a1, tau)
+    a3 = f(q + 0.5 * h * (qd + 0.5 * h * a1), qd + 0.5 * h * a2, tau)
+    a4 = f(q + h * (qd + 0.5 * h * a2), qd + h * a3, tau)
+    q_next = q + h / 6.0 * (qd + 2.0 * (qd + 0.5 * h * a1) + 2.0 * (qd + 0.5 * h * a2) + qd + h * a3)
+    return q_next, qd + h / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
 
 
 def serial_states(rng: np.random.Generator, count: int) -> tuple[np.ndarray, np.ndarray]:

@@ -1,7 +1,8 @@
 """A new robot and a new control law from this file alone: registered, then run by the simulator.
 
-Neither has a compiled form, so the simulator runs them on its numpy path; the
-same path is proven equal to the compiled one on a thesis run.
+Neither has a compiled form, so the simulator runs them behind their Python forms
+(robots.python_form, control.python_form), in the loop every run goes through; a law written
+in Python is proven equal to the compiled one on a thesis run in test/control/test_laws.py.
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ from pdsmc_ros.control import (
     register_law,
     unregister_law,
 )
-from pdsmc_ros.control.laws import pd_linear_gains, pdsmc_linear_gains, pdsmc_torque
+from pdsmc_ros.control.laws import pd_linear_gains
 from pdsmc_ros.errors import ConfigError
 from pdsmc_ros.presets import make_run
 from pdsmc_ros.robots import (
@@ -138,6 +139,21 @@ def test_a_toy_robot_and_law_registered_here_run_in_the_simulator(toys: None, tm
     assert sagging.metrics.contour_mean > 3 * contour_mean
 
 
+def test_a_compiled_law_runs_a_robot_written_in_numpy(toys: None, tmp_path: Path) -> None:  # noqa: ARG001
+    """The compiled PD+G on the toy arm (its gravity read back from numpy through robots.python_form)
+    runs as this file's own PD+G written in Python."""
+    waypoints = tmp_path / "square.csv"
+    waypoints.write_text("x,y\n0.45,0.05\n0.45,0.15\n0.35,0.15\n0.35,0.05\n0.45,0.05\n")
+    exact = {"gravity": 1.0, "at_desired": 0.0}
+    gains = {"kp": [400, 200], "kd": [40, 20]}
+    runs = [simulate(make_run("toy_2r", "csv", name, gains=Gains.from_mapping(gains, 2, name), smc_model=exact,
+                              waypoints_file=str(waypoints), segment_duration=0.5))
+            for name in ("pdg", "pd_gravity")]
+    assert ControlLaw.from_spec(runs[0].spec).code < 1000 <= ControlLaw.from_spec(runs[1].spec).code
+    np.testing.assert_allclose(runs[0].samples.q, runs[1].samples.q, rtol=0.0, atol=1e-12)
+    np.testing.assert_allclose(runs[0].samples.tau, runs[1].samples.tau, rtol=1e-12, atol=1e-9)
+
+
 def test_unknown_and_duplicate_names_are_refused(toys: None) -> None:  # noqa: ARG001
     with pytest.raises(ConfigError, match="unknown robot 'nope'; choose one of: serial_3r, parallel_5r, .*toy_2r"):
         make_robot("nope")
@@ -153,35 +169,3 @@ def test_unknown_and_duplicate_names_are_refused(toys: None) -> None:  # noqa: A
         register_law(LawEntry("pd_gravity", "X", ("kp",), pd_gravity_torque))
     with pytest.raises(ConfigError, match="no pd gains for toy_2r"):
         make_run("toy_2r", "csv", "pd", waypoints_file="unused.csv")
-
-
-@pytest.mark.parametrize("controller", ["pd", "smc", "pdsmc"])
-@pytest.mark.parametrize("robot", ["serial_3r", "parallel_5r"])
-def test_numpy_and_compiled_forms_of_each_law_agree(controller: str, robot: str) -> None:
-    spec = make_run(robot, "circle", controller, smc_model={"damping": 1.0})
-    compiled = ControlLaw.from_spec(spec)
-    assert compiled.compiled
-    setup = LawSetup(spec.gains.matrix(), spec.nominal_model(), spec.smc_model_vector())
-    numpy_form = law(controller).torque
-    rng = np.random.default_rng(5)
-    ref = spec.reference().sample(rng.uniform(0, 5, 20))
-    for k in range(20):
-        q = ref.q[k] + rng.normal(0, 2e-3, spec.robot_model().n)
-        qd = ref.qd[k] + rng.normal(0, 2e-2, spec.robot_model().n)
-        args = (q, qd, ref.q[k], ref.qd[k], ref.qdd[k])
-        assert np.allclose(compiled.torque(*args), numpy_form(setup, *args), rtol=1e-12, atol=1e-10)
-
-
-def test_the_numpy_path_runs_a_thesis_run_as_the_compiled_one() -> None:
-    """PD-SMC registered without a compiled form: the whole serial circle run agrees to 1e-9."""
-    register_law(LawEntry("pdsmc_numpy", "PD-SMC (numpy)", ("kp", "kd", "ks", "lam", "phi"), pdsmc_torque,
-                          linear_gains=pdsmc_linear_gains))
-    try:
-        base = make_run("serial_3r", "circle", "pdsmc")
-        compiled = simulate(base)
-        numpy_run = simulate(make_run("serial_3r", "circle", "pdsmc_numpy", gains=base.gains))
-        assert not ControlLaw.from_spec(numpy_run.spec).compiled
-    finally:
-        unregister_law("pdsmc_numpy")
-    assert np.max(np.abs(numpy_run.samples.q - compiled.samples.q)) < 1e-9
-    assert np.max(np.abs(numpy_run.samples.tau - compiled.samples.tau)) < 1e-6

@@ -1,12 +1,13 @@
 """Control laws: each law once, a registry by name.
 
-The thesis's PD, SMC and PD-SMC (:mod:`.laws`: numpy and compiled forms side by side), the
-model-based baselines PD + gravity and computed torque (:mod:`.baselines`) and the super-twisting
-and integral sliding laws (:mod:`.sliding`, with an internal state), the last two written once,
-compiled. Adding a law: a :class:`LawEntry` declaring its gains (:class:`GainSpec`), its torque,
-its linear part and, optionally, its state (``state_size``) and whose presets it derives from
-(``presets_from``, ``derive_presets``), registered with :func:`register_law`; preset gains in
-``config/gains.yaml`` are optional, a compiled form too (one branch in :func:`.dispatch.law_torque`).
+The thesis's PD, SMC and PD-SMC (:mod:`.laws`), the model-based baselines PD + gravity and
+computed torque (:mod:`.baselines`) and the super-twisting and integral sliding laws
+(:mod:`.sliding`, with an internal state), each written once, compiled. Adding a law: a
+:class:`LawEntry` declaring its gains (:class:`GainSpec`), its torque (written in Python, or a
+compiled form: its code and one branch in :func:`.dispatch.law_torque`), its linear part and,
+optionally, its state (``state_size``) and whose presets it derives from (``presets_from``,
+``derive_presets``), registered with :func:`register_law`; preset gains in ``config/gains.yaml``
+are optional.
 """
 
 from .dispatch import compiled_torque

@@ -1,7 +1,6 @@
 """The model-based baselines beside the thesis's laws: PD with gravity compensation and computed torque.
 
-Written once, compiled (:func:`pdsmc_ros.control.dispatch.law_torque` calls them; their numpy
-forms call the compiled ones, :func:`~pdsmc_ros.control.registry.compiled_numpy_form`). Errors
+Written once, compiled (:func:`pdsmc_ros.control.dispatch.law_torque` calls them). Errors
 are the thesis's, ``e = q_d - q``, ``edot = qd_d - qd`` (Eq. 3.2). The model estimate is the
 SMC's (:attr:`LawSetup.smc_model`: ``Mhat = s_M Mbar``, ``Chat = s_C C``, ``Ghat = s_G G``,
 ``Bhat = s_B B`` of the nominal robot; ``--smc-reading``), so the three model-based laws
@@ -18,7 +17,7 @@ from numba import njit
 from ..robots import compiled as robot
 from ..robots.base import FloatArray, Manipulator
 from .laws import GAIN_KD, GAIN_KP, THESIS_ROWS, model_part, pd_linear_gains
-from .registry import AT_DESIRED, KD, KP, S_GRAVITY, S_MASS, GainSpec, LawEntry, compiled_numpy_form, register_law
+from .registry import AT_DESIRED, KD, KP, S_GRAVITY, S_MASS, GainSpec, LawEntry, register_law
 
 PDG = 3
 CTC = 4
@@ -95,9 +94,7 @@ def ctc_presets(source: Mapping[str, FloatArray], model: Manipulator, q0: FloatA
     return {"omega_n": omega, "zeta": np.ones_like(omega)}
 
 
-register_law(LawEntry("pdg", "PD+G", (GAIN_KP, GAIN_KD), compiled_numpy_form(PDG),
-                      "PD + gravity compensation (Takegaki & Arimoto 1981)", PDG, pd_linear_gains,
-                      rows=THESIS_ROWS, model_based=True, presets_from="pd"))
-register_law(LawEntry("ctc", "CTC", CTC_ROWS, compiled_numpy_form(CTC),
-                      "computed torque (Spong et al. 2006, Sec. 8.3)", CTC, ctc_linear_gains,
-                      model_based=True, presets_from="pd", derive_presets=ctc_presets))
+register_law(LawEntry("pdg", "PD+G", (GAIN_KP, GAIN_KD), equation="PD + gravity compensation (Takegaki & Arimoto 1981)",
+                      code=PDG, linear_gains=pd_linear_gains, rows=THESIS_ROWS, model_based=True, presets_from="pd"))
+register_law(LawEntry("ctc", "CTC", CTC_ROWS, equation="computed torque (Spong et al. 2006, Sec. 8.3)", code=CTC,
+                      linear_gains=ctc_linear_gains, model_based=True, presets_from="pd", derive_presets=ctc_presets))

@@ -1,6 +1,7 @@
 """The compiled laws behind one call: :func:`law_torque` dispatches on a law's code.
 
-Every law with a compiled form (:attr:`LawEntry.code`) adds one branch here; the compiled
+Every law with a compiled form (:attr:`LawEntry.code`) adds one branch here (a law written in
+Python has a code from :data:`~pdsmc_ros.control.python_form.PYTHON_LAW` up and runs behind the last); the compiled
 closed loop (:mod:`pdsmc_ros.sim.loop`) inlines :func:`law_torque`, and Python (the nodes,
 :class:`~pdsmc_ros.control.ControlLaw`) calls :func:`compiled_torque`. A law with internal
 state (:attr:`LawEntry.state_size`) reads and updates ``state`` (shape ``(state_size, n)``,
@@ -14,6 +15,8 @@ from numba import njit
 
 from .baselines import CTC, PDG, ctc, pdg
 from .laws import PD, PDSMC, SMC, errors, pd, pdsmc, smc
+from .python_form import PYTHON_LAW
+from .python_form import torque as python_torque
 from .sliding import ISMC, STA, ismc, sta
 
 
@@ -55,6 +58,10 @@ def _beside_the_thesis(code, gains, smc_model, kind, p, q, qd, q_ref, qd_ref, qd
         sta(gains, smc_model, kind, p, q, qd, q_ref, qd_ref, qdd_ref, tau, work, state, h)
     elif code == ISMC:
         ismc(gains, smc_model, kind, p, q, qd, q_ref, qd_ref, qdd_ref, tau, work, state, h)
+    elif code >= PYTHON_LAW:
+        python_torque(code, q, qd, q_ref, qd_ref, qdd_ref, tau)
+    else:
+        raise ValueError("unknown control law code: no branch in control.dispatch")
 
 
 @njit(cache=True)

@@ -10,6 +10,7 @@ import numpy as np
 from ..errors import InvalidInputError
 from ..robots import compiled as robot_compiled
 from ..robots.base import FloatArray, Manipulator
+from . import python_form
 from .dispatch import compiled_torque
 from .registry import LawSetup, law
 
@@ -23,8 +24,9 @@ Vector = Sequence[float] | FloatArray
 class ControlLaw:
     """A registered law with its gains and nominal model.
 
-    Runs the law's compiled form when the law and the model both have one
-    (:attr:`compiled`), else its numpy form.
+    Every law runs through :func:`~pdsmc_ros.control.dispatch.compiled_torque`: its compiled
+    form, or its Python torque behind :mod:`.python_form` (:attr:`code`); the nominal model
+    likewise, through its compiled form or :mod:`pdsmc_ros.robots.python_form`'s.
 
     Parameters
     ----------
@@ -51,11 +53,9 @@ class ControlLaw:
             raise InvalidInputError(f"control law {name!r} integrates a state: its period h must be > 0 s, got {h!r}")
         state = np.zeros((self.entry.state_size, self.n))
         self.setup = LawSetup(gains, model, np.asarray(smc_model, dtype=float), state, float(h))
-        self.compiled = self.entry.code is not None and model.kernel is not None
-        self.code = -1 if self.entry.code is None else self.entry.code
-        if self.compiled:
-            self.model_kind, self.model_params = robot_compiled.pack(model)
-            self._work = robot_compiled.workspace(self.n)
+        self.code = python_form.handle(self) if self.entry.code is None else self.entry.code
+        self.model_kind, self.model_params = robot_compiled.pack(model)
+        self._work = robot_compiled.workspace(self.n)
 
     @classmethod
     def from_spec(cls, spec: LawRun) -> ControlLaw:
@@ -89,12 +89,19 @@ class ControlLaw:
     def torque(self, q: Vector, qd: Vector, q_ref: Vector, qd_ref: Vector, qdd_ref: Vector) -> FloatArray:
         """Torque (N m) for the measured state and the reference (new array)."""
         x = np.array([*q, *qd, *q_ref, *qd_ref, *qdd_ref])  # 5 sequences of n floats: float64
-        if not self.compiled:
-            return np.asarray(self.entry.torque(self.setup, *x.reshape(5, self.n)), dtype=float)
         tau = np.empty(self.n)
         compiled_torque(self.code, self.setup.gains, self.setup.smc_model, self.model_kind, self.model_params,
                         x, tau, self._work, self.setup.state, self.setup.h)
         return tau
+
+    def python_torque(self, q: FloatArray, qd: FloatArray, q_ref: FloatArray, qd_ref: FloatArray,
+                      qdd_ref: FloatArray, tau: FloatArray) -> None:
+        """A law written in Python (:attr:`LawEntry.torque`): its torque into ``tau``
+        (what :mod:`.python_form` calls back)."""
+        torque = self.entry.torque
+        if torque is None:
+            raise TypeError(f"control law {self.entry.name!r} has neither a compiled form nor a Python torque")
+        tau[:] = torque(self.setup, q, qd, q_ref, qd_ref, qdd_ref)
 
     def warm_up(self, q: FloatArray, qd: FloatArray) -> ControlLaw:
         """Load the compiled law now with one torque at a valid state (discarded).

@@ -1,14 +1,14 @@
-"""PD (Eq. 3.4), SMC (Eq. 3.15) and PD-SMC (Eq. 3.44): numpy and compiled forms side by side.
+"""PD (Eq. 3.4), SMC (Eq. 3.15) and PD-SMC (Eq. 3.44), written once, compiled.
 
 Errors are ``e = q_d - q`` and ``edot = qd_d - qd`` (Eq. 3.2); the sliding
 variable is ``s = lambda e + edot`` with the boundary layer of Eq. (3.45),
 ``sat(s / phi)``. The thesis writes the SMC with ``e' = q - q_d`` (Eq. 3.5);
 since ``s' = -s`` the signs below are its Eq. (3.15) rewritten.
 
-The numpy forms are the readable reference (one state, shape ``(n,)``); the
-compiled forms (numba, scalar loops, no allocation) are what the simulator
-and the nodes run, through :func:`pdsmc_ros.control.dispatch.law_torque`. Tests
-prove both agree to 1e-12. :func:`model_part` (the SMC's model terms) is shared
+Each law is one compiled function (numba, scalar loops, no allocation), callable from Python
+too; the simulator, the nodes and every robot run it through
+:func:`pdsmc_ros.control.dispatch.law_torque`. The tests hold it against the equations read
+in numpy (test/control/test_laws.py). :func:`model_part` (the SMC's model terms) is shared
 with the model-based laws of :mod:`.baselines` and :mod:`.sliding`.
 """
 
@@ -33,7 +33,6 @@ from .registry import (
     WITH_MOTOR_INERTIA,
     GainSpec,
     LawEntry,
-    LawSetup,
     register_law,
 )
 
@@ -53,53 +52,6 @@ GAIN_PHI = GainSpec("phi", "boundary layers phi (Eq. 3.45)", "rad/s", lower_open
 THESIS_ROWS = (GAIN_KP, GAIN_KD, GAIN_KS, GAIN_LAM, GAIN_PHI)
 """The gain matrix of the three thesis laws (rows ``KP, KD, KS, LAM, PHI``): one layout for
 their compiled forms, which share :func:`_errors`; a row a law does not use is neutral."""
-
-
-# --------------------------------------------------------------------------- #
-# Numpy forms
-# --------------------------------------------------------------------------- #
-def boundary_layer(g: FloatArray, e: FloatArray, ed: FloatArray) -> FloatArray:
-    """``sat(s / phi)`` with ``s = lambda e + edot`` (Eq. 3.45)."""
-    return np.clip((g[LAM] * e + ed) / g[PHI], -1.0, 1.0)
-
-
-def pd_torque(setup: LawSetup, q: FloatArray, qd: FloatArray, q_ref: FloatArray, qd_ref: FloatArray,
-              qdd_ref: FloatArray) -> FloatArray:  # noqa: ARG001
-    """PD, Eq. (3.4): ``Kp e + Kd edot``."""
-    g = setup.gains
-    return g[KP] * (q_ref - q) + g[KD] * (qd_ref - qd)
-
-
-def pdsmc_torque(setup: LawSetup, q: FloatArray, qd: FloatArray, q_ref: FloatArray, qd_ref: FloatArray,
-                 qdd_ref: FloatArray) -> FloatArray:  # noqa: ARG001
-    """PD-SMC, Eq. (3.44): ``Kp e + Kd edot + Ks sat(s / phi)``."""
-    g = setup.gains
-    e = q_ref - q
-    ed = qd_ref - qd
-    return g[KP] * e + g[KD] * ed + g[KS] * boundary_layer(g, e, ed)
-
-
-def smc_torque(setup: LawSetup, q: FloatArray, qd: FloatArray, q_ref: FloatArray, qd_ref: FloatArray,
-               qdd_ref: FloatArray) -> FloatArray:
-    """SMC, Eq. (3.15): ``Mhat (qdd_d + lambda edot) + Chat (qd_d + lambda e) + Ghat
-    + s_B B (qd_d + lambda e) + Ks sat(s / phi)``.
-
-    ``Mhat = s_M Mbar`` (``s_M M`` without the motor inertia), ``Chat = s_C C``,
-    ``Ghat = s_G G`` of the nominal model, evaluated at the measured state (or at
-    the desired one); the scales are :attr:`LawSetup.smc_model`.
-    """
-    g, m, robot_model = setup.gains, setup.smc_model, setup.model
-    e = q_ref - q
-    ed = qd_ref - qd
-    qm, qdm = (q_ref, qd_ref) if m[AT_DESIRED] != 0.0 else (q, qd)
-    mass = robot_model.mass_matrix(qm)
-    if m[WITH_MOTOR_INERTIA] == 0.0:
-        mass = mass - np.diag(robot_model.J)
-    qdd_r = qdd_ref + g[LAM] * ed
-    qd_r = qd_ref + g[LAM] * e
-    return (m[S_MASS] * mass @ qdd_r + m[S_CORIOLIS] * robot_model.coriolis_matrix(qm, qdm) @ qd_r
-            + m[S_GRAVITY] * robot_model.gravity(qm) + m[S_DAMPING] * robot_model.B * qd_r
-            + g[KS] * boundary_layer(g, e, ed))
 
 
 # --------------------------------------------------------------------------- #
@@ -209,9 +161,9 @@ def smc(g, m, kind, p, q, qd, q_ref, qd_ref, qdd_ref, e, ed, sat, tau, work):  #
         tau[i] += g[KS, i] * sat[i]
 
 
-register_law(LawEntry("pd", "PD", (GAIN_KP, GAIN_KD), pd_torque, "Eq. (3.4)", PD, pd_linear_gains,
-                      rows=THESIS_ROWS))
-register_law(LawEntry("smc", "SMC", (GAIN_KS, GAIN_LAM, GAIN_PHI), smc_torque, "Eq. (3.15)", SMC,
-                      smc_linear_gains, rows=THESIS_ROWS, model_based=True))
-register_law(LawEntry("pdsmc", "PD-SMC", THESIS_ROWS, pdsmc_torque, "Eq. (3.44)", PDSMC, pdsmc_linear_gains,
-                      rows=THESIS_ROWS))
+register_law(LawEntry("pd", "PD", (GAIN_KP, GAIN_KD), equation="Eq. (3.4)", code=PD,
+                      linear_gains=pd_linear_gains, rows=THESIS_ROWS))
+register_law(LawEntry("smc", "SMC", (GAIN_KS, GAIN_LAM, GAIN_PHI), equation="Eq. (3.15)", code=SMC,
+                      linear_gains=smc_linear_gains, rows=THESIS_ROWS, model_based=True))
+register_law(LawEntry("pdsmc", "PD-SMC", THESIS_ROWS, equation="Eq. (3.44)", code=PDSMC,
+                      linear_gains=pdsmc_linear_gains, rows=THESIS_ROWS))

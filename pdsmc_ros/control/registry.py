@@ -1,13 +1,13 @@
 """Control laws by name: what a law declares and the registry.
 
 A law module builds a :class:`LawEntry` -- its name, its gains (:class:`GainSpec`: name,
-shape, units, bounds, description, the scenario factor that scales it), its numpy torque,
-optionally its compiled form's code and its linear part for the discrete stability check --
+shape, units, bounds, description, the scenario factor that scales it), its compiled form's
+code or its torque written in Python, optionally its linear part for the discrete stability check --
 and registers it with :func:`register_law`. Everything that handles gains reads these
 declarations: the CLI's gain flags, the nodes' gain parameters and their descriptors, the
 params files of ``pdsmc tune`` and the reports. A law's preset gains, if any, live in
-``config/gains.yaml``; a law without a compiled form runs on the numpy path (see
-:mod:`pdsmc_ros.sim`).
+``config/gains.yaml``; a law written in Python runs behind :mod:`pdsmc_ros.control.python_form`,
+in the same loop as the compiled ones.
 """
 
 from __future__ import annotations
@@ -169,13 +169,14 @@ class LawEntry:
         How tables and figures print it.
     gains : tuple of GainSpec
         The gains it needs (a name string: a gain another registered law declares).
-    torque : callable
-        The numpy form, :data:`NumpyLaw`.
+    torque : callable or None
+        A law written in Python: its torque, :data:`NumpyLaw` (run behind
+        :mod:`pdsmc_ros.control.python_form`); None for a law with a compiled form.
     equation : str
         Where it is written (thesis equation).
     code : int or None
         The code of its compiled form in :func:`pdsmc_ros.control.dispatch.law_torque`
-        (None: numpy only).
+        (None: written in Python, ``torque``).
     linear_gains : callable or None
         Its linear part, for the discrete stability check
         (:mod:`pdsmc_ros.control.stability`); None: not checked.
@@ -198,7 +199,7 @@ class LawEntry:
     name: str
     label: str
     gains: tuple[GainSpec | str, ...]
-    torque: NumpyLaw
+    torque: NumpyLaw | None = None
     equation: str = ""
     code: int | None = None
     linear_gains: LinearGains | None = None
@@ -213,6 +214,9 @@ class LawEntry:
             raise InvalidInputError(f"control law {self.name!r}: state_size must be >= 0, got {self.state_size}")
         if not self.name or not self.gains:
             raise InvalidInputError(f"control law {self.name!r}: needs a name and its gains, got {self.gains}")
+        if (self.code is None) == (self.torque is None):
+            raise InvalidInputError(f"control law {self.name!r}: give either its compiled form's code or its "
+                                    "Python torque, not both and not neither")
         gains = _resolve(self.gains, self.name)
         rows = _resolve(self.rows, self.name) if self.rows else gains
         names = [r.name for r in rows]
@@ -295,27 +299,6 @@ def law(name: str) -> LawEntry:
 def law_label(name: str) -> str:
     """How tables print the law ``name``."""
     return law(name).label
-
-
-def compiled_numpy_form(code: int) -> NumpyLaw:
-    """The numpy form of a law written once, compiled (issue 27): its compiled form called from
-    Python for one state (the nominal robot must have a compiled form; every packaged robot has)."""
-
-    def torque(setup: LawSetup, q: FloatArray, qd: FloatArray, q_ref: FloatArray, qd_ref: FloatArray,
-               qdd_ref: FloatArray) -> FloatArray:
-        from ..robots import compiled  # noqa: PLC0415 - the compiled forms sit above the registry
-        from .dispatch import compiled_torque  # noqa: PLC0415
-
-        if setup.model.kernel is None:
-            raise ConfigError(f"this control law is written in compiled form only; robot {setup.model.name!r} "
-                              "has none (a robot with a compiled form: serial_3r, parallel_5r, a URDF arm)")
-        kind, p = compiled.pack(setup.model)
-        tau = np.empty(len(q))
-        compiled_torque(code, setup.gains, setup.smc_model, kind, p, np.concatenate([q, qd, q_ref, qd_ref, qdd_ref]),
-                        tau, compiled.workspace(len(q)), setup.state, setup.h)
-        return tau
-
-    return torque
 
 
 def smc_model_vector(smc_model: Mapping[str, float]) -> FloatArray:

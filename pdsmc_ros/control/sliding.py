@@ -4,7 +4,7 @@ Both are the SMC's model-based part (Eq. 3.15 without its switching term,
 :func:`~pdsmc_ros.control.laws.model_part`) plus a term of their own, and both integrate a
 state (:attr:`LawEntry.state_size` = 1 per joint, stepped once per control period ``h``,
 explicit Euler: the torque of instant ``k`` uses the state of instant ``k``). Written once,
-compiled; their numpy forms call the compiled ones. Errors ``e = q_d - q``, ``edot = qd_d - qd``
+compiled. Errors ``e = q_d - q``, ``edot = qd_d - qd``
 (Eq. 3.2), so with ``M sdot = -(C + B) s - (the law's own term)`` for the exact model, the own
 term enters with a plus sign.
 """
@@ -19,7 +19,7 @@ from numba import njit
 
 from ..robots.base import FloatArray, Manipulator
 from .laws import GAIN_KS, GAIN_LAM, GAIN_PHI, model_part
-from .registry import S_MASS, GainSpec, LawEntry, compiled_numpy_form, register_law
+from .registry import S_MASS, GainSpec, LawEntry, register_law
 
 STA = 5
 ISMC = 6
@@ -128,8 +128,8 @@ def ismc_linear_gains(g: FloatArray, smc_model: FloatArray, mass: FloatArray) ->
     return s_m * mass @ lam @ lam + 2.0 * ks_phi @ lam, 2.0 * s_m * mass @ lam + ks_phi
 
 
-register_law(LawEntry("sta", "STA", STA_ROWS, compiled_numpy_form(STA), "super-twisting (Levant 1993)", STA,
-                      None, model_based=True, state_size=1, presets_from="smc", derive_presets=sta_presets))
-register_law(LawEntry("ismc", "ISMC", ISMC_ROWS, compiled_numpy_form(ISMC),
-                      "integral sliding mode (Utkin & Shi 1996)", ISMC, ismc_linear_gains, model_based=True,
+register_law(LawEntry("sta", "STA", STA_ROWS, equation="super-twisting (Levant 1993)", code=STA,
+                      model_based=True, state_size=1, presets_from="smc", derive_presets=sta_presets))
+register_law(LawEntry("ismc", "ISMC", ISMC_ROWS, equation="integral sliding mode (Utkin & Shi 1996)", code=ISMC,
+                      linear_gains=ismc_linear_gains, model_based=True,
                       state_size=1, presets_from="smc"))

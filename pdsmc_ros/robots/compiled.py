@@ -36,10 +36,10 @@ from numba.core.errors import TypingError
 from numba.extending import overload
 
 from . import parallel_5r_kernels as five_bar
+from . import python_form, spatial_layout
 from . import serial_3r as serial
 from . import spatial_dynamics as chain
 from . import spatial_kernels as chain_kinematics
-from . import spatial_layout
 from .base import FloatArray, Manipulator
 from .spatial_layout import workspace_size
 
@@ -89,8 +89,12 @@ COMPILED: dict[int, CompiledRobot] = {
     spatial_layout.SERIAL_CHAIN: CompiledRobot(0, chain.terms, chain.accelerations, chain.coriolis_times,
                                                chain.gravity, chain.damping, chain.motor_inertia,
                                                chain_kinematics.outputs),
+    python_form.PYTHON: CompiledRobot(0, python_form.terms, python_form.accelerations, python_form.coriolis_times,
+                                      python_form.gravity, python_form.damping, python_form.motor_inertia,
+                                      python_form.outputs),
 }
-"""Every robot's compiled form by its code (``Manipulator.kernel``): the one place to add one."""
+"""Every robot's compiled form by its code (``Manipulator.kernel``): the one place to add one. A robot
+with none of its own (``kernel`` None) runs behind :mod:`.python_form`'s, which calls its numpy methods."""
 
 
 def workspace(n: int = 3) -> FloatArray:
@@ -99,9 +103,10 @@ def workspace(n: int = 3) -> FloatArray:
 
 
 def pack(robot: Manipulator) -> tuple[int, FloatArray]:
-    """``(code, flat parameters)`` of ``robot``'s compiled form."""
+    """``(code, flat parameters)`` of ``robot``'s compiled form (:mod:`.python_form`'s for a robot
+    with none of its own)."""
     if robot.kernel is None:
-        raise TypeError(f"robot {robot.name!r} has no compiled form")
+        return python_form.PYTHON, python_form.handle(robot)
     if robot.kernel not in COMPILED:
         raise TypeError(f"robot {robot.name!r}: code {robot.kernel} has no entry in robots.compiled.COMPILED")
     return robot.kernel, robot.pack()

@@ -2,7 +2,7 @@
 
 from .loop import closed_loop
 from .plant import PlantStepper
-from .rk4 import rk4_step, rk4_step_compiled
+from .rk4 import rk4_step_compiled
 from .simulator import RunResult, build_samples, simulate, simulate_many
 
 __all__ = [
@@ -10,7 +10,6 @@ __all__ = [
     "RunResult",
     "build_samples",
     "closed_loop",
-    "rk4_step",
     "rk4_step_compiled",
     "simulate",
     "simulate_many",

@@ -2,9 +2,9 @@
 
 At every control instant ``t_k = k / rate`` the law reads the state and the
 reference sampled at ``t_k`` and computes a torque; the plant integrates
-Eq. (4.1) over one period with that torque held (:mod:`.rk4`). The compiled
-loop runs when the robot, the law and the nominal model all have compiled
-forms; the numpy loop, the same steps, otherwise.
+Eq. (4.1) over one period with that torque held (:mod:`.rk4`). One loop, compiled per robot,
+runs every run: a robot or a law written in Python runs in it behind its Python form
+(:mod:`pdsmc_ros.robots.python_form`, :mod:`pdsmc_ros.control.python_form`).
 """
 
 from __future__ import annotations
@@ -14,14 +14,13 @@ from typing import Any
 
 import numpy as np
 from numba import njit
-from numpy.typing import NDArray
 
 from ..control.dispatch import law_torque
 from ..control.law import ControlLaw
 from ..control.safety import DivergenceCheck, watch
 from ..robots import compiled as robot_compiled
 from ..robots.base import FloatArray, Manipulator
-from .rk4 import carve, rk4_advance, rk4_step
+from .rk4 import carve, rk4_advance
 
 
 def _closed_loop_for(kind: int) -> Any:
@@ -159,14 +158,11 @@ def run_loop(
     check = check or DivergenceCheck.for_robot(plant)
     counts = np.zeros(n + 2, dtype=np.int64)
     counts[n] = -1
-    if law.compiled and plant.kernel is not None:
-        kind, p = robot_compiled.pack(plant)
-        _CLOSED_LOOPS[kind](p, law.code, law.gains, law.smc_model, law.model_kind, law.model_params,
-                              np.array(q0, dtype=float), np.zeros(n), refs, h, sample_every, limit, check.bounds,
-                              check.first, check.at, counts, out_q, out_qd, out_tau, robot_compiled.workspace(n),
-                              law.state)
-    else:
-        _numpy_loop(plant, law, q0, refs, h, sample_every, limit, check, counts, (out_q, out_qd, out_tau))
+    kind, p = robot_compiled.pack(plant)
+    _CLOSED_LOOPS[kind](p, law.code, law.gains, law.smc_model, law.model_kind, law.model_params,
+                        np.array(q0, dtype=float), np.zeros(n), refs, h, sample_every, limit, check.bounds,
+                        check.first, check.at, counts, out_q, out_qd, out_tau, robot_compiled.workspace(n),
+                        law.state)
     outcome = LoopOutcome(counts[:n].tolist(), warnings=check.new_warnings(1.0 / h))
     if counts[n] >= 0:
         step = int(counts[n])
@@ -177,29 +173,3 @@ def run_loop(
         joint = int(counts[n + 1])
         outcome.diverged = check.diverged(joint, check.at[2], check.at[3], step * h)
     return out_q, out_qd, out_tau, outcome
-
-
-def _numpy_loop(plant: Manipulator, law: ControlLaw, q0: FloatArray, refs: FloatArray, h: float,
-                sample_every: int, limit: FloatArray, check: DivergenceCheck, counts: NDArray[np.int64],
-                outs: tuple[FloatArray, FloatArray, FloatArray]) -> None:
-    """The compiled loop's steps in numpy (a robot or law without a compiled form)."""
-    out_q, out_qd, out_tau = outs
-    n = plant.n
-    q = np.array(q0, dtype=float)
-    qd = np.zeros(n)
-    steps = refs.shape[0] - 1
-    for k in range(steps + 1):
-        hit = check.check(q, qd, k) if k % sample_every == 0 else -1
-        if hit >= 0:
-            counts[n], counts[n + 1] = k, hit
-            check.at[2], check.at[3] = q, qd
-            return
-        raw = law.torque(q, qd, refs[k, 0], refs[k, 1], refs[k, 2])
-        tau = np.clip(raw, -limit, limit)
-        if k < steps:
-            counts[:n] += tau != raw
-        if k % sample_every == 0:
-            j = k // sample_every
-            out_q[j], out_qd[j], out_tau[j] = q, qd, tau
-        if k < steps:
-            q, qd = rk4_step(plant, q, qd, tau, h)

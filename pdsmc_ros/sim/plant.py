@@ -8,7 +8,7 @@ from numpy.typing import ArrayLike
 from ..errors import InvalidInputError
 from ..robots import compiled as robot_compiled
 from ..robots.base import FloatArray, Manipulator, as_vector
-from .rk4 import compiled_step, rk4_step
+from .rk4 import compiled_step
 
 
 class PlantStepper:
@@ -29,10 +29,8 @@ class PlantStepper:
             raise InvalidInputError(f"period must be > 0 s, got {period!r}")
         self.robot = robot
         self.period = float(period)
-        self.compiled = robot.kernel is not None
-        if self.compiled:
-            self.kind, self.params = robot_compiled.pack(robot)
-            self._step = compiled_step(self.kind)
+        self.kind, self.params = robot_compiled.pack(robot)
+        self._step = compiled_step(self.kind)
         n = robot.n
         self.state = np.concatenate([as_vector(q0, n, "q0"), as_vector(qd0, n, "qd0")]).astype(float)
         self._q = self.state[:n]  # views: step() advances the state in place
@@ -61,10 +59,7 @@ class PlantStepper:
 
     def step(self, tau: FloatArray) -> None:
         """Integrate one period with ``tau`` held (RK4, :mod:`pdsmc_ros.sim.rk4`)."""
-        if self.compiled:
-            self._step(self.params, self.state, tau, self.period, self._work)
-        else:
-            self._q[:], self._qd[:] = rk4_step(self.robot, self.q, self.qd, np.asarray(tau, dtype=float), self.period)
+        self._step(self.params, self.state, tau, self.period, self._work)
         self.steps += 1
 
     def outputs(self) -> FloatArray:
@@ -73,13 +68,6 @@ class PlantStepper:
         A view of ``OUTPUTS_SIZE`` floats overwritten by the next call (layout:
         :func:`pdsmc_ros.robots.compiled.outputs`).
         """
-        if not self.compiled:
-            self._outputs[0:2] = self.robot.position(self.q)
-            passive, passive_rates = self.robot.passive_joints(self.q, self.qd)
-            k = passive.shape[-1]
-            self._outputs[2 : 2 + k] = passive
-            self._outputs[4 : 4 + k] = passive_rates
-            return self._outputs
         robot_compiled.outputs(self.kind, self.params, self.q, self.qd, self._outputs, self._work)
         return self._outputs
 
@@ -89,6 +77,5 @@ class PlantStepper:
         The first call of a kernel in a process loads it from numba's cache
         (tens of ms); a real-time loop calls this before its first tick.
         """
-        if self.compiled:
-            self._step(self.params, self.state.copy(), np.zeros(self.robot.n), self.period, self._work)
+        self._step(self.params, self.state.copy(), np.zeros(self.robot.n), self.period, self._work)
         self.outputs()

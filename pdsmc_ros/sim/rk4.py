@@ -1,9 +1,9 @@
 """The plant step: one classical Runge-Kutta step of Eq. (4.1) with the torque held.
 
 The torque is constant over the step (zero-order hold), which is exactly what a
-digital controller running at ``1 / h`` applies to the plant. The numpy form
-works on any robot (and on batches); the compiled form, the same arithmetic in
-the same order, on robots with a compiled form.
+digital controller running at ``1 / h`` applies to the plant. Written once, compiled per
+robot; a robot written in numpy only steps here too, behind
+:mod:`pdsmc_ros.robots.python_form`.
 """
 
 from __future__ import annotations
@@ -13,43 +13,15 @@ from collections.abc import Callable
 from numba import njit
 
 from ..robots import compiled as robot
-from ..robots.base import FloatArray, Manipulator
-
-
-def rk4_step(
-    model: Manipulator, q: FloatArray, qd: FloatArray, tau: FloatArray, h: float
-) -> tuple[FloatArray, FloatArray]:
-    """Advance Eq. (4.1) by one RK4 step of length ``h`` with ``tau`` held.
-
-    Parameters
-    ----------
-    model : Manipulator
-        The plant model.
-    q, qd : ndarray, shape (..., n)
-        Joint angles (rad) and rates (rad/s) at the start of the step.
-    tau : ndarray, shape (..., n)
-        Joint torques (N m) held over the step.
-    h : float
-        Step length (s).
-    """
-    f = model._forward_dynamics
-    half = 0.5 * h
-    a1 = f(q, qd, tau)
-    v2 = qd + half * a1
-    a2 = f(q + half * qd, v2, tau)
-    v3 = qd + half * a2
-    a3 = f(q + half * v2, v3, tau)
-    v4 = qd + h * a3
-    a4 = f(q + h * v3, v4, tau)
-    sixth = h / 6.0
-    q_next = q + sixth * (qd + 2.0 * v2 + 2.0 * v3 + v4)
-    qd_next = qd + sixth * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
-    return q_next, qd_next
+from ..robots.base import FloatArray
 
 
 @njit(cache=True)
 def rk4_advance(kind, p, q, qd, tau, h, stages, work):  # noqa: ANN001, ANN201, PLR0913
-    """:func:`rk4_step_compiled` on ``q``, ``qd`` in place, with its scratch carved by the caller.
+    """One classical RK4 step of Eq. (4.1) of length ``h`` with ``tau`` held, on ``q``, ``qd`` in place.
+
+    The stages ``a1..a4`` are the robot's accelerations at the start, twice at the midpoint and at
+    the end; ``q`` advances by ``h/6 (qd + 2 v2 + 2 v3 + v4)``, ``qd`` by ``h/6 (a1 + 2 a2 + 2 a3 + a4)``.
 
     ``kind`` is a compile-time constant (see :func:`pdsmc_ros.robots.compiled.accelerations`);
     ``stages`` is ``(STAGE_ROWS, n)``, ``work`` the rest: a loop of many steps carves
@@ -122,7 +94,8 @@ def compiled_step(kind: int) -> Callable[[FloatArray, FloatArray, FloatArray, fl
 
 def rk4_step_compiled(kind: int, p: FloatArray, state: FloatArray, tau: FloatArray, h: float,
                       work: FloatArray) -> None:
-    """:func:`rk4_step` of a compiled robot ``(kind, p)``: advances ``state`` in place.
+    """:func:`rk4_advance` for robot ``(kind, p)`` (:func:`pdsmc_ros.robots.compiled.pack`): advances
+    ``state`` in place.
 
     ``state`` starts with ``q`` and ``qd`` (``2 n`` floats; one array: from Python each
     argument of a compiled call costs about 0.1 us); ``work`` from

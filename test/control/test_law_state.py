@@ -12,6 +12,7 @@ import pytest
 from pdsmc_ros.control import ControlLaw, law
 from pdsmc_ros.errors import InvalidInputError
 from pdsmc_ros.presets import make_run
+from pdsmc_ros.sim import PlantStepper
 from pdsmc_ros.sim.loop import run_loop
 from pdsmc_ros.sim.simulator import _reference_samples
 
@@ -55,10 +56,18 @@ def test_the_compiled_loop_carries_the_state_as_the_calls_do(controller: str, ro
     q0 = refs[0, 0] + 2e-3
     in_loop = ControlLaw.from_spec(spec)
     by_calls = ControlLaw.from_spec(spec)
-    by_calls.compiled = False  # run_loop's per-call path: the law's numpy form, which calls the compiled one
     a = run_loop(plant, in_loop, q0, refs, h, 10)
-    b = run_loop(plant, by_calls, q0, refs, h, 10)
+    # the nodes' path: one ControlLaw.torque call and one PlantStepper step per period
+    stepper = PlantStepper(plant, h, q0, np.zeros(plant.n))
+    b: list[list[np.ndarray]] = [[], [], []]
+    for k in range(refs.shape[0]):
+        tau = by_calls.torque(stepper.q, stepper.qd, refs[k, 0], refs[k, 1], refs[k, 2])
+        if k % 10 == 0:
+            for out, x in zip(b, (stepper.q, stepper.qd, tau), strict=True):
+                out.append(x.copy())
+        if k < refs.shape[0] - 1:
+            stepper.step(tau)
     assert in_loop.state.any()
     np.testing.assert_allclose(in_loop.state, by_calls.state, rtol=1e-12, atol=1e-12)
-    for x, y in zip(a[:3], b[:3], strict=True):
-        np.testing.assert_allclose(x, y, rtol=1e-12, atol=1e-12)
+    for x, y in zip(a[:3], b, strict=True):
+        np.testing.assert_allclose(x, np.array(y), rtol=1e-12, atol=1e-12)
