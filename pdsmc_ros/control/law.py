@@ -42,6 +42,15 @@ class ControlLaw:
         The period (s) a law with internal state (:attr:`LawEntry.state_size`) integrates it
         with, once per :meth:`torque` call: the run's control period ``1 / rate`` (the
         controller node's nominal period, whatever its real ticks' jitter).
+
+    Attributes
+    ----------
+    gains, smc_model, h
+        As given (:attr:`setup`'s).
+    state : ndarray, shape (state_size, n)
+        The law's internal state, updated in place by :meth:`torque`.
+    code : int
+        What :func:`~pdsmc_ros.control.dispatch.compiled_torque` runs.
     """
 
     def __init__(self, name: str, gains: FloatArray, smc_model: FloatArray, model: Manipulator,
@@ -53,6 +62,8 @@ class ControlLaw:
             raise InvalidInputError(f"control law {name!r} integrates a state: its period h must be > 0 s, got {h!r}")
         state = np.zeros((self.entry.state_size, self.n))
         self.setup = LawSetup(gains, model, np.asarray(smc_model, dtype=float), state, float(h))
+        # the setup's own arrays (a frozen dataclass: these never change identity), by name
+        self.gains, self.smc_model, self.state, self.h = self.setup.gains, self.setup.smc_model, state, self.setup.h
         self.code = python_form.handle(self) if self.entry.code is None else self.entry.code
         self.model_kind, self.model_params = robot_compiled.pack(model)
         self._work = robot_compiled.workspace(self.n)
@@ -62,24 +73,6 @@ class ControlLaw:
         """The law of a run."""
         return cls(spec.controller, spec.gains.matrix(), spec.smc_model_vector(), spec.nominal_model(),
                    1.0 / spec.rate)
-
-    @property
-    def gains(self) -> FloatArray:
-        return self.setup.gains
-
-    @property
-    def smc_model(self) -> FloatArray:
-        return self.setup.smc_model
-
-    @property
-    def state(self) -> FloatArray:
-        """The internal state, shape ``(state_size, n)`` (updated in place by :meth:`torque`)."""
-        return self.setup.state
-
-    @property
-    def h(self) -> float:
-        """The period (s) the state is integrated with."""
-        return self.setup.h
 
     def reset(self) -> ControlLaw:
         """The internal state back to zero (a controller activated anew)."""

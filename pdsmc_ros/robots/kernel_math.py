@@ -77,3 +77,13 @@ def rotation_vector(r, out):  # noqa: ANN001, ANN201
         return
     scale = angle / (2.0 * math.sin(angle))
     out[0], out[1], out[2] = scale * sx, scale * sy, scale * sz
+
+
+def entry_at(offset: int):  # noqa: ANN201
+    """A compiled ``(p, i) -> p[offset + i]``: the ``i``-th of a per-joint block of a flat parameter
+    array (a thesis arm's motor inertias and damping, :data:`pdsmc_ros.robots.compiled.COMPILED`)."""
+
+    def entry(p, i):  # noqa: ANN001, ANN202
+        return p[offset + i]
+
+    return njit(cache=True, inline="always")(entry)

@@ -2,8 +2,9 @@
 
 Fig. 4.2, Table 4.2 (``config/robots.yaml``), driven at its two base joints,
 with the reduced model of Ghorbel (1995), Eqs. (4.2) and Appendix Eqs.
-(47)-(70). Its compiled form is :mod:`pdsmc_ros.robots.parallel_5r_kernels`
-(two modules: together they would pass 500 lines).
+(47)-(70). The dynamics are written once, in its compiled form
+(:mod:`pdsmc_ros.robots.parallel_5r_kernels`), which the methods here call over batches; the
+position analysis (forward and inverse kinematics, the loop-closure Jacobian) is here.
 """
 
 from __future__ import annotations
@@ -14,12 +15,13 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..errors import InvalidInputError, SingularConfigurationError, UnreachableError
-from .base import FloatArray, Manipulator, RobotParams, as_vector, diag
+from .base import FloatArray, Manipulator, RobotParams, as_vector
 from .chain import PlanarChain
-from .parallel_5r_kernels import PARALLEL_5R
+from .parallel_5r_kernels import PARALLEL_5R, batch_coriolis_matrix, batch_terms
 from .registry import register_robot, robot_params
 
 _SINGULAR_TOL = 1e-9
+_WORK = 64  # floats of the compiled form's scratch (its largest use: 40 + a chain's)
 
 
 @dataclass
@@ -193,26 +195,6 @@ class Parallel5R(Manipulator):
         rho_right = np.stack([eye_rows[..., 1, :], r[..., 1, :]], axis=-2)
         return FiveBarState(q_left, q_right, rho_left, rho_right, a_pas)
 
-    def _rho_dot_qd(self, st: FiveBarState, qd: FloatArray) -> tuple[FloatArray, FloatArray]:
-        """``rhodot qd`` for both chains (Eq. 57), from ``A_pas Rdot = -Adot rho``."""
-        qd_left = np.einsum("...ij,...j->...i", st.rho_left, qd)
-        qd_right = np.einsum("...ij,...j->...i", st.rho_right, qd)
-        # d/dt of the constraint Jacobian applied to qd' equals J_dot qd' per chain
-        acc_left = np.einsum(
-            "...ij,...j->...i", self.left.tip_jacobian_dot(st.q_left, qd_left), qd_left
-        )
-        acc_right = np.einsum(
-            "...ij,...j->...i", self.right.tip_jacobian_dot(st.q_right, qd_right), qd_right
-        )
-        pas_dd = -np.linalg.solve(st.constraint_passive, (acc_left - acc_right)[..., None])[
-            ..., 0
-        ]
-        zeros = np.zeros(qd.shape[:-1])
-        return (
-            np.stack([zeros, pas_dd[..., 0]], axis=-1),
-            np.stack([zeros, pas_dd[..., 1]], axis=-1),
-        )
-
     def passive_joints(self, q: FloatArray, qd: FloatArray) -> tuple[FloatArray, FloatArray]:
         """``(q3, q4)`` and their rates for actuated ``q``, ``qd``."""
         st = self.state(q)
@@ -263,88 +245,34 @@ class Parallel5R(Manipulator):
         st = self.state(q, check=True)
         return np.einsum("...ij,...jk->...ik", self.left.tip_jacobian(st.q_left), st.rho_left)
 
-    # -- dynamics ------------------------------------------------------------ #
-    def _mass_matrix(self, q: FloatArray) -> FloatArray:
-        st = self.state(q)
-        return self._reduced_mass(st)
-
-    def _reduced_mass(self, st: FiveBarState) -> FloatArray:
-        m_left = self.left.mass_matrix(st.q_left)
-        m_right = self.right.mass_matrix(st.q_right)
-        return (
-            _congruence(st.rho_left, m_left) + _congruence(st.rho_right, m_right) + diag(self.J)
-        )
-
-    def _coriolis_matrix(self, q: FloatArray, qd: FloatArray) -> FloatArray:
-        st = self.state(q)
-        qd_left = np.einsum("...ij,...j->...i", st.rho_left, qd)
-        qd_right = np.einsum("...ij,...j->...i", st.rho_right, qd)
-        rho_dot_left, rho_dot_right = self._rho_dot_matrices(st, qd)
-        out = _congruence(st.rho_left, self.left.coriolis_matrix(st.q_left, qd_left))
-        out = out + _congruence(st.rho_right, self.right.coriolis_matrix(st.q_right, qd_right))
-        out = out + np.einsum(
-            "...ji,...jk,...kl->...il", st.rho_left, self.left.mass_matrix(st.q_left), rho_dot_left
-        )
-        return out + np.einsum(
-            "...ji,...jk,...kl->...il",
-            st.rho_right,
-            self.right.mass_matrix(st.q_right),
-            rho_dot_right,
-        )
-
-    def _rho_dot_matrices(self, st: FiveBarState, qd: FloatArray) -> tuple[FloatArray, FloatArray]:
-        """Full ``rhodot`` (Eq. 57), columns from unit actuated rates (linear in qd)."""
-        qd_left = np.einsum("...ij,...j->...i", st.rho_left, qd)
-        qd_right = np.einsum("...ij,...j->...i", st.rho_right, qd)
-        jd_left = self.left.tip_jacobian_dot(st.q_left, qd_left)
-        jd_right = self.right.tip_jacobian_dot(st.q_right, qd_right)
-        # Adot rho, column k: (Jdot_left rho_left[:, k]) - (Jdot_right rho_right[:, k])
-        adot_rho = np.einsum("...ij,...jk->...ik", jd_left, st.rho_left) - np.einsum(
-            "...ij,...jk->...ik", jd_right, st.rho_right
-        )
-        r_dot = -np.linalg.solve(st.constraint_passive, adot_rho)
-        zeros = np.zeros_like(r_dot[..., 0, :])
-        return (
-            np.stack([zeros, r_dot[..., 0, :]], axis=-2),
-            np.stack([zeros, r_dot[..., 1, :]], axis=-2),
-        )
-
-    def _gravity(self, q: FloatArray) -> FloatArray:
-        st = self.state(q)
-        return self._reduced_gravity(st)
-
-    def _reduced_gravity(self, st: FiveBarState) -> FloatArray:
-        g_left = self.left.gravity_vector(st.q_left)
-        g_right = self.right.gravity_vector(st.q_right)
-        return np.einsum("...ji,...j->...i", st.rho_left, g_left) + np.einsum(
-            "...ji,...j->...i", st.rho_right, g_right
-        )
+    # -- dynamics: the compiled form's, over any leading batch axes ----------- #
+    def _batch(self, q: FloatArray, qd: FloatArray | None = None) -> tuple[FloatArray, FloatArray, tuple[int, ...]]:
+        shape = q.shape[:-1]
+        flat_q = np.ascontiguousarray(q, dtype=float).reshape(-1, 2)
+        flat_qd = np.zeros_like(flat_q) if qd is None else np.ascontiguousarray(np.broadcast_to(qd, q.shape),
+                                                                                 dtype=float).reshape(-1, 2)
+        return flat_q, flat_qd, shape
 
     def _bias(self, q: FloatArray, qd: FloatArray) -> tuple[FloatArray, FloatArray]:
-        st = self.state(q)
-        qd_left = np.einsum("...ij,...j->...i", st.rho_left, qd)
-        qd_right = np.einsum("...ij,...j->...i", st.rho_right, qd)
-        m_left = self.left.mass_matrix(st.q_left)
-        m_right = self.right.mass_matrix(st.q_right)
-        rdq_left, rdq_right = self._rho_dot_qd(st, qd)
-        # rho^T (C' qd' + M' rhodot qd + G') per chain
-        f_left = (
-            self.left.coriolis_vector(st.q_left, qd_left)
-            + np.einsum("...ij,...j->...i", m_left, rdq_left)
-            + self.left.gravity_vector(st.q_left)
-        )
-        f_right = (
-            self.right.coriolis_vector(st.q_right, qd_right)
-            + np.einsum("...ij,...j->...i", m_right, rdq_right)
-            + self.right.gravity_vector(st.q_right)
-        )
-        bias = np.einsum("...ji,...j->...i", st.rho_left, f_left) + np.einsum(
-            "...ji,...j->...i", st.rho_right, f_right
-        )
-        mass = (
-            _congruence(st.rho_left, m_left) + _congruence(st.rho_right, m_right) + diag(self.J)
-        )
-        return mass, bias
+        """``Mbar`` and ``C qd + G`` (Eqs. 56-70) from the compiled form (:func:`.parallel_5r_kernels.terms`)."""
+        flat_q, flat_qd, shape = self._batch(q, qd)
+        mass = np.empty((len(flat_q), 2, 2))
+        bias = np.empty((len(flat_q), 2))
+        batch_terms(self.pack(), flat_q, flat_qd, mass, bias, np.empty(_WORK))
+        return mass.reshape(shape + (2, 2)), bias.reshape(shape + (2,))
+
+    def _mass_matrix(self, q: FloatArray) -> FloatArray:
+        return self._bias(q, np.zeros_like(q))[0]
+
+    def _gravity(self, q: FloatArray) -> FloatArray:
+        return self._bias(q, np.zeros_like(q))[1]
+
+    def _coriolis_matrix(self, q: FloatArray, qd: FloatArray) -> FloatArray:
+        """``C = rho^T C' rho + rho^T M' rhodot`` (Eq. 57) from the compiled form, column by column."""
+        flat_q, flat_qd, shape = self._batch(q, qd)
+        out = np.empty((len(flat_q), 2, 2))
+        batch_coriolis_matrix(self.pack(), flat_q, flat_qd, out, np.empty(_WORK))
+        return out.reshape(shape + (2, 2))
 
     def _potential(self, q: FloatArray) -> FloatArray:
         q_left, q_right = self.open_tree(q)

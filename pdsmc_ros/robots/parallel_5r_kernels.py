@@ -12,6 +12,7 @@ import math
 from numba import njit
 
 from .chain import chain_coriolis_times
+from .kernel_math import entry_at
 
 PARALLEL_5R = 1
 """Code of the compiled form (:mod:`pdsmc_ros.robots.compiled`)."""
@@ -112,33 +113,19 @@ def _geometry(p, q, qd, geo):  # noqa: ANN001, ANN202
 
 
 @njit(cache=True, inline="always")
+def _chain_jdot_times(la, lb, th_a, th_ab, w_a, w_ab, v0, v1):  # noqa: ANN001, ANN202, PLR0913
+    """``Jdot v`` of a 2-link chain (lengths ``la``, ``lb``; absolute angles and rates of its links),
+    ``Jdot = [[-la ca wa - lb cab wab, -lb cab wab], [-la sa wa - lb sab wab, -lb sab wab]]``."""
+    x = (-la * math.cos(th_a) * w_a - lb * math.cos(th_ab) * w_ab) * v0 - lb * math.cos(th_ab) * w_ab * v1
+    y = (-la * math.sin(th_a) * w_a - lb * math.sin(th_ab) * w_ab) * v0 - lb * math.sin(th_ab) * w_ab * v1
+    return x, y
+
+
+@njit(cache=True, inline="always")
 def _jdot_times(p, geo, vl0, vl1, vr0, vr1):  # noqa: ANN001, ANN202
     """``Jdot_left vl - Jdot_right vr`` (rates of the constraint), as two floats."""
-    l1 = p[_L1]
-    l3 = p[_L3]
-    l2 = p[_L2]
-    l4 = p[_L4]
-    th1 = geo[0]
-    th13 = geo[0] + geo[1]
-    w1 = geo[4]
-    w13 = geo[4] + geo[5]
-    th2 = geo[2]
-    th24 = geo[2] + geo[3]
-    w2 = geo[6]
-    w24 = geo[6] + geo[7]
-    # Jdot of a 2-link chain: [[-l1 c1 w1 - l3 c13 w13, -l3 c13 w13], [-l1 s1 w1 - l3 s13 w13, -l3 s13 w13]]
-    lx = (-l1 * math.cos(th1) * w1 - l3 * math.cos(th13) * w13) * vl0 - l3 * math.cos(
-        th13
-    ) * w13 * vl1
-    ly = (-l1 * math.sin(th1) * w1 - l3 * math.sin(th13) * w13) * vl0 - l3 * math.sin(
-        th13
-    ) * w13 * vl1
-    rx = (-l2 * math.cos(th2) * w2 - l4 * math.cos(th24) * w24) * vr0 - l4 * math.cos(
-        th24
-    ) * w24 * vr1
-    ry = (-l2 * math.sin(th2) * w2 - l4 * math.sin(th24) * w24) * vr0 - l4 * math.sin(
-        th24
-    ) * w24 * vr1
+    lx, ly = _chain_jdot_times(p[_L1], p[_L3], geo[0], geo[0] + geo[1], geo[4], geo[4] + geo[5], vl0, vl1)
+    rx, ry = _chain_jdot_times(p[_L2], p[_L4], geo[2], geo[2] + geo[3], geo[6], geo[6] + geo[7], vr0, vr1)
     return lx - rx, ly - ry
 
 
@@ -285,14 +272,10 @@ def gravity(p, q, out, work):  # noqa: ANN001, ANN202
     terms(p, q, qd, mass, out, work[6:])
 
 
-@njit(cache=True, inline="always")
-def motor_inertia(p, i):  # noqa: ANN001, ANN201
-    return p[_J + i]
-
-
-@njit(cache=True, inline="always")
-def damping(p, i):  # noqa: ANN001, ANN201
-    return p[_B + i]
+motor_inertia = entry_at(_J)
+"""Motor inertia ``J_i``: ``(p, i) -> float``."""
+damping = entry_at(_B)
+"""Motor viscous damping ``B_i``: ``(p, i) -> float``."""
 
 
 @njit(cache=True)
@@ -309,3 +292,28 @@ def outputs(p, q, qd, out, work):  # noqa: ANN001, ANN201
         angle = geo[1 + 2 * i]
         out[2 + i] = math.pi - (math.pi - angle) % (2.0 * math.pi)
         out[4 + i] = geo[5 + 2 * i]
+
+
+# --------------------------------------------------------------------------- #
+# Over a batch of states: what the numpy interface (Parallel5R) calls
+# --------------------------------------------------------------------------- #
+@njit(cache=True)
+def batch_terms(p, q, qd, mass, bias, work):  # noqa: ANN001, ANN201
+    """:func:`terms` at each row of ``q``, ``qd`` (shape ``(k, 2)``): ``mass`` ``(k, 2, 2)``, ``bias`` ``(k, 2)``."""
+    for i in range(q.shape[0]):
+        terms(p, q[i], qd[i], mass[i], bias[i], work)
+
+
+@njit(cache=True)
+def batch_coriolis_matrix(p, q, qd, out, work):  # noqa: ANN001, ANN201
+    """``C(q, qd)`` at each row (``out`` ``(k, 2, 2)``), column ``j`` from :func:`coriolis_times` of the unit vector."""
+    v = work[-4:-2]
+    col = work[-2:]
+    for i in range(q.shape[0]):
+        for j in range(N):
+            v[0] = 0.0
+            v[1] = 0.0
+            v[j] = 1.0
+            coriolis_times(p, q[i], qd[i], v, col, work)
+            out[i, 0, j] = col[0]
+            out[i, 1, j] = col[1]

@@ -15,6 +15,7 @@ from numpy.typing import ArrayLike, NDArray
 from ..errors import InvalidInputError, UnreachableError
 from .base import FloatArray, Manipulator, RobotParams, as_vector, diag
 from .chain import PlanarChain, chain_coriolis_times
+from .kernel_math import entry_at
 from .registry import register_robot, robot_params
 
 SERIAL_3R = 0
@@ -265,14 +266,10 @@ def gravity(p, q, out, work):  # noqa: ANN001, ANN201, ARG001
             out[i] += ya
 
 
-@njit(cache=True, inline="always")
-def motor_inertia(p, i):  # noqa: ANN001, ANN201
-    return p[_J + i]
-
-
-@njit(cache=True, inline="always")
-def damping(p, i):  # noqa: ANN001, ANN201
-    return p[_B + i]
+motor_inertia = entry_at(_J)
+"""Motor inertia ``J_i``: ``(p, i) -> float``."""
+damping = entry_at(_B)
+"""Motor viscous damping ``B_i``: ``(p, i) -> float``."""
 
 
 @njit(cache=True)

@@ -11,6 +11,19 @@ from ..robots.base import FloatArray, Manipulator, as_vector
 from .rk4 import compiled_step
 
 
+class _StatePart:
+    """``q`` or ``qd`` of :attr:`PlantStepper.state`: a view of it; assigning sets the values."""
+
+    def __init__(self, index: int) -> None:
+        self.index = index
+
+    def __get__(self, stepper: PlantStepper, owner: type | None = None) -> FloatArray:
+        return stepper._parts[self.index]
+
+    def __set__(self, stepper: PlantStepper, value: ArrayLike) -> None:
+        stepper._parts[self.index][:] = value
+
+
 class PlantStepper:
     """The plant of Eq. (4.1) advanced one control period at a time.
 
@@ -24,6 +37,11 @@ class PlantStepper:
         Initial joint angles and rates.
     """
 
+    q = _StatePart(0)
+    """Joint angles now (a view of :attr:`state`; assigning sets the values)."""
+    qd = _StatePart(1)
+    """Joint rates now (a view of :attr:`state`; assigning sets the values)."""
+
     def __init__(self, robot: Manipulator, period: float, q0: ArrayLike, qd0: ArrayLike) -> None:
         if not np.isfinite(period) or period <= 0.0:
             raise InvalidInputError(f"period must be > 0 s, got {period!r}")
@@ -33,29 +51,10 @@ class PlantStepper:
         self._step = compiled_step(self.kind)
         n = robot.n
         self.state = np.concatenate([as_vector(q0, n, "q0"), as_vector(qd0, n, "qd0")]).astype(float)
-        self._q = self.state[:n]  # views: step() advances the state in place
-        self._qd = self.state[n:]
+        self._parts = (self.state[:n], self.state[n:])  # views: step() advances the state in place
         self._work = robot_compiled.workspace(robot.n)
         self._outputs = np.zeros(robot_compiled.OUTPUTS_SIZE)
         self.steps = 0
-
-    @property
-    def q(self) -> FloatArray:
-        """Joint angles now (a view of :attr:`state`; assigning sets the values)."""
-        return self._q
-
-    @q.setter
-    def q(self, value: ArrayLike) -> None:
-        self._q[:] = value
-
-    @property
-    def qd(self) -> FloatArray:
-        """Joint rates now (a view of :attr:`state`; assigning sets the values)."""
-        return self._qd
-
-    @qd.setter
-    def qd(self, value: ArrayLike) -> None:
-        self._qd[:] = value
 
     def step(self, tau: FloatArray) -> None:
         """Integrate one period with ``tau`` held (RK4, :mod:`pdsmc_ros.sim.rk4`)."""

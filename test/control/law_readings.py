@@ -27,13 +27,6 @@ def boundary_layer(g: FloatArray, e: FloatArray, ed: FloatArray) -> FloatArray:
     return np.clip((g[LAM] * e + ed) / g[PHI], -1.0, 1.0)
 
 
-def pd_reading(setup: LawSetup, q: FloatArray, qd: FloatArray, q_ref: FloatArray, qd_ref: FloatArray,
-               qdd_ref: FloatArray) -> FloatArray:  # noqa: ARG001
-    """PD, Eq. (3.4): ``Kp e + Kd edot``."""
-    g = setup.gains
-    return g[KP] * (q_ref - q) + g[KD] * (qd_ref - qd)
-
-
 def pdsmc_reading(setup: LawSetup, q: FloatArray, qd: FloatArray, q_ref: FloatArray, qd_ref: FloatArray,
                   qdd_ref: FloatArray) -> FloatArray:  # noqa: ARG001
     """PD-SMC, Eq. (3.44): ``Kp e + Kd edot + Ks sat(s / phi)``."""
@@ -60,5 +53,3 @@ def smc_reading(setup: LawSetup, q: FloatArray, qd: FloatArray, q_ref: FloatArra
             + m[S_GRAVITY] * model.gravity(qm) + m[S_DAMPING] * model.B * qd_r
             + g[KS] * boundary_layer(g, e, ed))
 
-
-READINGS = {"pd": pd_reading, "smc": smc_reading, "pdsmc": pdsmc_reading}
