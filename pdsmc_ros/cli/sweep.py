@@ -16,10 +16,12 @@ from .options import (
 
 def add_parser(sub: argparse._SubParsersAction, commands: dict) -> None:  # type: ignore[type-arg]
     """Register ``sweep`` on ``pdsmc``'s subcommands."""
-    p = sub.add_parser("sweep", help="vary one PD-SMC parameter (Section 4.2.3, Table 4.15)")
+    p = sub.add_parser("sweep", help="vary one gain of a law (the PD-SMC's: Section 4.2.3, Table 4.15)")
     p.add_argument("--param", required=True,
-                   help="the PD-SMC gain varied, one its declaration and Table 4.15 give a range: kp, kd, ks, "
-                   "lam (the thesis's lambda)")
+                   help="the gain varied: for the PD-SMC one Table 4.15 gives a range (kp, kd, ks, lam: the "
+                   "thesis's lambda), for another law any gain it declares (with --values)")
+    p.add_argument("--controller", default="pdsmc",
+                   help="the law swept (default pdsmc, the thesis's sweep); the others keep its presets")
     p.add_argument("--robot", required=True, help="a registered robot: serial_3r, parallel_5r, ...")
     p.add_argument("--contour", required=True)
     p.add_argument("--out", default=None, help="write sweep_<param>.csv and .png here")
@@ -36,11 +38,15 @@ def run(args: argparse.Namespace) -> int:
     def progress(done: int, total: int, _res: object) -> None:
         print(f"[{done}/{total}]", end="\r", file=sys.stderr, flush=True)
 
-    param, points = run_sweep(args.param, args.robot, args.contour, values=args.values,
-                              workers=args.workers, progress=progress, scheduler=args.scheduler)
+    from ..control import law_label
+
+    param, points = run_sweep(args.param, args.robot, args.contour, values=args.values, workers=args.workers,
+                              progress=progress, scheduler=args.scheduler, controller=args.controller)
     label = param
-    print(f"PD-SMC, {args.robot} / {args.contour}: {label} varied, others at Kp=5000, Kd=1000, Ks=5, "
-          "lambda=10, phi=0.5 (Section 4.2.3)")
+    name = law_label(args.controller)
+    others = ("others at Kp=5000, Kd=1000, Ks=5, lambda=10, phi=0.5 (Section 4.2.3)" if args.controller == "pdsmc"
+              else "the others at the law's presets")
+    print(f"{name}, {args.robot} / {args.contour}: {label} varied, {others}")
     print(f"{label:>8s} {'rate (Hz)':>10s} {'mean (m)':>11s} {'S.D. (m)':>11s} {'max (m)':>11s} {'within':>8s}")
     for p in points:
         flag = "  diverged" if p.diverged else ""
@@ -63,6 +69,6 @@ def run(args: argparse.Namespace) -> int:
         ok = [p for p in points if not p.diverged]
         plot_sweep(label, np.array([p.value for p in ok]), np.array([p.contour_mean for p in ok]),
                    np.array([p.contour_sd for p in ok]), np.array([p.contour_max for p in ok]),
-                   out / f"sweep_{label}.png", f"PD-SMC {args.robot}/{args.contour}: {label}")
+                   out / f"sweep_{label}.png", f"{name} {args.robot}/{args.contour}: {label}")
         print(f"wrote {out}/sweep_{label}.csv and .png", file=sys.stderr)
     return 0

@@ -6,9 +6,11 @@ import subprocess
 import sys
 
 import numpy as np
+import pytest
 
 from pdsmc_ros.control import Gains
 from pdsmc_ros.control.lyapunov import theorem_conditions
+from pdsmc_ros.errors import InvalidInputError
 from pdsmc_ros.presets import make_run
 from pdsmc_ros.thesis.sweep import sweep_specs, thesis_values
 
@@ -28,6 +30,18 @@ def test_sweep_runs_each_point_at_a_stable_rate() -> None:
     # Kd = 10000 with the serial arm's inertia needs a faster loop than the default 10 kHz
     assert specs[-1].rate > 10000.0 and specs[0].rate == 10000.0
     assert all(s.gains["kp"] == (5000.0,) * 3 and s.gains["phi"] == (0.5,) * 3 for s in specs)
+
+
+def test_any_law_sweeps_any_gain_it_declares_from_its_presets() -> None:
+    presets = make_run("parallel_5r", "circle", "sta").gains
+    param, specs = sweep_specs("k2", "parallel_5r", "circle", [1.0, 50.0], controller="sta")
+    assert param == "k2" and [s.controller for s in specs] == ["sta", "sta"]
+    assert [s.gains["k2"] for s in specs] == [(1.0, 1.0), (50.0, 50.0)]
+    assert all(s.gains["k1"] == presets["k1"] and s.gains["lam"] == presets["lam"] for s in specs)
+    with pytest.raises(InvalidInputError, match="no range for sta's k2: give the values"):
+        sweep_specs("k2", "parallel_5r", "circle", controller="sta")
+    with pytest.raises(InvalidInputError, match="unknown sweep parameter 'phi' of sta; choose one of: k1, k2, lam"):
+        sweep_specs("phi", "parallel_5r", "circle", [1.0], controller="sta")
 
 
 def test_theorem_conditions_hold_for_thesis_gains_and_fail_for_weak_ks() -> None:
