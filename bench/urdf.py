@@ -3,8 +3,8 @@
 Prints, for the thesis's serial arm from its URDF (3 joints) and the UR5 (6 joints):
 - microseconds per Pinocchio ``aba`` call from Python;
 - closed-loop steps per second of the plainest Pinocchio loop (RK4 over ``aba``, PD in numpy),
-  of the URDF robot's numpy path (Pinocchio's ``crba``/``nonLinearEffects`` per RK4 stage, the
-  PD-SMC law in numpy) and of the compiled loop (numba CRBA/RNEA, PD-SMC), measured in the same
+  of the URDF robot as a robot written in numpy (Pinocchio's ``crba``/``nonLinearEffects`` per RK4
+  stage, called back from the compiled loop through ``robots.python_form``) and of the compiled loop (numba CRBA/RNEA, PD-SMC), measured in the same
   process; the ratio reported is the compiled loop's to the aba loop's;
 then the UR5's lockstep steps per second over DDS, composed intra-process (bench/lockstep.py).
 
@@ -115,9 +115,9 @@ def main() -> int:
         figures[label] = (compiled, compiled / aba_loop)
         print(f"{label} ({arm.n} joints, circle, pdsmc, {spec.rate:g} Hz): pinocchio.aba {aba:.2f} us/call; "
               f"closed loop: Pinocchio RK4 over aba with PD in numpy {aba_loop:,.0f} steps/s, the URDF robot's "
-              f"numpy path (Pinocchio terms, PD-SMC in numpy) {numpy_loop:,.0f} steps/s, compiled "
+              f"numpy form (Pinocchio terms through robots.python_form) {numpy_loop:,.0f} steps/s, compiled "
               f"{compiled:,.0f} steps/s (x{compiled / aba_loop:.1f} the aba loop, x{compiled / numpy_loop:.0f} "
-              "the numpy path)", flush=True)
+              "the numpy form)", flush=True)
     lockstep = float("nan")
     if not args.no_dds:
         from lockstep import lockstep_steps_per_s

@@ -4,7 +4,7 @@
 The law is a PD with a scalar share ``kg`` of the nominal model's gravity compensated
 (``tau = Kp e + Kd edot + kg G(q)``, not a thesis law): it has no state, so the loop needs none.
 Its ``kg`` is one value for every joint, in [0, 1]; nothing else in the package names it. Without a
-compiled form it runs on the numpy path (about 2 ms a step for the serial arm): the runs here are the
+compiled form it runs behind control.python_form (a Python call a step): the runs here are the
 serial zigzag at 500 Hz, with the gains of ``pdsmc tune``'s starting point for that rate.
 """
 

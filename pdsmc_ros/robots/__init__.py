@@ -3,7 +3,7 @@
 Adding a robot: a :class:`Manipulator` subclass decorated with :func:`register_robot`
 (here or in any module: a test registers its own) and its entry in ``config/robots.yaml``
 (or the mapping given to :func:`register_robot`); a built-in one is imported below. A
-robot without a compiled form runs on the numpy path; one with a compiled form adds one
+robot without a compiled form runs behind :mod:`.python_form`'s; one with its own adds one
 entry to :data:`.compiled.COMPILED`. A URDF arm is no class: an instance of
 :class:`UrdfArm` (``robot:=`` a name of ``config/urdf_arms.yaml`` or a ``.urdf`` path).
 """

@@ -5,7 +5,8 @@ Every function accepts a leading batch dimension: ``q`` of shape ``(..., n)``.
 A robot implements the underscored, unchecked methods; the public methods
 validate their input and delegate. A robot with a compiled form (numba) also
 sets :attr:`Manipulator.kernel` and implements :meth:`Manipulator.pack`; one
-without runs on the numpy path (see :mod:`pdsmc_ros.sim`).
+without runs behind :mod:`pdsmc_ros.robots.python_form` (its numpy methods called from the
+one compiled loop).
 """
 
 from __future__ import annotations
