@@ -4,7 +4,8 @@ Prints, for the thesis's serial arm from its URDF (3 joints) and the UR5 (6 join
 - microseconds per Pinocchio ``aba`` call from Python;
 - closed-loop steps per second of the plainest Pinocchio loop (RK4 over ``aba``, PD in numpy),
   of the URDF robot as a robot written in numpy (Pinocchio's ``crba``/``nonLinearEffects`` per RK4
-  stage, called back from the compiled loop through ``robots.python_form``) and of the compiled loop (numba CRBA/RNEA, PD-SMC), measured in the same
+  stage, called back from the compiled loop through ``robots.python_form``) and of the compiled loop
+  (numba CRBA/RNEA, PD-SMC), measured in the same
   process; the ratio reported is the compiled loop's to the aba loop's;
 then the UR5's lockstep steps per second over DDS, composed intra-process (bench/lockstep.py).
 
