@@ -63,9 +63,12 @@ def dask_client(scheduler: str | None = None, workers: int | None = None) -> Ite
     quiet = {"distributed.worker.profile.enabled": False, "distributed.worker.memory.target": False,
              "distributed.worker.memory.spill": False, "distributed.worker.memory.pause": False,
              "distributed.worker.memory.terminate": False, "distributed.admin.system-monitor.interval": "5s"}
+    # Dask's own logs stay out of the command's output: the one worth a user's attention, a worker
+    # lost mid-run, is handled (its tasks are redone) and said in our words; at ERROR level a loaded
+    # machine printed a worker's failed heartbeat, with its traceback, as the cluster closed.
     with dask.config.set(quiet):
         cluster = LocalCluster(n_workers=count, threads_per_worker=1, processes=True, dashboard_address=None,
-                               silence_logs=logging.ERROR)
+                               silence_logs=logging.CRITICAL)
     client = Client(cluster)
     try:
         yield client
