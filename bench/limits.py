@@ -96,7 +96,7 @@ def measure(robot: str, repeats: int) -> tuple[float, float, float, float, bool]
         check = DivergenceCheck.for_robot(plant)
         counts = np.zeros(n + 2, dtype=np.int64)
         _CLOSED_LOOPS[kind](*setup, refs[0, 0].copy(), np.zeros(n), refs, h, every, plant.effort_limits,
-                            check.bounds, check.first, check.at, counts, *outs, work, law.state)
+                            check.bounds, check.first, check.at, counts, *outs, work, law.state, 0, 0)
 
     unchecked()
     before = [o.copy() for o in outs]

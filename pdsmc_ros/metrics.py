@@ -87,13 +87,28 @@ def compute_metrics(samples: Samples, bound: float, *, saturated: Sequence[int] 
     InvalidInputError
         If there is no sample (every statistic would be undefined).
     """
-    if not len(samples.t):
+    return error_metrics(samples.q_ref - samples.q, samples.xy_ref - samples.xy, samples.contour_error,
+                         samples.tau, bound, saturated=saturated, scores=scores)
+
+
+def error_metrics(axial_error: FloatArray, task_error: FloatArray, contour_error: FloatArray, tau: FloatArray,
+                  bound: float, *, saturated: Sequence[int] = (), scores: Scores | None = None) -> Metrics:
+    """:func:`compute_metrics` from the errors alone (what a run that keeps no samples keeps):
+    ``axial_error = q_d - q`` (S, n), ``task_error = p_d - p`` (S, 2), the contour error (S,) and
+    the applied torque (S, n) at the statistics instants.
+
+    Raises
+    ------
+    InvalidInputError
+        If there is no sample (every statistic would be undefined).
+    """
+    if not len(contour_error):
         raise InvalidInputError("statistics need at least one sampled instant; got none")
-    axial = np.abs(samples.q_ref - samples.q)
-    ex = np.abs(samples.xy_ref[:, 0] - samples.xy[:, 0])
-    ey = np.abs(samples.xy_ref[:, 1] - samples.xy[:, 1])
+    axial = np.abs(axial_error)
+    ex = np.abs(task_error[:, 0])
+    ey = np.abs(task_error[:, 1])
     total = np.hypot(ex, ey)
-    eps = np.abs(samples.contour_error)
+    eps = np.abs(contour_error)
     return Metrics(
         axial_mean=axial.mean(axis=0).tolist(),
         axial_sd=axial.std(axis=0).tolist(),
@@ -103,10 +118,9 @@ def compute_metrics(samples: Samples, bound: float, *, saturated: Sequence[int] 
         contour_sd=float(eps.std()),
         contour_bound=float(bound),
         contour_within_pct=float(100.0 * np.mean(eps <= bound)),
-        max_torque=np.max(np.abs(samples.tau), axis=0).tolist(),
-        samples=int(len(samples.t)),
-        task_sd_signed={"x": float(np.std(samples.xy_ref[:, 0] - samples.xy[:, 0])),
-                        "y": float(np.std(samples.xy_ref[:, 1] - samples.xy[:, 1]))},
+        max_torque=np.max(np.abs(tau), axis=0).tolist(),
+        samples=int(len(contour_error)),
+        task_sd_signed={"x": float(np.std(task_error[:, 0])), "y": float(np.std(task_error[:, 1]))},
         saturated_periods=[int(c) for c in saturated],
         **score_fields(scores),
     )
@@ -117,10 +131,14 @@ def sample_scores(samples: Samples, rate: float) -> Scores | None:
     ``rate`` Hz: the error at every sample, the torque of every sample but the last (the run's
     closing command, never applied) held until the next. None with fewer than two samples or
     samples not evenly ``1/rate`` apart (a bag with missing steps): the scores need every instant."""
-    t = samples.t
+    return error_scores(samples.t, samples.q_ref - samples.q, samples.tau, rate)
+
+
+def error_scores(t: FloatArray, axial_error: FloatArray, tau: FloatArray, rate: float) -> Scores | None:
+    """:func:`sample_scores` from the instants, ``q_d - q`` and the torque at them."""
     if len(t) < 2 or not np.allclose(np.diff(t), 1.0 / rate, rtol=1e-9, atol=0.0):
         return None
-    return compute_scores(samples.q_ref - samples.q, samples.tau[:-1], rate)
+    return compute_scores(axial_error, tau[:-1], rate)
 
 
 def score_fields(scores: Scores | None) -> dict[str, Any]:

@@ -27,9 +27,9 @@ def _closed_loop_for(kind: int) -> Any:
     """The closed loop compiled for robot code ``kind`` (a constant of the closure: its dynamics inlined)."""
 
     def closed_loop(p, code, gains, smc_model, model_kind, model_p, q0, qd0, refs, h, sample_every,  # noqa: ANN001, ANN202, PLR0913
-                    limit, bounds, first, at, counts, out_q, out_qd, out_tau, work, state):
+                    limit, bounds, first, at, counts, out_q, out_qd, out_tau, work, state, start_step, advance_last):
         _loop(kind, p, code, gains, smc_model, model_kind, model_p, q0, qd0, refs, h, sample_every,
-              limit, bounds, first, at, counts, out_q, out_qd, out_tau, work, state)
+              limit, bounds, first, at, counts, out_q, out_qd, out_tau, work, state, start_step, advance_last)
 
     return njit(cache=True)(closed_loop)
 
@@ -37,10 +37,11 @@ def _closed_loop_for(kind: int) -> Any:
 @njit(cache=True, inline="always")
 def _loop(  # noqa: ANN202, PLR0913
     kind, p, code, gains, smc_model, model_kind, model_p, q0, qd0, refs, h, sample_every,
-    limit, bounds, first, at, counts, out_q, out_qd, out_tau, work, state,
+    limit, bounds, first, at, counts, out_q, out_qd, out_tau, work, state, start_step, advance_last,
 ):  # noqa: ANN001
     n = robot_compiled.size(kind, q0.shape[0])
     steps = refs.shape[0] - 1
+    applied = steps + advance_last  # the periods whose torque the plant is stepped with
     stages, rest = carve(work, n)
     q = q0.copy()
     qd = qd0.copy()
@@ -49,9 +50,9 @@ def _loop(  # noqa: ANN202, PLR0913
         # the state's check at the statistics instants (every step cost the serial arm's loop 8 %): a
         # diverged run stops at the first instant after it diverged, a limit crossing is seen there
         if k % sample_every == 0:
-            hit = watch(q, qd, k, bounds, first, at)
+            hit = watch(q, qd, start_step + k, bounds, first, at)
             if hit >= 0:  # diverged: stop before the law or the plant sees the state
-                counts[n] = k
+                counts[n] = start_step + k
                 counts[n + 1] = hit
                 for i in range(n):
                     at[2, i] = q[i]
@@ -63,18 +64,21 @@ def _loop(  # noqa: ANN202, PLR0913
         for i in range(n):
             if tau[i] > limit[i]:
                 tau[i] = limit[i]
-                counts[i] += k < steps
+                counts[i] += k < applied
             elif tau[i] < -limit[i]:
                 tau[i] = -limit[i]
-                counts[i] += k < steps
+                counts[i] += k < applied
         if k % sample_every == 0:
             j = k // sample_every
             for i in range(n):
                 out_q[j, i] = q[i]
                 out_qd[j, i] = qd[i]
                 out_tau[j, i] = tau[i]
-        if k < steps:
+        if k < applied:
             rk4_advance(kind, p, q, qd, tau, h, stages, rest)
+    for i in range(n):  # the state the loop ends in: where a following stretch of the run starts
+        q0[i] = q[i]
+        qd0[i] = qd[i]
 
 
 # one compiled loop per robot of the table, made from it: a process compiles (or loads) only the robots
@@ -96,12 +100,16 @@ class LoopOutcome:
         The control step of the diverged state, or -1.
     warnings : list of str
         The first crossing of each joint's position and velocity limit.
+    end_q, end_qd : ndarray, shape (n,)
+        The state the loop ended in (after the last period when it advanced the plant over it).
     """
 
     saturated: list[int]
     diverged: str = ""
     diverged_step: int = -1
     warnings: list[str] = field(default_factory=list)
+    end_q: FloatArray = field(default_factory=lambda: np.zeros(0))
+    end_qd: FloatArray = field(default_factory=lambda: np.zeros(0))
 
 
 def closed_loop(
@@ -114,9 +122,14 @@ def closed_loop(
 
 def run_loop(
     plant: Manipulator, law: ControlLaw, q0: FloatArray, refs: FloatArray, h: float, sample_every: int,
-    torque_limit: FloatArray | None = None, check: DivergenceCheck | None = None,
+    torque_limit: FloatArray | None = None, check: DivergenceCheck | None = None, *,
+    qd0: FloatArray | None = None, start_step: int = 0, advance_last: bool = False,
 ) -> tuple[FloatArray, FloatArray, FloatArray, LoopOutcome]:
     """Run the loop from rest at ``q0``; the state and torque at every ``sample_every``-th instant.
+
+    A run in stretches (:func:`pdsmc_ros.sim.simulator.simulate` with ``keep_samples=False``) runs
+    each stretch but the last with ``advance_last`` and the next from the previous one's
+    :attr:`LoopOutcome.end_q` and ``end_qd`` at its ``start_step``: the same steps as one call.
 
     Parameters
     ----------
@@ -142,6 +155,13 @@ def run_loop(
         state has diverged, and the first instant beyond each joint's position and velocity limit
         is recorded (the plant node checks every step); by default
         :meth:`DivergenceCheck.for_robot` of ``plant``.
+    qd0 : ndarray, shape (n,), optional
+        Initial joint rates (default zero).
+    start_step : int
+        The control step of ``refs[0]`` in the whole run (the steps the check and the outcome name).
+    advance_last : bool
+        Also step the plant over the period of the last instant (its torque applied): the loop
+        ends at the instant after ``refs``' last, where the next stretch starts.
 
     Returns
     -------
@@ -159,14 +179,16 @@ def run_loop(
     counts = np.zeros(n + 2, dtype=np.int64)
     counts[n] = -1
     kind, p = robot_compiled.pack(plant)
+    end_q = np.array(q0, dtype=float)  # the loop starts here and writes where it ends
+    end_qd = np.zeros(n) if qd0 is None else np.array(qd0, dtype=float)
     _CLOSED_LOOPS[kind](p, law.code, law.gains, law.smc_model, law.model_kind, law.model_params,
-                        np.array(q0, dtype=float), np.zeros(n), refs, h, sample_every, limit, check.bounds,
-                        check.first, check.at, counts, out_q, out_qd, out_tau, robot_compiled.workspace(n),
-                        law.state)
-    outcome = LoopOutcome(counts[:n].tolist(), warnings=check.new_warnings(1.0 / h))
+                        end_q, end_qd, refs, h, sample_every, limit, check.bounds, check.first, check.at, counts,
+                        out_q, out_qd, out_tau, robot_compiled.workspace(n), law.state, int(start_step),
+                        int(advance_last))
+    outcome = LoopOutcome(counts[:n].tolist(), warnings=check.new_warnings(1.0 / h), end_q=end_q, end_qd=end_qd)
     if counts[n] >= 0:
         step = int(counts[n])
-        first_missing = -(-step // sample_every)  # the samples at or after the diverged step
+        first_missing = -(-(step - start_step) // sample_every)  # the samples at or after the diverged step
         for out in (out_q, out_qd, out_tau):
             out[first_missing:] = np.nan
         outcome.diverged_step = step

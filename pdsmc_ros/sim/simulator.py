@@ -23,6 +23,7 @@ from ..robots import ROBOTS
 from ..robots.base import FloatArray, Manipulator
 from ..trajectories import JointReference
 from .loop import run_loop
+from .stretches import empty_like_samples, run_in_stretches
 
 
 @dataclass(frozen=True)
@@ -50,7 +51,7 @@ class RunResult:
 
 
 def simulate(spec: RunSpec, *, check_stability: bool = True, plant: Manipulator | None = None,
-             initial_error: ArrayLike | None = None) -> RunResult:
+             initial_error: ArrayLike | None = None, keep_samples: bool = True) -> RunResult:
     """Run the discrete closed loop of ``spec`` and compute its statistics.
 
     Parameters
@@ -64,6 +65,10 @@ def simulate(spec: RunSpec, *, check_stability: bool = True, plant: Manipulator 
         :mod:`pdsmc_ros.experiments.montecarlo`); the controller keeps ``spec``'s nominal model.
     initial_error : array_like, optional
         Added to the joint angles the run starts from (the reference's first point), rad.
+    keep_samples : bool
+        Keep the samples (:attr:`RunResult.samples`). False: the run goes in stretches and keeps
+        only what its statistics need (:mod:`.stretches`: the same metrics, memory that no longer
+        grows with the reference and the states); its ``samples`` are empty.
 
     The law's torque is clamped to the arm's effort limits (``robot.effort_limits``) at every
     step unless ``spec.enforce_limits`` is False; the metrics count the saturated periods. A run
@@ -79,6 +84,13 @@ def simulate(spec: RunSpec, *, check_stability: bool = True, plant: Manipulator 
     """
     start = time.perf_counter()
     robot = plant or spec.robot_model()
+    if not keep_samples:
+        reference = spec.reference()
+        if check_stability:
+            check_rate(spec, reference)
+        metrics, count, outcome = run_in_stretches(spec, robot, reference, initial_error)
+        return RunResult(spec, Samples(**empty_like_samples(robot.n)), metrics, count, time.perf_counter() - start,
+                         outcome.diverged, tuple(outcome.warnings))
     reference, refs = _reference_samples(spec)
     if check_stability:
         check_rate(spec, reference)

@@ -12,6 +12,11 @@ from .contours import Contour
 from .joint_paths import JointPathContour
 from .samples import JointSample
 
+MAX_GRID_INTERVALS = 200_000
+"""The grid's intervals at the most: ``grid_rate`` over the first 100 s of a contour, sparser in time
+beyond (a contour slowed to an hour keeps the 100 s contour's density along its path, and 10 MB of
+grid for a six-joint arm instead of 350)."""
+
 
 class JointReference:
     """Continuous joint references of a contour for one robot.
@@ -39,7 +44,7 @@ class JointReference:
                 f"contour {contour.name!r} has {contour.dim} task coordinates, "
                 f"{robot.name} needs {robot.task_dim}"
             )
-        count = max(int(np.ceil(contour.duration * grid_rate)), 200) + 1
+        count = min(max(int(np.ceil(contour.duration * grid_rate)), 200), MAX_GRID_INTERVALS) + 1
         self._grid_t = np.linspace(0.0, contour.duration, count)
         p = contour.task(self._grid_t).p
         self._grid_q, ok = robot.ik_path(p)

@@ -1,0 +1,94 @@
+"""A run in stretches that keeps its errors, not its samples: memory no longer grows with the
+reference and the states of a long run.
+
+:func:`pdsmc_ros.sim.simulate` with ``keep_samples=False``. The loop runs the same steps as in
+one call (:func:`~pdsmc_ros.sim.loop.run_loop` carries the state, the law's internal state and the
+step count from one stretch to the next); the reference is sampled one stretch at a time, and of
+each statistics instant only what the statistics read is kept -- ``q_d - q``, ``p_d - p``, the
+contour error and the torque -- from which :func:`pdsmc_ros.metrics.error_metrics` computes the
+same statistics and scores as from the samples (equal to the last digit: a test runs both).
+A run of 3,600 s at 1 kHz keeps 9 floats a statistics instant for the serial arm instead of the
+reference's 9 floats a control step and the samples' 15 (bench/long_run.py).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from ..control.law import ControlLaw
+from ..control.safety import DivergenceCheck
+from ..metrics import Metrics, error_metrics, error_scores
+from ..presets import RunSpec, control_steps
+from ..robots.base import FloatArray, Manipulator
+from ..trajectories import JointReference
+from .loop import LoopOutcome, run_loop
+
+STRETCH_STEPS = 1 << 16
+"""Control steps of a stretch (rounded down to whole statistics periods): about 5 MB of
+reference for a six-joint arm."""
+
+
+def run_in_stretches(spec: RunSpec, robot: Manipulator, reference: JointReference,
+                     initial_error: ArrayLike | None = None,
+                     stretch_steps: int | None = None) -> tuple[Metrics, int, LoopOutcome]:
+    """The statistics of ``spec``'s run on ``robot`` and its loop's outcome, without its samples.
+
+    ``stretch_steps``: control steps a stretch (default :data:`STRETCH_STEPS`).
+
+    Returns
+    -------
+    metrics : Metrics
+    steps : int
+        Control steps of the run.
+    outcome : LoopOutcome
+        Saturated periods, limit warnings and divergence over the whole run.
+    """
+    steps = control_steps(reference.contour.duration, spec.rate)
+    every = spec.sample_every
+    stretch = max(every, (stretch_steps or STRETCH_STEPS) // every * every)
+    count = steps // every + 1
+    axial = np.empty((count, robot.n))
+    task = np.empty((count, 2))
+    contour = np.empty(count)
+    tau = np.empty((count, robot.n))
+    law = ControlLaw.from_spec(spec)
+    limit = robot.effort_limits if spec.enforce_limits else None
+    check = DivergenceCheck.for_robot(robot)
+    h = 1.0 / spec.rate
+    total = LoopOutcome([0] * robot.n)
+    q = qd = np.zeros(0)
+    for start in range(0, steps + 1, stretch):
+        last = start + stretch >= steps + 1
+        k = np.arange(start, steps + 1 if last else start + stretch)
+        refs = np.ascontiguousarray(reference.sample(k / spec.rate).stacked())
+        if start == 0:
+            q = refs[0, 0] if initial_error is None else refs[0, 0] + np.asarray(initial_error, dtype=float)
+            qd = np.zeros(robot.n)
+        out_q, _, out_tau, outcome = run_loop(robot, law, q, refs, h, every, limit, check, qd0=qd, start_step=start,
+                                              advance_last=not last)
+        q, qd = outcome.end_q, outcome.end_qd
+        total.saturated = [a + b for a, b in zip(total.saturated, outcome.saturated, strict=True)]
+        total.warnings += outcome.warnings
+        rows = slice(start // every, start // every + len(out_q))
+        t = k[::every] / spec.rate
+        p_ref = reference.contour.task(t).p[:, :2]
+        xy = robot.position(out_q)
+        axial[rows] = refs[::every, 0] - out_q
+        task[rows] = p_ref - xy
+        contour[rows] = reference.contour.contour_error(t, xy)
+        tau[rows] = out_tau
+        if outcome.diverged:
+            total.diverged, total.diverged_step = outcome.diverged, outcome.diverged_step
+            for kept in (axial, task, contour, tau):
+                kept[rows.stop:] = np.nan
+            break
+    scores = error_scores(np.arange(count) * every / spec.rate, axial, tau, spec.rate / every)
+    metrics = error_metrics(axial, task, contour, tau, spec.bound, saturated=total.saturated, scores=scores)
+    return metrics, steps, total
+
+
+def empty_like_samples(n: int) -> dict[str, FloatArray]:
+    """The fields of a :class:`~pdsmc_ros.metrics.Samples` with no instant (a run that kept none)."""
+    return {"t": np.zeros(0), "q": np.zeros((0, n)), "q_ref": np.zeros((0, n)), "xy": np.zeros((0, 2)),
+            "xy_ref": np.zeros((0, 2)), "tau": np.zeros((0, n)), "contour_error": np.zeros(0)}
