@@ -39,10 +39,10 @@ LEVANT_K2 = 1.1
 """Levant's (1993) gains for a perturbation of Lipschitz constant L: ``k1 = 1.5 sqrt(L)``, ``k2 = 1.1 L``."""
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _scratch(work, n):  # noqa: ANN001, ANN202
     """Four length-``n`` blocks at the start of ``work`` (``qdd_r``, ``qd_r`` and two of the law's
-    own) and the rest of it, for :func:`model_part`."""
+    own) and the rest of it, for :func:`model_part` (inlined: the very slices the law would take)."""
     return work[0:n], work[n : 2 * n], work[2 * n : 3 * n], work[3 * n : 4 * n], work[4 * n :]
 
 
