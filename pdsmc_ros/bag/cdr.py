@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import struct
 from collections.abc import Sequence
+from typing import Literal, overload
 
 import numpy as np
 
@@ -42,6 +43,9 @@ from .cdr_layout import (  # noqa: F401 (the writer and the caches are read by t
     _Writer,
     learn_encoding,
 )
+
+_NamedColumns = tuple[tuple[str, ...], int, int, tuple[float, ...], tuple[float, ...], tuple[float, ...]]
+"""``(names, sec, nanosec, three double columns)`` of a JointState or of a JointTrajectory's point."""
 
 
 def decode_stamp(data: bytes) -> tuple[int, int]:
@@ -72,15 +76,32 @@ def encode_joint_state(
     velocity: Sequence[float], effort: Sequence[float], frame_id: str = "",
 ) -> bytes:
     """``sensor_msgs/msg/JointState``."""
-    key = ("js", frame_id, *names, len(position), len(velocity), len(effort))
+    return _encode_joint_columns("js", sec, nanosec, names, position, velocity, effort, frame_id)
+
+
+def _encode_joint_columns(
+    kind: str, sec: int, nanosec: int, names: Sequence[str], first: Sequence[float],
+    second: Sequence[float], third: Sequence[float], frame_id: str,
+) -> bytes:
+    """A header, the joint names and three double columns: a ``JointState`` (``kind`` "js":
+    position, velocity, effort) or a one-point ``JointTrajectory`` ("jt": the point's positions,
+    velocities and accelerations, inside a one-element point sequence after them come its empty
+    effort and ``time_from_start = 0``). One ``pack`` once the shape has been written."""
+    key = (kind, frame_id, *names, len(first), len(second), len(third))
     layout = _encode_layouts.get(key)
     if layout is not None:
-        return layout.write((sec, nanosec), position, velocity, effort)
+        return layout.write((sec, nanosec), first, second, third)
+    point = kind == "jt"
     w = _Writer()
     w.header_and_names(sec, nanosec, frame_id, names)
-    for column in (position, velocity, effort):
+    if point:
+        w.u32(1)  # one point
+    for column in (first, second, third):
         w.doubles(column)
-    return learn_encoding(key, bytes(w.buf), _joint_state_fields)
+    if point:
+        w.doubles(())  # the point's effort
+        w.stamp(0, 0)  # time_from_start
+    return learn_encoding(key, bytes(w.buf), _joint_trajectory_fields if point else _joint_state_fields)
 
 
 def _joint_state_fields(data: bytes) -> list[tuple[int, str]]:
@@ -96,9 +117,7 @@ def decode_joint_state(data: bytes) -> tuple[int, int, tuple[float, ...], tuple[
     return decode_joint_state_named(data)[1:]
 
 
-def decode_joint_state_named(
-    data: bytes,
-) -> tuple[tuple[str, ...], int, int, tuple[float, ...], tuple[float, ...], tuple[float, ...]]:
+def decode_joint_state_named(data: bytes) -> _NamedColumns:
     """``(names, sec, nanosec, position, velocity, effort)`` of a ``JointState``.
 
     Raises
@@ -106,19 +125,37 @@ def decode_joint_state_named(
     CdrError
         If ``data`` is not a well-formed message (truncated, corrupt counts).
     """
-    fast = _fast_decode_named("js", data)
+    return _decode_joint_columns_named("js", data)
+
+
+@overload
+def _decode_joint_columns_named(kind: Literal["js"], data: bytes) -> _NamedColumns: ...
+@overload
+def _decode_joint_columns_named(kind: Literal["jt"], data: bytes) -> _NamedColumns | None: ...
+def _decode_joint_columns_named(kind: str, data: bytes) -> _NamedColumns | None:
+    """``(names, sec, nanosec, first, second, third)``: the three double columns of a
+    ``JointState`` (``kind`` "js") or of a ``JointTrajectory``'s first point ("jt"; None
+    without points), as :func:`_encode_joint_columns` lays them out. The general reader
+    remembers the shape of what it reads (a trajectory's only when it has one point)."""
+    fast = _fast_decode_named(kind, data)
     if fast is not None:
-        names, ((sec, nanosec), position, velocity, effort) = fast
-        return names, sec, nanosec, position, velocity, effort  # type: ignore[return-value]
+        names, ((sec, nanosec), first, second, third) = fast
+        return names, sec, nanosec, first, second, third  # type: ignore[return-value]
+    point = kind == "jt"
     r = _Reader(data)
     try:
         sec, nanosec = r.stamp()
         r.skip_string()  # frame_id
         names = r.strings()
+        if point and r.u32() == 0:
+            return None
         decoded = names, sec, nanosec, r.doubles(), r.doubles(), r.doubles()
     except struct.error as exc:
-        raise CdrError(f"truncated JointState ({exc})") from None
-    _learn("js", data, _joint_state_fields, names)
+        raise CdrError(f"truncated {'JointTrajectory' if point else 'JointState'} ({exc})") from None
+    if not point:
+        _learn(kind, data, _joint_state_fields, names)
+    elif _joint_trajectory_is_one_point(data):
+        _learn(kind, data, _joint_trajectory_fields, names)
     return decoded
 
 
@@ -127,17 +164,7 @@ def encode_joint_trajectory(
     velocities: Sequence[float], accelerations: Sequence[float], frame_id: str = "",
 ) -> bytes:
     """``trajectory_msgs/msg/JointTrajectory`` with one point at ``time_from_start = 0``."""
-    key = ("jt", frame_id, *names, len(positions), len(velocities), len(accelerations))
-    layout = _encode_layouts.get(key)
-    if layout is not None:
-        return layout.write((sec, nanosec), positions, velocities, accelerations)
-    w = _Writer()
-    w.header_and_names(sec, nanosec, frame_id, names)
-    w.u32(1)  # one point
-    for column in (positions, velocities, accelerations, ()):  # () for effort
-        w.doubles(column)
-    w.stamp(0, 0)  # time_from_start
-    return learn_encoding(key, bytes(w.buf), _joint_trajectory_fields)
+    return _encode_joint_columns("jt", sec, nanosec, names, positions, velocities, accelerations, frame_id)
 
 
 def encode_joint_trajectories(
@@ -184,9 +211,7 @@ def decode_joint_trajectory(
     return None if named is None else named[1:]
 
 
-def decode_joint_trajectory_named(
-    data: bytes,
-) -> tuple[tuple[str, ...], int, int, tuple[float, ...], tuple[float, ...], tuple[float, ...]] | None:
+def decode_joint_trajectory_named(data: bytes) -> _NamedColumns | None:
     """``(names, sec, nanosec, positions, velocities, accelerations)`` of the first point,
     or None without points (the one-point reference stream's fast path).
 
@@ -195,23 +220,7 @@ def decode_joint_trajectory_named(
     CdrError
         If ``data`` is not a well-formed message.
     """
-    fast = _fast_decode_named("jt", data)
-    if fast is not None:
-        names, ((sec, nanosec), positions, velocities, accelerations) = fast
-        return names, sec, nanosec, positions, velocities, accelerations  # type: ignore[return-value]
-    r = _Reader(data)
-    try:
-        sec, nanosec = r.stamp()
-        r.skip_string()  # frame_id
-        names = r.strings()
-        if r.u32() == 0:
-            return None
-        decoded = names, sec, nanosec, r.doubles(), r.doubles(), r.doubles()
-    except struct.error as exc:
-        raise CdrError(f"truncated JointTrajectory ({exc})") from None
-    if _joint_trajectory_is_one_point(data):
-        _learn("jt", data, _joint_trajectory_fields, names)
-    return decoded
+    return _decode_joint_columns_named("jt", data)
 
 
 def _joint_trajectory_is_one_point(data: bytes) -> bool:

@@ -39,6 +39,13 @@ LEVANT_K2 = 1.1
 """Levant's (1993) gains for a perturbation of Lipschitz constant L: ``k1 = 1.5 sqrt(L)``, ``k2 = 1.1 L``."""
 
 
+@njit(cache=True, inline="always")
+def _scratch(work, n):  # noqa: ANN001, ANN202
+    """Four length-``n`` blocks at the start of ``work`` (``qdd_r``, ``qd_r`` and two of the law's
+    own) and the rest of it, for :func:`model_part` (inlined: the very slices the law would take)."""
+    return work[0:n], work[n : 2 * n], work[2 * n : 3 * n], work[3 * n : 4 * n], work[4 * n :]
+
+
 @njit(cache=True)
 def sta(g, m, kind, p, q, qd, q_ref, qd_ref, qdd_ref, tau, work, state, h):  # noqa: ANN001, ANN201, PLR0913
     """Super-twisting SMC: the SMC's model part plus ``k1 |s|^(1/2) sign(s) + v``, ``vdot = k2 sign(s)``.
@@ -50,10 +57,7 @@ def sta(g, m, kind, p, q, qd, q_ref, qd_ref, qdd_ref, tau, work, state, h):  # n
     torque: the discontinuity is in ``vdot`` only.
     """
     n = q.shape[0]
-    qdd_r = work[0:n]
-    qd_r = work[n : 2 * n]
-    sign = work[2 * n : 3 * n]
-    root = work[3 * n : 4 * n]
+    qdd_r, qd_r, sign, root, rest = _scratch(work, n)
     for i in range(n):
         e = q_ref[i] - q[i]
         ed = qd_ref[i] - qd[i]
@@ -62,7 +66,7 @@ def sta(g, m, kind, p, q, qd, q_ref, qd_ref, qdd_ref, tau, work, state, h):  # n
         qd_r[i] = qd_ref[i] + g[STA_LAM, i] * e
         sign[i] = 1.0 if s > 0.0 else (-1.0 if s < 0.0 else 0.0)
         root[i] = g[K1, i] * math.sqrt(abs(s)) * sign[i]
-    model_part(m, kind, p, q, qd, q_ref, qd_ref, qdd_r, qd_r, tau, work[4 * n :])
+    model_part(m, kind, p, q, qd, q_ref, qd_ref, qdd_r, qd_r, tau, rest)
     for i in range(n):
         tau[i] += root[i] + state[0, i]
         state[0, i] += h * g[K2, i] * sign[i]
@@ -81,10 +85,7 @@ def ismc(g, m, kind, p, q, qd, q_ref, qd_ref, qdd_ref, tau, work, state, h):  # 
     inside the boundary layer.
     """
     n = q.shape[0]
-    qdd_r = work[0:n]
-    qd_r = work[n : 2 * n]
-    sat = work[2 * n : 3 * n]
-    err = work[3 * n : 4 * n]
+    qdd_r, qd_r, sat, err, rest = _scratch(work, n)
     for i in range(n):
         lam = g[I_LAM, i]
         e = q_ref[i] - q[i]
@@ -94,7 +95,7 @@ def ismc(g, m, kind, p, q, qd, q_ref, qd_ref, qdd_ref, tau, work, state, h):  # 
         s = (qd_r[i] - qd[i]) / g[I_PHI, i]
         sat[i] = 1.0 if s > 1.0 else (-1.0 if s < -1.0 else s)
         err[i] = e
-    model_part(m, kind, p, q, qd, q_ref, qd_ref, qdd_r, qd_r, tau, work[4 * n :])
+    model_part(m, kind, p, q, qd, q_ref, qd_ref, qdd_r, qd_r, tau, rest)
     for i in range(n):
         tau[i] += g[I_KS, i] * sat[i]
         state[0, i] += h * err[i]

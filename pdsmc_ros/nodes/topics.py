@@ -25,59 +25,37 @@ TOPIC_ROBOT_DESCRIPTION = "robot_description"
 
 MODES = ("lockstep", "realtime")
 
+
+def _qos(depth: int | None, *, best_effort: bool = False, latched: bool = False) -> QoSProfile:
+    """Reliable and volatile unless said; every sample when ``depth`` is None, else the newest ``depth``."""
+    if depth is None:
+        profile = QoSProfile(history=HistoryPolicy.KEEP_ALL)
+    else:
+        profile = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=depth)
+    profile.reliability = ReliabilityPolicy.BEST_EFFORT if best_effort else ReliabilityPolicy.RELIABLE
+    profile.durability = DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE
+    return profile
+
+
 # Subscriptions of the lockstep loop and the recorder: every sample, in order (reliable,
 # keep-all; a shallow keep-last queue lost data).
-LOCKSTEP_QOS = QoSProfile(
-    reliability=ReliabilityPolicy.RELIABLE,
-    history=HistoryPolicy.KEEP_ALL,
-    durability=DurabilityPolicy.VOLATILE,
-)
+LOCKSTEP_QOS = _qos(None)
 # Publishers of the loop: reliable with a deep but bounded history. A keep-all writer
 # blocks in publish() once a subscriber stops acknowledging (a killed node, until DDS
 # drops it, or a new node still starting): that froze the plant in safe mode. A live
 # subscriber acknowledges each sample long before 10,000 newer ones are written.
 STREAM_DEPTH = 10_000
-STREAM_QOS = QoSProfile(
-    reliability=ReliabilityPolicy.RELIABLE,
-    history=HistoryPolicy.KEEP_LAST,
-    depth=STREAM_DEPTH,
-    durability=DurabilityPolicy.VOLATILE,
-)
+STREAM_QOS = _qos(STREAM_DEPTH)
 # Real time: a controller acts on the newest sample; a queue of old ones is only delay.
-LATEST_QOS = QoSProfile(
-    reliability=ReliabilityPolicy.RELIABLE,
-    history=HistoryPolicy.KEEP_LAST,
-    depth=1,
-    durability=DurabilityPolicy.VOLATILE,
-)
-
-
+LATEST_QOS = _qos(1)
 # Observers (the live viewer): best effort, newest few; a reliable writer never waits for
 # them, and the plant and the trajectory do not count them among the subscribers they wait for.
-OBSERVER_QOS = QoSProfile(
-    reliability=ReliabilityPolicy.BEST_EFFORT,
-    history=HistoryPolicy.KEEP_LAST,
-    depth=10,
-    durability=DurabilityPolicy.VOLATILE,
-)
-
-
+OBSERVER_QOS = _qos(10, best_effort=True)
 # The run description is published once and must reach late joiners.
-LATCHED_QOS = QoSProfile(
-    reliability=ReliabilityPolicy.RELIABLE,
-    history=HistoryPolicy.KEEP_LAST,
-    depth=1,
-    durability=DurabilityPolicy.TRANSIENT_LOCAL,
-)
-
+LATCHED_QOS = _qos(1, latched=True)
 # Standard trajectories (joint_trajectory_controller subscribes with the system default QoS:
 # reliable, volatile, keep last 10)
-TRAJECTORY_QOS = QoSProfile(
-    reliability=ReliabilityPolicy.RELIABLE,
-    history=HistoryPolicy.KEEP_LAST,
-    depth=10,
-    durability=DurabilityPolicy.VOLATILE,
-)
+TRAJECTORY_QOS = _qos(10)
 
 # Start-up polling must not wait for /clock, which starts only once everyone is there.
 STEADY_CLOCK = Clock(clock_type=ClockType.STEADY_TIME)

@@ -25,6 +25,19 @@ def scratch_size(n: int) -> int:
 
 
 @njit(cache=True)
+def _damped_gram(x, rows, cols, d2, a):  # noqa: ANN001, ANN202
+    """``a[:cols, :cols] = X^T X + d2 I`` with ``X`` the first ``rows`` rows and ``cols`` columns
+    of ``x``: the damped normal matrix of a least-squares step (``x`` the task rows of the
+    Jacobian, or their transpose)."""
+    for i in range(cols):
+        for j in range(cols):
+            s = d2 if i == j else 0.0
+            for r in range(rows):
+                s += x[r, i] * x[r, j]
+            a[i, j] = s
+
+
+@njit(cache=True)
 def solve_points(p, x_d, r_d, seeds, chained, rows, basis, lower, upper, tol, max_iter, damping,  # noqa: ANN001, ANN201, PLR0913
                  undamped_below, max_step, out, ok, work):
     """Solve each target ``(x_d[k], r_d[k])`` into ``out[k]``; ``ok[k]``: converged within limits.
@@ -95,12 +108,8 @@ def solve_points(p, x_d, r_d, seeds, chained, rows, basis, lower, upper, tol, ma
                                    + basis[i, 2] * jac[block + 2, c])
             d2 = damping * damping if largest_error > undamped_below else 0.0
             if normal:
+                _damped_gram(jrows, m, n, d2, a)  # J^T J + d^2 I
                 for i in range(n):
-                    for j in range(n):
-                        s = d2 if i == j else 0.0
-                        for r in range(m):
-                            s += jrows[r, i] * jrows[r, j]
-                        a[i, j] = s
                     s = 0.0
                     for r in range(m):
                         s += jrows[r, i] * err6[rows[r]]
@@ -108,12 +117,8 @@ def solve_points(p, x_d, r_d, seeds, chained, rows, basis, lower, upper, tol, ma
                 if not solve_spd(a, rhs, dq, size):
                     break
             else:
+                _damped_gram(jrows.T, n, m, d2, a)  # J J^T + d^2 I
                 for i in range(m):
-                    for j in range(m):
-                        s = d2 if i == j else 0.0
-                        for c in range(n):
-                            s += jrows[i, c] * jrows[j, c]
-                        a[i, j] = s
                     rhs[i] = err6[rows[i]]
                 if not solve_spd(a, rhs, y, size):
                     break

@@ -55,18 +55,20 @@ def _bias_forces(p, x, gscale, work):  # noqa: ANN001, ANN202
 
 
 @njit(cache=True)
+def _add6(work, i, a0, a1, a2, a3, a4, a5):  # noqa: ANN001, ANN202, PLR0913
+    """``(a0 + work[i], ..., a5 + work[i + 5])``: one step of a backward pass's running sum of
+    six consecutive entries (a spatial force, or a rotational inertia)."""
+    return (a0 + work[i], a1 + work[i + 1], a2 + work[i + 2],
+            a3 + work[i + 3], a4 + work[i + 4], a5 + work[i + 5])
+
+
+@njit(cache=True)
 def _project_forces(p, out, work):  # noqa: ANN001, ANN202
     """RNEA's backward pass: ``out_k = S_k . (sum of the forces of bodies k..n-1)``."""
     n = int(p[lay.N_JOINTS])
     fx, fy, fz, nx, ny, nz = 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
     for k in range(n - 1, -1, -1):
-        f = k * lay.WORK_STRIDE + lay.W_F
-        fx += work[f]
-        fy += work[f + 1]
-        fz += work[f + 2]
-        nx += work[f + 3]
-        ny += work[f + 4]
-        nz += work[f + 5]
+        fx, fy, fz, nx, ny, nz = _add6(work, k * lay.WORK_STRIDE + lay.W_F, fx, fy, fz, nx, ny, nz)
         out[k] = lay.dot_s(work, k, fx, fy, fz, nx, ny, nz)
 
 
@@ -93,21 +95,10 @@ def terms(p, q, qd, mass, bias, work):  # noqa: ANN001, ANN201
         o = k * lay.WORK_STRIDE
         b = lay.HEADER_SIZE + k * lay.JOINT_SIZE
         cm += p[b + lay.J_MASS]
-        hx += work[o + lay.W_H]
-        hy += work[o + lay.W_H + 1]
-        hz += work[o + lay.W_H + 2]
-        ixx += work[o + lay.W_IO]
-        iyy += work[o + lay.W_IO + 1]
-        izz += work[o + lay.W_IO + 2]
-        ixy += work[o + lay.W_IO + 3]
-        ixz += work[o + lay.W_IO + 4]
-        iyz += work[o + lay.W_IO + 5]
-        fx += work[o + lay.W_F]
-        fy += work[o + lay.W_F + 1]
-        fz += work[o + lay.W_F + 2]
-        nx += work[o + lay.W_F + 3]
-        ny += work[o + lay.W_F + 4]
-        nz += work[o + lay.W_F + 5]
+        h = o + lay.W_H
+        hx, hy, hz = hx + work[h], hy + work[h + 1], hz + work[h + 2]
+        ixx, iyy, izz, ixy, ixz, iyz = _add6(work, o + lay.W_IO, ixx, iyy, izz, ixy, ixz, iyz)
+        fx, fy, fz, nx, ny, nz = _add6(work, o + lay.W_F, fx, fy, fz, nx, ny, nz)
         bias[k] = lay.dot_s(work, k, fx, fy, fz, nx, ny, nz)
         s = o + lay.W_S
         g0, g1, g2, g3, g4, g5 = lay.inertia_times(

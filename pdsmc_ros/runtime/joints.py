@@ -171,30 +171,20 @@ class JointSelector:
         # joint or finite values whose sum overflows are sorted out by the exact check. (Python
         # sums of the short tuples and one numpy call per column: a 2-D array and its rows
         # cost more.)
+        need = self.n if index is None else self._last_need  # self.index() just cached it
         total = 0.0
+        for column in columns:
+            if len(column) < need:
+                total = math.nan
+                break
+            total += sum(column)
+        if total - total != 0.0:
+            reason = self._problem(names, index, fields, columns)
+            if reason:
+                return (), reason
         if index is None:
-            n = self.n
-            for column in columns:
-                if len(column) < n:
-                    total = math.nan
-                    break
-                total += sum(column)
-            if total - total == 0.0:
-                return tuple([np.array(column[:n]) for column in columns]), ""
-        else:
-            need = self._last_need  # self.index() just cached it
-            for column in columns:
-                if len(column) < need:
-                    total = math.nan
-                    break
-                total += sum(column)
-            if total - total == 0.0:
-                return tuple([np.array(column)[index] for column in columns]), ""
-        reason = self._problem(names, index, fields, columns)
-        if reason:
-            return (), reason
-        return tuple([np.array(column)[: self.n] if index is None else np.array(column)[index]
-                      for column in columns]), ""
+            return tuple([np.array(column[:need]) for column in columns]), ""
+        return tuple([np.array(column)[index] for column in columns]), ""
 
     def _problem(self, names: tuple[str, ...], index: np.ndarray | None, fields: tuple[str, ...],
                  columns: Sequence[Sequence[float]]) -> str:
