@@ -22,7 +22,7 @@ from .cdr import (
 from .mcapscan import scan
 from .reader import DESCRIPTION_KEY, RecordedRun, read_run, run_metrics, run_samples
 from .stamps import effort_step, header_step, stamp_step, step_stamp
-from .writer import MessageAppender, RunProgress, close_chunk
+from .writer import MessageAppender, RunProgress, close_chunk, flush_chunk, open_new_bag
 
 __all__ = [
     "DESCRIPTION_KEY",
@@ -45,7 +45,9 @@ __all__ = [
     "encode_joint_trajectories",
     "encode_joint_trajectory",
     "encode_point_stamped",
+    "flush_chunk",
     "header_step",
+    "open_new_bag",
     "read_run",
     "run_metrics",
     "run_samples",

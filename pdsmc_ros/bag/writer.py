@@ -19,12 +19,13 @@ from collections import defaultdict
 from collections.abc import Sequence
 from io import BytesIO
 from itertools import chain
+from pathlib import Path
 from typing import Any, cast
 
-from rosbags.rosbag2 import CompressionMode, Writer
+from rosbags.rosbag2 import CompressionMode, StoragePlugin, Writer
 from rosbags.rosbag2.storage_mcap import McapWriter, PendingChunk
 
-from ..errors import CdrError
+from ..errors import BagError, CdrError, ConfigError
 from .stamps import effort_step, header_step
 
 # MCAP Message record: opcode, record length, channel id, sequence, log time, publish time
@@ -145,6 +146,41 @@ def close_chunk(storage: McapWriter) -> None:
     index.write(struct.pack("<QQ", len(compressed), len(data)))
     storage.chunks.append(index)
     storage.chunk = PendingChunk(2**63 - 1, 0, BytesIO(), defaultdict(list))
+
+
+def open_new_bag(output: str) -> Writer:
+    """A rosbags MCAP writer open on a new bag directory ``output`` (its parent created).
+
+    ConfigError (what is wrong with ``output``) if it is empty, already exists or its parent
+    cannot be created; BagError if the bag cannot be opened.
+    """
+    if not output:
+        raise ConfigError("the bag directory to write is required")
+    path = Path(output)
+    if path.exists():
+        raise ConfigError(f"{output!r} already exists; choose a new bag directory")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ConfigError(f"cannot create {str(path.parent)!r}: {exc.strerror}") from None
+    writer = Writer(path, version=9, storage_plugin=StoragePlugin.MCAP)
+    try:
+        writer.open()
+    except OSError as exc:
+        raise BagError(f"cannot open bag {output!r} for writing: {exc}") from None
+    return writer
+
+
+def flush_chunk(writer: Writer | None) -> None:
+    """Close ``writer``'s open MCAP chunk (:func:`close_chunk`, if it holds a message) and flush
+    the file: on disk, it survives the process being killed. Nothing for a closed writer or
+    one without chunks; OSError if the write fails."""
+    storage = getattr(writer, "storage", None)
+    if storage is None or not hasattr(storage, "close_chunk"):
+        return
+    if storage.chunk.bio.tell():
+        close_chunk(storage)
+    storage.bio.flush()
 
 
 class RunProgress:

@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import dataclasses
 import sys
-import time
 from collections.abc import Sequence
 
 from rclpy.duration import Duration
@@ -29,15 +28,12 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 from trajectory_msgs.msg import JointTrajectory
 
-from ..control import ControlLaw, Gains
+from ..control import Gains
 from ..control.stability import check_rate
-from ..presets import control_steps
-from ..runtime.commanding import LatestInputs, LockstepPairing, Paired, TickTiming, TorqueGuard
-from ..runtime.goal import GoalSlot
-from ..runtime.hold import Hold
+from ..runtime.commanding import Paired, TickTiming, TorqueGuard
+from ..runtime.controller import ControllerCore
 from ..runtime.joints import JointSelector
 from ..runtime.limits import JointLimits
-from ..runtime.warm import warm_up
 from . import topics
 from .controller_params import OrderedGainUpdates, declare_controller_parameters, gains_in_robot_order
 from .diagnostics import Diagnostics, InputReport
@@ -53,37 +49,33 @@ STOP_ACK_S = 0.5  # how long a stopping controller waits for its zero command to
 
 
 class ControllerNode(CommandingEntity):
-    """Wiring around :class:`~pdsmc_ros.control.ControlLaw`, :mod:`~pdsmc_ros.runtime.commanding`
-    and :mod:`~pdsmc_ros.runtime` (hold, goals, limits)."""
+    """Wiring around :class:`~pdsmc_ros.runtime.controller.ControllerCore` (the decisions:
+    inputs, holds, goals, the law's torque): parameters, topics, logs and the lifecycle."""
 
     def __init__(self) -> None:
         self.node = node = LifecycleNode("controller")
         run = declare_node_run(node, gains=True)
         self.mode, self.busy_wait, self.lockstep = run.mode, run.busy_wait, run.mode == "lockstep"
-        self.robot = robot = run.spec.robot_model()
+        robot = run.spec.robot_model()
         self.params = params = declare_controller_parameters(node, robot)
         self.joint_map = params.joint_map
         # the description says whether the clamp runs, so simulate(spec) of the bag repeats the run
-        self.spec = spec = dataclasses.replace(gains_in_robot_order(node, run.spec, self.joint_map),
-                                               enforce_limits=params.enforce_limits)
-        self.selector = JointSelector(robot.joint_names)  # the law's vectors stay in robot order
-        self.limits = JointLimits.of(robot, robot.joint_names) if params.enforce_limits else None
-        self.reference = spec.reference()
-        check_rate(spec, self.reference, **run.stability)  # refuse gains that fail in this mode (and delay)
+        spec = dataclasses.replace(gains_in_robot_order(node, run.spec, self.joint_map),
+                                   enforce_limits=params.enforce_limits)
+        self.guard = TorqueGuard(params.torque_limit)
+        self.core = core = ControllerCore(
+            spec, JointSelector(robot.joint_names), self.joint_map,  # the law's vectors stay in robot order
+            JointLimits.of(robot, robot.joint_names) if params.enforce_limits else None, self.guard,
+            params.stale_periods / spec.rate, self.lockstep,
+            lambda why: node.get_logger().info(f"holding the measured position ({why})"))
+        check_rate(spec, core.reference, **run.stability)  # refuse gains that fail in this mode (and delay)
         # gains: the on-set callback checks a change is stable at the running rate, the post-set one applies it
-        self.gain_updates = OrderedGainUpdates(node, spec, lambda new: check_rate(new, self.reference, **run.stability),
+        self.gain_updates = OrderedGainUpdates(node, spec, lambda new: check_rate(new, core.reference, **run.stability),
                                                self.apply_gains)
         self.gain_updates.joint_map = self.joint_map
-        self.pairing = LockstepPairing(spec.rate, control_steps(spec.contour_model().duration, spec.rate))
-        self.latest = LatestInputs(params.stale_periods / spec.rate)
-        self.goals = GoalSlot(self.pairing.drive if self.lockstep else self.latest.drive, self.hold)
-        self.law: ControlLaw | None = None
         self.active = self.done = False  # commanding; the run is over
-        self.exit_code, self.states_received = EXIT_OK, 0
-        self.last_state: tuple[int, object, object] | None = None  # where a trajectory goal starts
-        self.snapshot: tuple | None = None  # the latest period's (t, q, qd, reference, torque), robot order
+        self.exit_code = EXIT_OK
 
-        self.guard = TorqueGuard(params.torque_limit)
         self.effort = EffortOutput(node, topics.TOPIC_EFFORT, robot.n, self.guard)
         self.report_input = InputReport(Diagnostics(node, "controller: inputs", spec.robot,
                                                     values=lambda: {"joints": ",".join(self.params.joints)}))
@@ -100,7 +92,7 @@ class ControllerNode(CommandingEntity):
             self.period = 1.0 / spec.rate  # run_node paces tick() at this period
             self.timing = TickTiming(self.period)
             self.timing_rows = RowBatches(node, topics.TOPIC_TIMING, ("tick", "field"), TickTiming.FIELDS, batch=50)
-            self.plant_watch = end_when_plant_leaves(self, lambda: self.states_received)
+            self.plant_watch = end_when_plant_leaves(self, lambda: core.states_received)
         node.add_managed_entity(self)
         # the action server: a node of its own spun by a thread of its own, never by the loop's executor
         self.action = FollowJointTrajectoryServer(self)
@@ -112,119 +104,69 @@ class ControllerNode(CommandingEntity):
                                f"{spec.rate:g} Hz, joints {list(params.joints)}{waiting}")
 
     def configure(self) -> None:
-        """Everything a first state, trajectory or goal needs, loaded and run once now (numba
-        loads the law's kernel on its first call): never on the first tick."""
-        start = self.reference.sample([0.0])
-        self.law = ControlLaw.from_spec(self.spec).warm_up(start.q[0], start.qd[0])
-        warm_up(self.law, self.selector, self.limits, start.q[0], self.guard, self.joint_map)
+        self.core.configure()  # the law's kernel and the path from a message to a command, warmed up
 
     def on_activate(self, state: LifecycleState) -> TransitionCallbackReturn:
-        self.latest.activate()  # real time: hold the first state that comes from now on
-        if self.law is not None:
-            self.law.reset()  # a stateful law's integrator starts from zero
+        self.core.activate()
         return super().on_activate(state)
 
     def on_deactivate(self, state: LifecycleState) -> TransitionCallbackReturn:
-        self.goals.end("Current goal cancelled during deactivate transition.")  # as joint_trajectory_controller
+        self.core.goals.end("Current goal cancelled during deactivate transition.")  # as joint_trajectory_controller
         return super().on_deactivate(state)
 
     def cleanup(self) -> None:
-        self.law = None
+        self.core.law = None
 
     def apply_gains(self, gains: Gains) -> None:
-        self.spec = self.gain_updates.spec
-        if self.law is not None:
-            law = ControlLaw.from_spec(self.spec)
-            law.state[:] = self.law.state  # a stateful law keeps integrating across a gain change
-            self.law = law  # one attribute store: a tick uses the old or the new
+        self.core.apply_gains(self.gain_updates.spec)
         self.node.get_logger().info(f"gains changed: {gains.as_dict()}")
-
-    def hold(self, why: str) -> None:
-        """Hold the latest measured position from now on (a cancel, an abort)."""
-        if self.lockstep:
-            if self.last_state is not None:
-                self.pairing.drive(Hold(self.last_state[1], why))  # type: ignore[arg-type]
-        elif not self.latest.hold(why):
-            return
-        self.node.get_logger().info(f"holding the measured position ({why})")
 
     # -- inputs --------------------------------------------------------------- #
     def on_state(self, data: bytes) -> None:
-        sec, nanosec, arrays, problem = self.selector.state_message(data, topics.TOPIC_JOINT_STATES)
-        if arrays is None:
-            self.report_input(problem)
-            self.latest.state = None  # real time: no torque from an older state meanwhile
-            return
-        step = self.pairing.step_of(sec, nanosec) if self.lockstep else -1  # real time: never a step
-        if step is None:
-            self.report_input(f"/joint_states stamp {sec}.{nanosec:09d} s is not a lockstep step "
-                              "(lockstep needs the plant's sim time; use mode:=realtime)")
-            return
-        if self.report_input.problem is not None:
-            self.report_input(None)
-        self.states_received += 1
-        q, qd = arrays
-        self.last_state = (step, q, qd)
-        if self.lockstep:
-            self.compute(self.pairing.add_state(step, q, qd))
-        else:
-            self.latest.add_state(q, qd, time.perf_counter())
+        paired, problem = self.core.add_state(data, topics.TOPIC_JOINT_STATES)
+        if problem is not None or self.report_input.problem is not None:
+            self.report_input(problem)  # a problem, or complete inputs again
+        self.compute(paired)
 
     def on_reference(self, data: bytes) -> None:
-        sec, nanosec, ref, problem = self.selector.reference_message(data, topics.TOPIC_REFERENCE)
-        if ref is None:
-            if problem:
-                self.report_input(problem)
-        elif not self.lockstep:
-            self.latest.add_reference(ref, time.perf_counter())
-        elif (step := self.pairing.step_of(sec, nanosec)) is not None:
-            self.compute(self.pairing.add_reference(step, ref))
+        paired, problem = self.core.add_reference(data, topics.TOPIC_REFERENCE)
+        if problem:
+            self.report_input(problem)
+        self.compute(paired)
 
-    def now(self) -> float:  # the controller's time (s): the lockstep state's sim time, else the node's clock
-        if self.lockstep:
-            return (0 if self.last_state is None else self.last_state[0]) / self.spec.rate
-        return self.node.get_clock().now().nanoseconds * 1e-9
+    def now(self) -> float:
+        """The controller's time (s): the lockstep state's sim time, else the node's clock."""
+        return self.core.sim_time() if self.lockstep else self.node.get_clock().now().nanoseconds * 1e-9
 
     def on_goals(self, batch: list[tuple[bytes, Times]]) -> None:
         """Trajectory goals taken in a batch: each replaces the previous one, in order."""
         for data, times in batch:
             if topic_trajectory(self, data, times) and self.lockstep:
-                self.compute(self.pairing.take())
+                self.compute(self.core.pairing.take())
 
     def compute(self, paired: Paired | None) -> None:
         """Lockstep: the torque of a state paired with its reference."""
         if paired is not None:
             step, q, qd, ref = paired
-            law = self.law
-            if self.active and law is not None:
-                if self.goals.active is not None and self.goals.check(step / self.spec.rate, q, qd, ref)[1]:
-                    ref = self.pairing.trajectory.sample(0.0)  # type: ignore[union-attr]  # aborted: held now
-                tau = law.torque(q, qd, *ref)
-                self.snapshot = (step / self.spec.rate, q, qd, ref, tau)
+            if self.active and (tau := self.core.command(step / self.core.spec.rate, q, qd, ref)) is not None:
                 self.effort.publish(self.joint_map.to_user(tau), step)
-            self.done = self.pairing.finished
+            self.done = self.core.pairing.finished
 
     def stop_commanding(self, why: str) -> bool:
-        return self.effort.stop(why, self.pairing.stop_step if self.lockstep else 0)
+        return self.effort.stop(why, self.core.pairing.stop_step if self.lockstep else 0)
 
     def tick(self, lateness: float) -> None:
         """Real time: a torque from the latest inputs (a goal checked against its tolerances),
         its timing recorded; then (rarely) a look at whether the plant is there."""
         now = self.timing.start(lateness)
-        law = self.law
-        if self.active and law is not None:
-            inputs, change = self.latest.take(now, self.now)
+        if self.active:
+            tau, change = self.core.realtime_command(now, self.now)
             if change == "stale":
                 self.node.get_logger().error(f"state or reference older than {self.params.stale_periods} periods")
                 self.stop_commanding("inputs stale")
             elif change == "fresh":
                 self.node.get_logger().info("fresh state and reference again: output resumed")
-            if inputs is not None:
-                q, qd, ref, t = inputs
-                if self.goals.active is not None and self.goals.check(t, q, qd, ref)[1]:
-                    ref = self.latest.trajectory.sample(t)  # type: ignore[union-attr]  # aborted: held from now
-                tau = law.torque(q, qd, *ref)
-                self.snapshot = (t, q, qd, ref, tau)
+            if tau is not None:
                 with self.effort.lock:
                     if self.active:
                         self.effort.publish(self.joint_map.to_user(tau), 0)
@@ -242,7 +184,7 @@ class ControllerNode(CommandingEntity):
             self.timing_rows.flush()
         if self.guard.clamped:
             self.node.get_logger().warn(f"torque clamped to the limits in {self.guard.clamped} periods")
-        if not self.pairing.finished and self.stop_commanding("stopping"):  # complete: the plant has ended
+        if not self.core.pairing.finished and self.stop_commanding("stopping"):  # complete: the plant has ended
             self.effort.pub.publisher.wait_for_all_acked(Duration(nanoseconds=int(STOP_ACK_S * 1e9)))
 
 

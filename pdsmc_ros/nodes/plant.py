@@ -32,7 +32,6 @@ from collections.abc import Sequence
 import numpy as np
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import PointStamped
-from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
@@ -45,22 +44,17 @@ from ..bag.cdr import (
     encode_point_stamped,
 )
 from ..bag.stamps import step_stamp
-from ..control.safety import Watchdog
-from ..errors import CdrError, ConfigError
+from ..errors import CdrError
 from ..presets import control_steps
 from ..sim.plant import PlantStepper
 from ..sim.supervised import SupervisedPlant
-from .descriptors import (
-    decimation,
-    declare_int_parameter,
-    declare_safety_parameters,
-    safety_from_parameters,
-)
+from .descriptors import decimation
 from .diagnostics import Diagnostics
 from .executor import run_node
 from .inputs import Inputs
 from .lifecycle import EXIT_FAILURE, EXIT_OK
 from .params import declare_node_run, refuse_run_changes
+from .plant_params import declare_plant_parameters
 from .publishers import GuardedPublisher
 from .topics import (
     LATCHED_QOS,
@@ -86,16 +80,8 @@ class PlantNode:
         run = declare_node_run(node)
         self.spec = spec = run.spec
         self.mode, self.busy_wait = run.mode, run.busy_wait
-        self.expected = declare_int_parameter(
-            node, "expected_subscribers", 3,
-            "subscribers of /joint_states to wait for (trajectory, controller, recorder)", lo=0, hi=100)
-        declare_safety_parameters(node)
-        if not node.has_parameter("enforce_limits"):
-            node.declare_parameter("enforce_limits", True, ParameterDescriptor(
-                description="clamp the applied torque to the arm's effort limits (false: opt out)"))
-        enforce = node.get_parameter("enforce_limits").value
-        if not isinstance(enforce, bool):
-            raise ConfigError(f"parameter enforce_limits must be true or false, got {enforce!r}")
+        params = declare_plant_parameters(node, spec.rate)
+        self.expected = params.expected_subscribers
         node.add_on_set_parameters_callback(refuse_run_changes)
         reference = spec.reference()
         robot = spec.robot_model()
@@ -118,13 +104,9 @@ class PlantNode:
         self.diagnostics = Diagnostics(node, "pdsmc_ros/plant", spec.robot, values=self.status,
                                        stamp=lambda: Time(sec=self.stamp()[0], nanosec=self.stamp()[1]))
         self.plant = SupervisedPlant(
-            stepper, last_step=control_steps(reference.duration, spec.rate),
-            watchdog=Watchdog(rate=spec.rate, timeout_s=float(node.get_parameter("watchdog_timeout").value),
-                              periods=int(node.get_parameter("watchdog_periods").value),
-                              time_scale=float(node.get_parameter("safe_time_scale").value)),
-            safety=safety_from_parameters(node), lockstep=self.mode == "lockstep",
-            publish_state=self.publish_state, report=self.diagnostics.report,
-            limit=robot.effort_limits if enforce else None)
+            stepper, last_step=control_steps(reference.duration, spec.rate), watchdog=params.watchdog,
+            safety=params.safety, lockstep=self.mode == "lockstep", publish_state=self.publish_state,
+            report=self.diagnostics.report, limit=robot.effort_limits if params.enforce_limits else None)
         self.inputs = Inputs(node, self.mode)
         self.inputs.subscribe(Float64MultiArray, TOPIC_EFFORT, self.on_effort)
 

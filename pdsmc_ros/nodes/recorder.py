@@ -26,7 +26,6 @@ from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PointStamped
 from rclpy.node import Node
 from rclpy.serialization import deserialize_message, serialize_message
-from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray, String
@@ -34,8 +33,8 @@ from trajectory_msgs.msg import JointTrajectory
 
 from ..bag.reader import DESCRIPTION_KEY, RECORDER_DESCRIPTION_TOPIC
 from ..bag.tf import TF_TYPE, TfRecorder
-from ..bag.writer import MessageAppender, RunProgress, close_chunk
-from ..errors import BagError, ConfigError
+from ..bag.writer import MessageAppender, RunProgress, flush_chunk, open_new_bag
+from ..errors import ConfigError
 from ..presets import control_steps
 from .executor import run_node
 from .inputs import Inputs
@@ -87,15 +86,11 @@ class RecorderNode:
         node.declare_parameter("output", "")
         node.add_on_set_parameters_callback(refuse_run_changes)
         output = str(node.get_parameter("output").value)
-        if not output:
-            raise ConfigError("parameter output: the bag directory to write is required")
-        self.path = Path(output)
-        if self.path.exists():
-            raise ConfigError(f"parameter output: {output!r} already exists; choose a new bag directory")
         try:
-            self.path.parent.mkdir(parents=True, exist_ok=True)
-        except OSError as exc:
-            raise ConfigError(f"parameter output: cannot create {str(self.path.parent)!r}: {exc.strerror}") from None
+            self.writer = open_new_bag(output)
+        except ConfigError as exc:
+            raise ConfigError(f"parameter output: {exc}") from None
+        self.path = Path(output)
         self.progress = RunProgress(STEPPED, TOPIC_EFFORT, control_steps(self.spec.contour_model().duration,
                                                                           self.spec.rate), self.spec.rate)
         self.done = False
@@ -103,11 +98,6 @@ class RecorderNode:
         self.description: str | None = None
         self.counts = dict.fromkeys(RECORDED, 0)
         typestore = get_typestore(Stores.ROS2_JAZZY)
-        self.writer = Writer(self.path, version=9, storage_plugin=StoragePlugin.MCAP)
-        try:
-            self.writer.open()
-        except OSError as exc:
-            raise BagError(f"cannot open bag {output!r} for writing: {exc}") from None
         self.connections = {}
         # the flush timer may run in the executor's thread (real-time composed mode)
         self.lock = threading.Lock()
@@ -166,14 +156,9 @@ class RecorderNode:
 
     def flush(self) -> None:
         """Write the pending chunk to disk (reaches the OS: survives SIGKILL)."""
-        storage = getattr(self.writer, "storage", None)
-        if storage is None or not hasattr(storage, "close_chunk"):
-            return
         try:
             with self.lock:
-                if storage.chunk.bio.tell():
-                    close_chunk(storage)
-                storage.bio.flush()
+                flush_chunk(self.writer)
         except OSError as exc:
             self.node.get_logger().error(f"write to {self.path} failed: {exc}")
             self.exit_code = EXIT_FAILURE

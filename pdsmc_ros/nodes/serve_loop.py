@@ -6,18 +6,17 @@ from __future__ import annotations
 import dataclasses
 import math
 import sys
-import threading
 import time
 from collections import deque
 from collections.abc import Callable, Sequence
 from typing import Any
 
-import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy_impl
 
 from ..runtime.realtime import Collector, restore
 from .descriptors import BUSY_WAIT_S
+from .executor_thread import ExecutorThread
 from .inputs import (
     pending,
     take_all,
@@ -41,7 +40,6 @@ STATISTICS_EVERY_S = 1.0  # real time: loop statistics on /diagnostics this ofte
 IDLE_MARGIN = 0.3  # real time: the young generation is collected only with this share of a period to spare
 COLD_PERIOD_S = 0.02  # lockstep: the executor's turn (timers, parameters, /clock) this often
 # (one turn costs 0.2-1 ms of Python; every 5 ms it took 15 % of the lockstep rate)
-COLD_WAIT_S = 5.0  # real time: the executor thread's longest sleep (it is woken to stop)
 GIL_SWITCH_S = 0.0001  # real time: longest the executor thread keeps the GIL from the loop
 # real time, from the spin before a tick to its end: the loop keeps the GIL (another thread
 # taking it there could hold it through a long C call, e.g. rclpy converting a message)
@@ -92,25 +90,11 @@ def serve_loop(executor: SingleThreadedExecutor, group: Any,
         # the executor thread (timers, the recorder's flush) must hand the GIL back to the loop
         # within a fraction of a period, not after CPython's default 5 ms
         sys.setswitchinterval(GIL_SWITCH_S)
-    stop = threading.Event()
-    cold_thread = None
-    guard_node = group.wrappers[0].node
-    wake_guard = None
-    if period:
-        # the executor thread sleeps until it has work (timers, services); a guard condition
-        # of one of its nodes ends that sleep when the loop ends (Executor.wake() does not
-        # interrupt spin_once here). Waking every 0.1 s instead cost ~0.5 ms under the GIL
-        # ten times a second -- a late control period each time.
-        wake_guard = guard_node.create_guard_condition(lambda: None)
-
-        def spin_cold() -> None:
-            while not stop.is_set() and rclpy.ok():
-                executor.spin_once(timeout_sec=COLD_WAIT_S)
-
-        cold_thread = threading.Thread(target=spin_cold, name="executor", daemon=True)
-        cold_thread.start()
+    first = group.wrappers[0].node  # holds the executor thread's wake-up; logs the settings
+    # real time: timers and services in a thread of their own (one executor turn took about 1 ms)
+    cold_thread = ExecutorThread(executor, first) if period else None
     # after the executor thread exists (scheduling is per thread); at FIFO, busy_wait may shrink
-    applied, busy_wait = apply_settings(reports, guard_node, period, busy_wait)
+    applied, busy_wait = apply_settings(reports, first, period, busy_wait)
     next_report = clock() + STATISTICS_EVERY_S
     unpublished: list[LoopReport] = []
     holding = False  # real time: the GIL kept through the spin and the tick (HOLD_SWITCH_S)
@@ -198,12 +182,7 @@ def serve_loop(executor: SingleThreadedExecutor, group: Any,
         restore(applied)
         for report in due_reports(reports, collector):
             report.publish()
-        stop.set()
-        if wake_guard is not None:  # real time: stop the executor thread
-            wake_guard.trigger()  # end its wait now
-            cold_thread.join(timeout=2.0)
-            if cold_thread.is_alive():
-                print("warning: the executor thread did not stop within 2 s", file=sys.stderr, flush=True)
-            guard_node.destroy_guard_condition(wake_guard)
+        if cold_thread is not None:
+            cold_thread.stop()
         sys.setswitchinterval(switch_interval)
         collector.stop()

@@ -11,7 +11,8 @@ from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 
 from pdsmc_ros.bag import cdr
-from pdsmc_ros.bag.writer import MessageAppender, close_chunk
+from pdsmc_ros.bag.writer import MessageAppender, close_chunk, flush_chunk, open_new_bag
+from pdsmc_ros.errors import ConfigError
 
 TOPICS = (("/joint_states", "sensor_msgs/msg/JointState"),
           ("/effort_controller/commands", "std_msgs/msg/Float64MultiArray"))
@@ -108,6 +109,35 @@ def test_batches_write_the_bytes_rosbags_writes(tmp_path: Path) -> None:
     assert _without_crcs(ours) == (tmp_path / "rosbags" / "bag" / "bag.mcap").read_bytes()
     assert (tmp_path / "fast" / "bag" / "metadata.yaml").read_bytes() == \
         (tmp_path / "rosbags" / "bag" / "metadata.yaml").read_bytes()
+
+
+def test_a_new_bag_is_opened_only_in_a_new_directory(tmp_path: Path) -> None:
+    with pytest.raises(ConfigError, match="the bag directory to write is required"):
+        open_new_bag("")
+    with pytest.raises(ConfigError, match="already exists; choose a new bag directory"):
+        open_new_bag(str(tmp_path))
+    (tmp_path / "file").write_text("")
+    with pytest.raises(ConfigError, match="cannot create"):
+        open_new_bag(str(tmp_path / "file" / "sub" / "bag"))  # a parent that is a file
+    writer = open_new_bag(str(tmp_path / "deeper" / "bag"))  # the parent is created
+    assert writer.storage is not None and (tmp_path / "deeper" / "bag").is_dir()
+    writer.close()
+
+
+def test_flush_chunk_puts_the_messages_on_disk_before_close(tmp_path: Path) -> None:
+    writer = open_new_bag(str(tmp_path / "bag"))
+    conn = writer.add_connection(*TOPICS[0], typestore=get_typestore(Stores.ROS2_JAZZY))
+    appender = MessageAppender(writer, conn)
+    data = cdr.encode_joint_state(0, 0, ["a", "b"], [0.1, 2.0], [3.0, 4.0], [])
+    for k in range(100):
+        appender.append(1_000 + k, data)
+    mcap = next((tmp_path / "bag").glob("*.mcap"))
+    before = mcap.stat().st_size
+    flush_chunk(writer)
+    assert mcap.stat().st_size >= before + 100 * len(data)  # the chunk's records, with the messages
+    assert writer.storage.chunk.bio.tell() == 0  # a new chunk is open
+    writer.close()
+    flush_chunk(None)  # a closed recorder's writer: nothing to do
 
 
 def test_appender_refuses_a_closed_bag_or_a_foreign_connection(tmp_path: Path) -> None:

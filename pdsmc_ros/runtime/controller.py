@@ -1,0 +1,216 @@
+"""What the controller node calls, without ROS: its inputs, references, goals and torque.
+
+The node (:mod:`pdsmc_ros.nodes.controller`) subscribes, logs and publishes; everything it
+decides is here: which state meets which reference (lockstep:
+:class:`~.commanding.LockstepPairing`; real time: :class:`~.commanding.LatestInputs`),
+where a hold holds (:class:`~.hold.Hold`), where a ``~/joint_trajectory`` starts, whether an
+action goal is valid and with which tolerances (:mod:`.goal`), and the torque of the running
+law (:class:`~pdsmc_ros.control.ControlLaw`, its formulas in :mod:`pdsmc_ros.control`), the
+active goal checked against its tolerances first. ROS-free.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Sequence
+from typing import Any, NamedTuple, cast
+
+from ..control.law import ControlLaw
+from ..presets import RunSpec, control_steps
+from ..robots.base import FloatArray
+from .commanding import LatestInputs, LockstepPairing, Paired, Reference, TorqueGuard
+from .goal import INVALID_GOAL, GoalExecution, GoalSlot, Outcome, Tolerances, resolve_tolerances, validate_goal
+from .hold import Hold
+from .joint_map import JointMap
+from .joint_trajectory import JointTrajectoryReference, RawPoint
+from .joints import JointSelector
+from .limits import JointLimits
+from .warm import warm_up
+
+SOURCE_SKEW_S = 5.0  # a zero-stamped trajectory starts at its source time if that is at most this old
+
+Tolerance = tuple[str, float, float]
+"""A goal's ``(joint name, position, velocity)`` tolerance entry."""
+
+
+class GoalStart(NamedTuple):
+    """An action goal, driving (its execution) or refused (the refusal's outcome), and what to log."""
+
+    goal: GoalExecution | Outcome
+    warning: str  # "" for none (an unknown joint or illegal value in the goal's tolerances)
+    preempted: bool  # it ended the goal active before it
+
+
+class ControllerCore:
+    """The controller node's decisions about one run (gains in robot order).
+
+    Parameters
+    ----------
+    spec : RunSpec
+        The run, with the gains in robot order (replaced by :meth:`apply_gains`).
+    selector : JointSelector
+        Messages by joint name, into robot order.
+    joint_map : JointMap
+        ``joints`` order <-> robot order (the warm-up's output order).
+    limits : JointLimits or None
+        The trajectory limit check; None: ``enforce_limits:=false``.
+    guard : TorqueGuard
+        The last check of a torque (warmed up at :meth:`configure`).
+    stale_s : float
+        Real time: inputs older than this stop the output.
+    lockstep : bool
+        Lockstep (states paired with references by step) or real time (the latest inputs).
+    on_hold : callable
+        ``on_hold(why)``: told of every hold that took effect (the node logs it).
+    """
+
+    def __init__(self, spec: RunSpec, selector: JointSelector, joint_map: JointMap, limits: JointLimits | None,
+                 guard: TorqueGuard, stale_s: float, lockstep: bool, on_hold: Callable[[str], None]) -> None:
+        self.spec = spec
+        self.selector, self.joint_map, self.limits, self.guard = selector, joint_map, limits, guard
+        self.lockstep = lockstep
+        self.on_hold = on_hold
+        self.reference = spec.reference()
+        self.pairing = LockstepPairing(spec.rate, control_steps(spec.contour_model().duration, spec.rate))
+        self.latest = LatestInputs(stale_s)
+        self.goals = GoalSlot(self.pairing.drive if lockstep else self.latest.drive,  # type: ignore[arg-type]
+                              self.hold)
+        self.law: ControlLaw | None = None  # None until configured
+        self.states_received = 0
+        self.last_state: tuple[int, FloatArray, FloatArray] | None = None  # where a trajectory goal starts
+        self.snapshot: tuple[Any, ...] | None = None  # the latest period's (t, q, qd, reference, torque), robot order
+
+    # -- lifecycle ------------------------------------------------------------ #
+    def configure(self) -> None:
+        """Everything a first state, trajectory or goal needs, loaded and run once now (numba
+        loads the law's kernel on its first call): never on the first tick."""
+        start = self.reference.sample([0.0])
+        self.law = ControlLaw.from_spec(self.spec).warm_up(start.q[0], start.qd[0])
+        warm_up(self.law, self.selector, self.limits, start.q[0], self.guard, self.joint_map)
+
+    def activate(self) -> None:
+        """Real time: hold the first state that comes from now on; a stateful law's integrator
+        starts from zero."""
+        self.latest.activate()
+        if self.law is not None:
+            self.law.reset()
+
+    def apply_gains(self, spec: RunSpec) -> None:
+        """The run with new gains (already checked stable); a stateful law keeps integrating."""
+        self.spec = spec
+        if self.law is not None:
+            law = ControlLaw.from_spec(spec)
+            law.state[:] = self.law.state
+            self.law = law  # one attribute store: a period uses the old or the new
+
+    def hold(self, why: str) -> None:
+        """Hold the latest measured position from now on (a cancel, an abort)."""
+        if self.lockstep:
+            if self.last_state is None:
+                return
+            self.pairing.drive(Hold(self.last_state[1], why))
+        elif not self.latest.hold(why):
+            return
+        self.on_hold(why)
+
+    def sim_time(self) -> float:
+        """Lockstep: the controller's time (s), the latest state's step."""
+        return (0 if self.last_state is None else self.last_state[0]) / self.spec.rate
+
+    # -- inputs --------------------------------------------------------------- #
+    def add_state(self, data: bytes, topic: str) -> tuple[Paired | None, str | None]:
+        """A serialized ``JointState`` on ``topic``: ``(the pair it completes (lockstep), None)``,
+        or ``(None, a problem naming topic)``."""
+        sec, nanosec, arrays, problem = self.selector.state_message(data, topic)
+        if arrays is None:
+            self.latest.state = None  # real time: no torque from an older state meanwhile
+            return None, problem
+        step = self.pairing.step_of(sec, nanosec) if self.lockstep else -1  # real time: never a step
+        if step is None:
+            return None, (f"/{topic} stamp {sec}.{nanosec:09d} s is not a lockstep step "
+                          "(lockstep needs the plant's sim time; use mode:=realtime)")
+        self.states_received += 1
+        q, qd = cast(tuple[FloatArray, FloatArray], arrays)  # the selector's arrays
+        self.last_state = (step, q, qd)
+        if self.lockstep:
+            return self.pairing.add_state(step, q, qd), None
+        self.latest.add_state(q, qd, time.perf_counter())
+        return None, None
+
+    def add_reference(self, data: bytes, topic: str) -> tuple[Paired | None, str]:
+        """A serialized one-point ``JointTrajectory`` on ``topic`` (the reference stream):
+        ``(the pair it completes (lockstep), "")``, or ``(None, a problem naming topic)``."""
+        sec, nanosec, ref, problem = self.selector.reference_message(data, topic)
+        if ref is None:
+            return None, problem
+        if not self.lockstep:
+            self.latest.add_reference(ref, time.perf_counter())  # type: ignore[arg-type]
+        elif (step := self.pairing.step_of(sec, nanosec)) is not None:
+            return self.pairing.add_reference(step, ref), ""  # type: ignore[arg-type]
+        return None, ""
+
+    def topic_trajectory(self, data: bytes, times: tuple[float | None, float | None], now: float,
+                         why: str) -> tuple[JointTrajectoryReference | None, str, bool]:
+        """A serialized ``~/joint_trajectory`` at controller time ``now``: ``(reference, "",
+        whether it preempted the active goal, which ends with why)`` once it drives, or
+        ``(None, problem, False)``.
+
+        Real time: a zero ``header.stamp`` starts when the message was sent (``times``: the
+        middleware's source and reception times; the reception time if the source time is
+        implausible, e.g. another machine's clock off by more than :data:`SOURCE_SKEW_S`), so no
+        wait -- the controller still starting, DDS repairing a sample its reader dropped before it
+        knew the writer -- shifts the trajectory."""
+        if not self.lockstep:
+            sent, received = times
+            if sent is not None and now - SOURCE_SKEW_S <= sent <= now:
+                now = sent
+            elif received is not None and received <= now:
+                now = received
+        state = self.last_state[1:] if self.last_state is not None else None
+        reference, problem = JointTrajectoryReference.from_serialized(self.selector, data, now, state)
+        if reference is not None and self.limits is not None:
+            problem = self.limits.trajectory_problem(reference)
+        if reference is None or problem:
+            return None, problem, False
+        return reference, "", self.goals.replace(reference, why) is not None
+
+    def start_goal(self, stamp: float, names: Sequence[str], points: Sequence[RawPoint], now: float,
+                   path: Sequence[Tolerance], goal: Sequence[Tolerance], goal_time: float,
+                   defaults: Tolerances) -> GoalStart:
+        """An action goal (its trajectory's stamp, joint names and points; its path and goal
+        tolerances and goal time tolerance) received at controller time ``now``: validated
+        and, if valid, driving from now on with its tolerances over ``defaults``."""
+        state = self.last_state[1:] if self.last_state is not None else None
+        reference, refusal = validate_goal(self.selector, stamp, names, points, now, state, self.limits)
+        if reference is None or refusal is not None:
+            return GoalStart(refusal or Outcome("aborted", INVALID_GOAL, "refused"), "", False)
+        tolerances, warning = resolve_tolerances(defaults, self.selector.joints, path, goal, goal_time)
+        execution = GoalExecution(reference, tolerances, self.selector.joints)
+        return GoalStart(execution, warning, self.goals.start(execution) is not None)
+
+    # -- torque --------------------------------------------------------------- #
+    def command(self, t: float, q: FloatArray, qd: FloatArray, ref: Reference) -> FloatArray | None:
+        """The law's torque for the state ``(q, qd)`` and the reference ``ref`` at time ``t``
+        (None before :meth:`configure`), kept with them as :attr:`snapshot`. The active goal is
+        checked first: violated, the arm is held where it is from this period on."""
+        law = self.law  # one read: a gain change swaps it from another thread
+        if law is None:
+            return None
+        if self.goals.active is not None and self.goals.check(t, q, qd, ref)[1]:
+            driving = self.pairing if self.lockstep else self.latest
+            ref = driving.trajectory.sample(t)  # type: ignore[union-attr]  # aborted: the hold
+        tau = law.torque(q, qd, *ref)
+        self.snapshot = (t, q, qd, ref, tau)
+        return tau
+
+    def realtime_command(self, now: float, clock: Callable[[], float]) -> tuple[FloatArray | None, str]:
+        """Real time: the torque from the latest inputs at ``now`` (``perf_counter``; None:
+        nothing to command), a trajectory sampled at ``clock()``, and ``"stale"`` / ``"fresh"``
+        when the inputs just became so (:meth:`~.commanding.LatestInputs.take`)."""
+        if self.law is None:
+            return None, ""
+        inputs, change = self.latest.take(now, clock)
+        if inputs is None:
+            return None, change
+        q, qd, ref, t = inputs
+        return self.command(t, q, qd, ref), change
