@@ -17,6 +17,7 @@ Usage: python bench/urdf.py [--no-dds]   (inside the venv, after make setup)
 from __future__ import annotations
 
 import argparse
+import copy
 import dataclasses
 import sys
 import time
@@ -84,7 +85,8 @@ def loop_steps_per_s(spec, *, compiled: bool, repeats: int = 3) -> float:  # noq
     _, refs = _reference_samples(spec)
     robot = spec.robot_model()
     if not compiled:
-        robot = type(f"{type(robot).__name__}(numpy)", (type(robot),), {"kernel": None})()
+        robot = copy.copy(robot)
+        robot.kernel = None  # this object only: its numpy methods, behind robots.python_form
     law = ControlLaw.from_spec(spec)  # not compiled: the robot's Pinocchio terms behind robots.python_form
     steps = refs.shape[0] - 1
     every = spec.sample_every
