@@ -24,9 +24,9 @@ from ..robots.base import FloatArray, Manipulator
 from ..trajectories import JointReference
 from .loop import LoopOutcome, run_loop
 
-STRETCH_STEPS = 1 << 16
-"""Control steps of a stretch (rounded down to whole statistics periods): about 5 MB of
-reference for a six-joint arm."""
+STRETCH_STEPS = 1 << 13
+"""Control steps of a stretch (rounded down to whole statistics periods): its reference, its
+inverse kinematics' temporaries and its samples take tens of MB for a six-joint arm."""
 
 
 def run_in_stretches(spec: RunSpec, robot: Manipulator, reference: JointReference,
