@@ -125,6 +125,9 @@ def test_states_brakes_commands_and_bad_commands(domain_env: tuple[int, dict[str
             np.testing.assert_array_equal(msg.velocity, [0.0, 0.0, 0.0])
 
         client.command([1.0, 2.0])  # wrong length
+        # the driver reads the newest command (keep-last 1, as ros2_control's real-time buffer):
+        # one sent within the same tick would replace this one unread (seen once on CI)
+        client.spin_for(0.2)
         client.command([0.0, float("nan"), 0.0])  # non-finite
         client.states.clear()
         client.spin_for(0.5)
