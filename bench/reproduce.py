@@ -12,7 +12,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from pdsmc_ros.thesis.reproduce import run_reproduction  # noqa: E402
+from pdsmc_ros.experiments.thesis.reproduce import run_reproduction  # noqa: E402
 
 
 def main() -> int:

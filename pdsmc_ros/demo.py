@@ -19,8 +19,8 @@ from pathlib import Path
 
 from .arguments import EXIT_USAGE, OneLineParser
 from .cli.options import positive_float
+from .experiments.analysis import analyze_bag, comparison_table
 from .resources import ros_environment, script_path, scripts_dir
-from .thesis.analysis import analyze_bag, comparison_table
 
 
 def command_hint(argv: list[str]) -> str:

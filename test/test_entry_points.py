@@ -20,9 +20,9 @@ import pytest
 from conftest import next_domain
 
 from pdsmc_ros.errors import ConfigError, InvalidInputError
+from pdsmc_ros.experiments.analysis import find_bags
 from pdsmc_ros.presets import MAX_CONTROL_STEPS, control_steps
 from pdsmc_ros.resources import config_dir, data_root, ros_environment, script_path
-from pdsmc_ros.thesis.analysis import find_bags
 
 BIN = Path(sys.prefix) / "bin"
 

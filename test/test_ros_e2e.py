@@ -411,7 +411,7 @@ def test_a_clamped_run_over_dds_equals_in_process(ros_env: dict, tmp_path: Path)
     assert np.max(np.abs(run.q[::every] - sim.samples.q)) <= 1e-9
     assert np.max(np.abs(run.tau[::every] - sim.samples.tau)) <= 1e-9
     assert np.max(np.abs(run.tau[:, 3])) == EFFORT[3]
-    from pdsmc_ros.thesis.analysis import analyze_bag
+    from pdsmc_ros.experiments.analysis import analyze_bag
 
     assert analyze_bag(out).metrics.saturated_periods == sim.metrics.saturated_periods
 

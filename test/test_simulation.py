@@ -289,7 +289,7 @@ def test_signed_task_sd_differs_from_absolute_only_where_the_error_changes_sign(
 
 
 def test_reproduction_reads_the_pdsmc_x_sd_as_signed_and_keeps_the_defined_value() -> None:
-    from pdsmc_ros.thesis.cells import STATISTIC_READINGS, as_defined, compare
+    from pdsmc_ros.experiments.thesis.cells import STATISTIC_READINGS, as_defined, compare
 
     results = [simulate(make_run("parallel_5r", "circle", c)) for c in ("pd", "pdsmc")]
     cells = {(c.controller, c.metric): c for c in compare(results)}
@@ -356,8 +356,8 @@ def test_cli_bad_input_is_one_line_and_exit_2(args: list, message: str) -> None:
 def test_gain_reading_changes_only_its_runs_and_keeps_the_printed_result() -> None:
     """The vertical-ellipse PD runs use the read gains (before the scenario's factors); the
     printed preset is untouched, and the printed-gain run gives the cells' defined values."""
-    from pdsmc_ros.thesis.cells import GAIN_READINGS, compare, matrix_specs, run_key
-    from pdsmc_ros.thesis.reproduce import run_reproduction
+    from pdsmc_ros.experiments.thesis.cells import GAIN_READINGS, compare, matrix_specs, run_key
+    from pdsmc_ros.experiments.thesis.reproduce import run_reproduction
 
     read = {run_key(s): s for s in matrix_specs()}
     printed = {run_key(s): s for s in matrix_specs(gain_readings=False)}

@@ -11,7 +11,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
 # the core: everything but the rclpy nodes and the command-line front ends
-CORE = ["pdsmc_ros/bag", "pdsmc_ros/thesis", "pdsmc_ros/robots", "pdsmc_ros/control", "pdsmc_ros/sim",
+CORE = ["pdsmc_ros/bag", "pdsmc_ros/robots", "pdsmc_ros/control", "pdsmc_ros/sim",
         "pdsmc_ros/config.py", "pdsmc_ros/errors.py", "pdsmc_ros/metrics.py",
         "pdsmc_ros/presets.py", "pdsmc_ros/trajectories", "pdsmc_ros/urdf.py",
         "pdsmc_ros/engine.py", "pdsmc_ros/live_view.py",

@@ -24,7 +24,7 @@ def add_parser(sub: argparse._SubParsersAction, commands: dict) -> None:  # type
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..thesis.analysis import analyze_bag, comparison_table, find_bags, write_outputs
+    from ..experiments.analysis import analyze_bag, comparison_table, find_bags, write_outputs
 
     paths, skipped = find_bags(args.bags)
     for line in skipped:
@@ -35,7 +35,7 @@ def run(args: argparse.Namespace) -> int:
     bags = [analyze_bag(path) for path in paths]
     if args.plots:
         from ..bag.reader import run_samples
-        from ..thesis.plots import plot_comparison, plot_controllers, plot_run
+        from ..experiments.plots import plot_comparison, plot_controllers, plot_run
 
         out = Path(args.out or "analysis")
         written = []

@@ -34,9 +34,9 @@ def add_parser(sub: argparse._SubParsersAction, commands: dict) -> None:  # type
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..thesis.cells import summarize
-    from ..thesis.report import write_report
-    from ..thesis.reproduce import run_reproduction
+    from ..experiments.thesis.cells import summarize
+    from ..experiments.thesis.report import write_report
+    from ..experiments.thesis.reproduce import run_reproduction
 
     def progress(line: str) -> None:
         print(line, file=sys.stderr, flush=True)

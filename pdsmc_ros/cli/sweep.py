@@ -33,7 +33,7 @@ def add_parser(sub: argparse._SubParsersAction, commands: dict) -> None:  # type
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..thesis.sweep import run_sweep
+    from ..experiments.sweep import run_sweep
 
     def progress(done: int, total: int, _res: object) -> None:
         print(f"[{done}/{total}]", end="\r", file=sys.stderr, flush=True)
@@ -55,7 +55,7 @@ def run(args: argparse.Namespace) -> int:
     if args.out:
         import csv
 
-        from ..thesis.plots import plot_sweep
+        from ..experiments.plots import plot_sweep
 
         out = Path(args.out)
         out.mkdir(parents=True, exist_ok=True)

@@ -110,7 +110,7 @@ def plot_distributions(rows: Sequence[Mapping[str, Any]], laws: Sequence[str], l
                        cols: Sequence[Column], path: Path, title: str) -> Path:
     """A box per law (median, quartiles, whiskers at 1.5 IQR, the mean as a triangle) of every
     column's values over the runs that did not diverge, a panel per column."""
-    from ..thesis.plots import _pyplot, _save
+    from .plots import _pyplot, _save
 
     plt = _pyplot()
     shown = [c for c in cols if not c.per_joint]

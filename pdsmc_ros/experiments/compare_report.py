@@ -147,9 +147,9 @@ def add_montecarlo(report: Report, mc: Mapping[str, Any], rows: Sequence[LawRow]
 
 
 def write_figures(runs: Sequence[tuple[LawRow, Samples]], entries: Sequence[LawSpec], out: Path) -> list[Path]:
-    """The thesis-style comparison figures (:func:`pdsmc_ros.thesis.plots.plot_controllers`) of the
+    """The thesis-style comparison figures (:func:`pdsmc_ros.experiments.plots.plot_controllers`) of the
     laws that did not diverge, every law on one axes."""
-    from ..thesis.plots import plot_controllers
+    from .plots import plot_controllers
 
     shown = [(row.law, samples) for row, samples in runs if row.values is not None]
     if not shown:

@@ -241,7 +241,7 @@ def write_outputs(rows: Sequence[Mapping[str, Any]], summary: Mapping[str, Any],
 def plot_distribution(rows: Sequence[Mapping[str, Any]], controllers: Sequence[str], bound: float,
                       path: Path, title: str) -> Path:
     """Distribution of the runs' mean contour error, every controller on one axes."""
-    from ..thesis.plots import _pyplot, _save, controller_style
+    from .plots import _pyplot, _save, controller_style
 
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(7.5, 4.0))

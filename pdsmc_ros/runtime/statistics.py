@@ -142,7 +142,7 @@ def format_loop_statistics(label: str, stats: dict[str, dict[str, float]]) -> li
 
 def loop_report_lines(bags: Sequence[Any]) -> list[str]:
     """``pdsmc analyze``: the loop statistics of each real-time run among ``bags`` (objects
-    with ``path``, ``label`` and ``run.description``, as :class:`~pdsmc_ros.thesis.analysis.AnalyzedBag`)."""
+    with ``path``, ``label`` and ``run.description``, as :class:`~pdsmc_ros.experiments.analysis.AnalyzedBag`)."""
     lines = []
     for b in bags:
         if b.run.description.get("mode") == "realtime":

@@ -155,7 +155,7 @@ def test_registered_laws_params_files_and_a_diverging_law(laws: None, tmp_path: 
     # the comparison's figures leave the diverged run out (its NaN samples would set their scales)
     assert len(list(out.glob("*.png"))) == 3
     # a law outside the thesis's three is drawn with its label and a colour none of the three has
-    from pdsmc_ros.thesis.plots import CONTROLLER_STYLE, controller_style
+    from pdsmc_ros.experiments.plots import CONTROLLER_STYLE, controller_style
 
     label, colour, line = controller_style("pd_scaled")
     assert label == "PD x kappa" and line == "-." and colour not in {c for _, c, _ in CONTROLLER_STYLE.values()}

@@ -1,5 +1,5 @@
 """Run the thesis matrix (Tables 4.17-4.61) in-process or over the ROS nodes and compare
-every cell (``pdsmc reproduce``; the report is :mod:`pdsmc_ros.thesis.report`)."""
+every cell (``pdsmc reproduce``; the report is :mod:`pdsmc_ros.experiments.thesis.report`)."""
 
 from __future__ import annotations
 
@@ -13,13 +13,13 @@ from typing import Any
 
 import numpy as np
 
-from ..bag.reader import read_run, run_samples
-from ..config import choice, load_config
-from ..errors import BagError, ConfigError
-from ..metrics import compute_metrics
-from ..presets import PAYLOAD_READINGS, RunSpec, make_run, smc_reading
-from ..resources import ros_environment, script_path
-from ..sim import RunResult, simulate, simulate_many
+from ...bag.reader import read_run, run_samples
+from ...config import choice, load_config
+from ...errors import BagError, ConfigError
+from ...metrics import compute_metrics
+from ...presets import PAYLOAD_READINGS, RunSpec, make_run, smc_reading
+from ...resources import ros_environment, script_path
+from ...sim import RunResult, simulate, simulate_many
 from .cells import (
     CONTINUOUS_CASE,
     LABEL,

@@ -16,13 +16,13 @@ import numpy as np
 import pytest
 
 from pdsmc_ros.config import load_config
+from pdsmc_ros.experiments.thesis.cells import VERDICTS, Cell, Reproduction, needed_torque
+from pdsmc_ros.experiments.thesis.report import write_report
+from pdsmc_ros.experiments.thesis.reproduce import run_reproduction
+from pdsmc_ros.experiments.thesis.verdicts import classify, count_verdicts
 from pdsmc_ros.presets import PAYLOAD_READINGS, RunSpec, loaded_params, make_run
 from pdsmc_ros.robots import Parallel5R, Serial3R, robot_params
 from pdsmc_ros.sim import simulate
-from pdsmc_ros.thesis.cells import VERDICTS, Cell, Reproduction, needed_torque
-from pdsmc_ros.thesis.report import write_report
-from pdsmc_ros.thesis.reproduce import run_reproduction
-from pdsmc_ros.thesis.verdicts import classify, count_verdicts
 
 TABLES = load_config("thesis_tables")
 

@@ -13,10 +13,10 @@ from typing import Any
 
 import numpy as np
 
-from ..config import load_config
-from ..control import Gains, law, law_label
-from ..presets import RunSpec, control_steps, make_run, preset_gains, smc_reading
-from ..sim import RunResult
+from ...config import load_config
+from ...control import Gains, law, law_label
+from ...presets import RunSpec, control_steps, make_run, preset_gains, smc_reading
+from ...sim import RunResult
 
 THESIS_LAWS = ("pd", "smc", "pdsmc")
 """The laws the thesis compares, in its order."""

@@ -10,9 +10,9 @@ from typing import Any
 
 import numpy as np
 
-from ..config import load_config
-from ..presets import make_run
-from ..sim import RunResult, simulate
+from ...config import load_config
+from ...presets import make_run
+from ...sim import RunResult, simulate
 from .cells import (
     CONTINUOUS_CASE,
     MISPRINT_DIGITS,
@@ -34,7 +34,7 @@ def continuous_check(discrete: RunResult | None = None) -> dict[str, dict[str, A
 
     ``discrete`` is the case's run at its own rate when already simulated.
     """
-    from ..sim.continuous import simulate_continuous
+    from ...sim.continuous import simulate_continuous
 
     spec = make_run(*CONTINUOUS_CASE)
     runs = {
