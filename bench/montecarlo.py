@@ -59,7 +59,7 @@ def profile(tasks: int, specs, spreads) -> None:  # noqa: ANN001
     print(f"{tasks} tasks ({len(specs)} runs each) in {wall:.2f} s ({cpu:.2f} s of CPU): {1000 * task / tasks:.1f} "
           f"ms a task, the compiled loop {100 * loop / task:.1f} %, the rest {1000 * (task - loop) / tasks:.1f} ms "
           "a task", flush=True)
-    rest = ("simulator.py:_reference_samples", "simulator.py:_task_samples", "simulator.py:build_samples",
+    rest = ("simulator.py:_reference_samples", "simulator.py:_task_samples", "metrics.py:build_samples",
             "metrics.py:compute_metrics", "scores.py:compute_scores", "law.py:from_spec",
             "registry.py:make_robot", "montecarlo.py:sample_plant", "safety.py:for_robot")
     for name in rest:

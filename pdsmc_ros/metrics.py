@@ -69,6 +69,39 @@ class Samples:
     tau: FloatArray  # (S, n) applied torque
     contour_error: FloatArray  # (S,)
 
+    @classmethod
+    def empty(cls, n: int) -> Samples:
+        """No instant, for ``n`` joints (a run that kept none: ``simulate(keep_samples=False)``)."""
+        return cls(t=np.zeros(0), q=np.zeros((0, n)), q_ref=np.zeros((0, n)), xy=np.zeros((0, 2)),
+                   xy_ref=np.zeros((0, 2)), tau=np.zeros((0, n)), contour_error=np.zeros(0))
+
+
+def build_samples(
+    robot: Any,
+    contour: object,
+    t: FloatArray,
+    q: FloatArray,
+    q_ref: FloatArray,
+    tau: FloatArray,
+    *,
+    xy_ref: FloatArray | None = None,
+) -> Samples:
+    """Samples (actual and desired task points, contour error) from joint signals of ``robot``
+    (a :class:`~pdsmc_ros.robots.base.Manipulator`: its ``position``) on ``contour``;
+    ``xy_ref``: the desired task points at ``t`` if already known (``contour.task(t)``)."""
+    xy = robot.position(q)
+    if xy_ref is None:
+        xy_ref = contour.task(t).p[:, :2]  # type: ignore[attr-defined]
+    return Samples(
+        t=t,
+        q=q,
+        q_ref=q_ref,
+        xy=xy,
+        xy_ref=xy_ref,
+        tau=tau,
+        contour_error=contour.contour_error(t, xy),  # type: ignore[attr-defined]
+    )
+
 
 def sample_times(duration: float, sample_rate: float) -> FloatArray:
     """Statistics instants ``0, 1/f, ..., T`` (inclusive; 2501 for 5 s at 500 Hz)."""

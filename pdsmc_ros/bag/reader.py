@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import BagError, CdrError
-from ..metrics import Metrics, Samples, compute_metrics, sample_scores
+from ..metrics import Metrics, Samples, build_samples, compute_metrics, sample_scores
 from ..presets import RunSpec, control_steps
 from ..robots.base import FloatArray
 from ..robots.catalog import ROBOT_DESCRIPTION, register_description
@@ -200,8 +200,6 @@ def read_run(path: str | Path) -> RecordedRun:
 
 def run_samples(run: RecordedRun) -> Samples:
     """Signals of a recorded run at the thesis's analysis instants (complete steps only)."""
-    from ..sim import build_samples  # here: reading a bag's messages needs no numba kernels
-
     every = run.spec.sample_every
     robot = run.spec.robot_model()
     contour = run.spec.contour_model()

@@ -1,9 +1,10 @@
 """Simulation: the plant step (RK4, zero-order hold), the closed loop, whole runs."""
 
+from ..metrics import build_samples
 from .loop import closed_loop
 from .plant import PlantStepper
 from .rk4 import rk4_step_compiled
-from .simulator import RunResult, build_samples, simulate, simulate_many
+from .simulator import RunResult, simulate, simulate_many
 
 __all__ = [
     "PlantStepper",

@@ -16,11 +16,11 @@ import numpy as np
 
 from ..control.law import ControlLaw
 from ..errors import InvalidInputError
-from ..metrics import compute_metrics
+from ..metrics import build_samples, compute_metrics
 from ..presets import RunSpec, control_steps
 from ..robots import compiled as robot_compiled
 from ..robots.base import FloatArray
-from .simulator import RunResult, build_samples
+from .simulator import RunResult
 
 
 def simulate_continuous(spec: RunSpec, *, rtol: float = 1e-10, atol: float = 1e-12) -> RunResult:

@@ -17,13 +17,13 @@ from numpy.typing import ArrayLike
 
 from ..control.law import ControlLaw
 from ..control.stability import check_rate
-from ..metrics import Metrics, Samples, compute_metrics, sample_scores
+from ..metrics import Metrics, Samples, build_samples, compute_metrics, sample_scores
 from ..presets import RunSpec, control_steps
 from ..robots import ROBOTS
 from ..robots.base import FloatArray, Manipulator
 from ..trajectories import JointReference
 from .loop import run_loop
-from .stretches import empty_like_samples, run_in_stretches
+from .stretches import run_in_stretches
 
 
 @dataclass(frozen=True)
@@ -89,7 +89,7 @@ def simulate(spec: RunSpec, *, check_stability: bool = True, plant: Manipulator 
         if check_stability:
             check_rate(spec, reference)
         metrics, count, outcome = run_in_stretches(spec, robot, reference, initial_error)
-        return RunResult(spec, Samples(**empty_like_samples(robot.n)), metrics, count, time.perf_counter() - start,
+        return RunResult(spec, Samples.empty(robot.n), metrics, count, time.perf_counter() - start,
                          outcome.diverged, tuple(outcome.warnings))
     reference, refs = _reference_samples(spec)
     if check_stability:
@@ -152,32 +152,6 @@ def _task_samples(spec: RunSpec, reference: JointReference, steps: int) -> tuple
             _TASK_SAMPLES.pop(next(iter(_TASK_SAMPLES)))
         hit = _TASK_SAMPLES[key] = (t, xy_ref)
     return hit
-
-
-def build_samples(
-    robot: Manipulator,
-    contour: object,
-    t: FloatArray,
-    q: FloatArray,
-    q_ref: FloatArray,
-    tau: FloatArray,
-    *,
-    xy_ref: FloatArray | None = None,
-) -> Samples:
-    """Samples (actual and desired task points, contour error) from joint signals;
-    ``xy_ref``: the desired task points at ``t`` if already known (``contour.task(t)``)."""
-    xy = robot.position(q)
-    if xy_ref is None:
-        xy_ref = contour.task(t).p[:, :2]  # type: ignore[attr-defined]
-    return Samples(
-        t=t,
-        q=q,
-        q_ref=q_ref,
-        xy=xy,
-        xy_ref=xy_ref,
-        tau=tau,
-        contour_error=contour.contour_error(t, xy),  # type: ignore[attr-defined]
-    )
 
 
 def simulate_many(

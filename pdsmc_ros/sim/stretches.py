@@ -18,9 +18,9 @@ from numpy.typing import ArrayLike
 
 from ..control.law import ControlLaw
 from ..control.safety import DivergenceCheck
-from ..metrics import Metrics, error_metrics, error_scores
+from ..metrics import Metrics, build_samples, error_metrics, error_scores
 from ..presets import RunSpec, control_steps
-from ..robots.base import FloatArray, Manipulator
+from ..robots.base import Manipulator
 from ..trajectories import JointReference
 from .loop import LoopOutcome, run_loop
 
@@ -71,12 +71,10 @@ def run_in_stretches(spec: RunSpec, robot: Manipulator, reference: JointReferenc
         total.saturated = [a + b for a, b in zip(total.saturated, outcome.saturated, strict=True)]
         total.warnings += outcome.warnings
         rows = slice(start // every, start // every + len(out_q))
-        t = k[::every] / spec.rate
-        p_ref = reference.contour.task(t).p[:, :2]
-        xy = robot.position(out_q)
-        axial[rows] = refs[::every, 0] - out_q
-        task[rows] = p_ref - xy
-        contour[rows] = reference.contour.contour_error(t, xy)
+        samples = build_samples(robot, reference.contour, k[::every] / spec.rate, out_q, refs[::every, 0], out_tau)
+        axial[rows] = samples.q_ref - samples.q
+        task[rows] = samples.xy_ref - samples.xy
+        contour[rows] = samples.contour_error
         tau[rows] = out_tau
         if outcome.diverged:
             total.diverged, total.diverged_step = outcome.diverged, outcome.diverged_step
@@ -87,8 +85,3 @@ def run_in_stretches(spec: RunSpec, robot: Manipulator, reference: JointReferenc
     metrics = error_metrics(axial, task, contour, tau, spec.bound, saturated=total.saturated, scores=scores)
     return metrics, steps, total
 
-
-def empty_like_samples(n: int) -> dict[str, FloatArray]:
-    """The fields of a :class:`~pdsmc_ros.metrics.Samples` with no instant (a run that kept none)."""
-    return {"t": np.zeros(0), "q": np.zeros((0, n)), "q_ref": np.zeros((0, n)), "xy": np.zeros((0, 2)),
-            "xy_ref": np.zeros((0, 2)), "tau": np.zeros((0, n)), "contour_error": np.zeros(0)}
