@@ -19,8 +19,9 @@ from typing import Any
 import numpy as np
 
 from .errors import InvalidInputError
+from .metrics_kernel import accumulate, new_accumulator
 from .robots.base import FloatArray
-from .scores import SCORE_NAMES, Scores, compute_scores
+from .scores import DEFAULT_CUTOFF_HZ, SCORE_NAMES, Scores, high_frequency_power, high_frequency_share
 
 
 @dataclass(frozen=True)
@@ -110,68 +111,203 @@ def sample_times(duration: float, sample_rate: float) -> FloatArray:
 
 
 def compute_metrics(samples: Samples, bound: float, *, saturated: Sequence[int] = (),
-                    scores: Scores | None = None) -> Metrics:
+                    rate: float | None = None) -> Metrics:
     """Thesis-style statistics of sampled signals (docs/THESIS_NOTES.md section 4); ``saturated``: the
     clamped periods of each joint, counted by the loop (every period, not only the samples);
-    ``scores``: the run's scores (:func:`sample_scores`).
+    ``rate``: the samples' rate (Hz), to score them too (:class:`RunStatistics`) when they are
+    evenly ``1 / rate`` apart (a bag with a missing step has no scores: they need every instant).
 
     Raises
     ------
     InvalidInputError
         If there is no sample (every statistic would be undefined).
     """
-    return error_metrics(samples.q_ref - samples.q, samples.xy_ref - samples.xy, samples.contour_error,
-                         samples.tau, bound, saturated=saturated, scores=scores)
+    t = samples.t
+    if rate is not None and (len(t) < 2 or not np.allclose(np.diff(t), 1.0 / rate, rtol=1e-9, atol=0.0)):
+        rate = None
+    stats = RunStatistics(samples.q.shape[1], bound=bound, rate=rate)
+    stats.add(samples.q_ref - samples.q, samples.xy_ref - samples.xy, samples.contour_error, samples.tau)
+    return stats.metrics(saturated)
 
 
-def error_metrics(axial_error: FloatArray, task_error: FloatArray, contour_error: FloatArray, tau: FloatArray,
-                  bound: float, *, saturated: Sequence[int] = (), scores: Scores | None = None) -> Metrics:
-    """:func:`compute_metrics` from the errors alone (what a run that keeps no samples keeps):
-    ``axial_error = q_d - q`` (S, n), ``task_error = p_d - p`` (S, 2), the contour error (S,) and
-    the applied torque (S, n) at the statistics instants.
+class RunStatistics:
+    """A run's statistics and scores, accumulated over consecutive blocks of its statistics instants.
+
+    The same numbers whether the instants come at once (:func:`compute_metrics`) or a stretch at
+    a time (:mod:`pdsmc_ros.sim.stretches`): every sum runs instant by instant in the run's order
+    (:mod:`.metrics_kernel`). Only the applied torque is kept (when scoring), for its spectrum.
+
+    Parameters
+    ----------
+    joints : int
+        Actuated joints ``n``.
+    bound : float
+        The contour bound of ``contour_within_pct``, m.
+    rate : float, optional
+        The instants' rate (Hz; instant ``k`` at ``k / rate``): the run is scored
+        (:mod:`pdsmc_ros.scores`); None: statistics only.
+    cutoff : float
+        The high-frequency share's cutoff, Hz.
 
     Raises
     ------
     InvalidInputError
-        If there is no sample (every statistic would be undefined).
+        If ``joints`` is not a positive integer, or ``rate``/``cutoff`` is not a positive number.
     """
-    if not len(contour_error):
-        raise InvalidInputError("statistics need at least one sampled instant; got none")
-    axial = np.abs(axial_error)
-    ex = np.abs(task_error[:, 0])
-    ey = np.abs(task_error[:, 1])
-    total = np.hypot(ex, ey)
-    eps = np.abs(contour_error)
-    return Metrics(
-        axial_mean=axial.mean(axis=0).tolist(),
-        axial_sd=axial.std(axis=0).tolist(),
-        task_mean={"x": float(ex.mean()), "y": float(ey.mean()), "total": float(total.mean())},
-        task_sd={"x": float(ex.std()), "y": float(ey.std()), "total": float(total.std())},
-        contour_mean=float(eps.mean()),
-        contour_sd=float(eps.std()),
-        contour_bound=float(bound),
-        contour_within_pct=float(100.0 * np.mean(eps <= bound)),
-        max_torque=np.max(np.abs(tau), axis=0).tolist(),
-        samples=int(len(contour_error)),
-        task_sd_signed={"x": float(np.std(task_error[:, 0])), "y": float(np.std(task_error[:, 1]))},
-        saturated_periods=[int(c) for c in saturated],
-        **score_fields(scores),
-    )
+
+    def __init__(self, joints: int, *, bound: float, rate: float | None = None,
+                 cutoff: float = DEFAULT_CUTOFF_HZ) -> None:
+        if isinstance(joints, bool) or not isinstance(joints, int | np.integer) or joints < 1:
+            raise InvalidInputError(f"joints must be a positive integer, got {joints!r}")
+        rate_ok = rate is None or (np.isfinite(rate) and rate > 0.0)
+        if not (rate_ok and np.isfinite(cutoff) and cutoff > 0.0):
+            raise InvalidInputError(f"scores need a positive rate and cutoff; got rate {rate!r} Hz, "
+                                    f"cutoff {cutoff!r} Hz")
+        self.joints = int(joints)
+        self.bound = float(bound)
+        self.rate = None if rate is None else float(rate)
+        self.cutoff = float(cutoff)
+        self._acc = new_accumulator(self.joints)
+        self._torques: list[FloatArray] = []
+
+    @property
+    def instants(self) -> int:
+        """Instants added so far."""
+        return int(self._acc[4][0])
+
+    def add(self, axial_error: FloatArray, task_error: FloatArray, contour_error: FloatArray,
+            tau: FloatArray) -> None:
+        """Add ``m`` consecutive instants: ``q_d - q`` (m, n), ``p_d - p`` (m, 2 or more: x and y
+        are read), the contour error (m,) and the torque (m, n) commanded at each.
+
+        Raises
+        ------
+        InvalidInputError
+            If the shapes disagree.
+        """
+        axial = np.ascontiguousarray(axial_error, dtype=float)
+        task = np.ascontiguousarray(np.asarray(task_error, dtype=float)[:, :2])
+        contour = np.ascontiguousarray(contour_error, dtype=float)
+        torque = np.ascontiguousarray(tau, dtype=float)
+        m, n = len(contour), self.joints
+        if axial.shape != (m, n) or task.shape != (m, 2) or torque.shape != (m, n) or contour.ndim != 1:
+            raise InvalidInputError(f"statistics need q_d - q and the torque as (m, {n}), p_d - p as (m, 2) and the "
+                                    f"contour error as (m,); got {axial.shape}, {torque.shape}, {task.shape}, "
+                                    f"{contour.shape}")
+        h = 0.0 if self.rate is None else 1.0 / self.rate
+        accumulate(*self._acc, axial, task, contour, torque, h, self.bound)
+        if self.rate is not None:
+            self._torques.append(torque.copy() if torque is tau else torque)
+
+    def scores(self) -> Scores | None:
+        """The scores of the instants so far (module :mod:`pdsmc_ros.scores`): None without a rate
+        or with fewer than two instants (no applied period)."""
+        count = self.instants
+        if self.rate is None or count < 2:
+            return None
+        n = self.joints
+        _, sums, _, peaks, _ = self._acc
+        total = sums[0] + sums[1]
+        periods = count - 1
+        h = 1.0 / self.rate
+        norm_squares = total[n]
+        itae = 0.5 * h * total[n + 1 : 2 * n + 2]
+        energy = total[2 * n + 2 : 3 * n + 2] * h
+        tv = total[3 * n + 2 :] / (periods * h)
+        peak = peaks[1] / h
+        high = np.empty(n)
+        power = np.empty(n)
+        for j in range(n):  # a column at a time: the applied torque of each joint, its spectrum
+            column = np.concatenate([block[:, j] for block in self._torques])[:periods]
+            column_high, column_power = high_frequency_power(column[:, None], self.rate, self.cutoff)
+            high[j], power[j] = column_high[0], column_power[0]
+        run = {
+            "error_rms": float(np.sqrt(norm_squares / count)),
+            "error_itae": float(itae[n]),
+            "torque_tv_rate": float(tv.sum()),
+            "torque_hf_share": float(high_frequency_share(high.sum(), power.sum())),
+            "control_energy": float(energy.sum()),
+            "torque_rate_peak": float(peak.max()),
+        }
+        return Scores(
+            error_rms=np.sqrt(total[:n] / count).tolist(),
+            error_itae=itae[:n].tolist(),
+            torque_tv_rate=tv.tolist(),
+            torque_hf_share=high_frequency_share(high, power).tolist(),
+            control_energy=energy.tolist(),
+            torque_rate_peak=peak.tolist(),
+            run=run,
+            cutoff_hz=self.cutoff,
+            rate_hz=self.rate,
+        )
+
+    def metrics(self, saturated: Sequence[int] = ()) -> Metrics:
+        """The statistics (and scores, with a rate) of the instants so far; ``saturated``: the
+        clamped periods of each joint, counted by the loop.
+
+        Raises
+        ------
+        InvalidInputError
+            If there is no instant (every statistic would be undefined).
+        """
+        count = self.instants
+        if not count:
+            raise InvalidInputError("statistics need at least one sampled instant; got none")
+        n = self.joints
+        moments, _, _, peaks, counts = self._acc
+        mean = moments[0]
+        sd = np.sqrt(moments[1] / count)
+        return Metrics(
+            axial_mean=mean[:n].tolist(),
+            axial_sd=sd[:n].tolist(),
+            task_mean={"x": float(mean[n]), "y": float(mean[n + 1]), "total": float(mean[n + 2])},
+            task_sd={"x": float(sd[n]), "y": float(sd[n + 1]), "total": float(sd[n + 2])},
+            contour_mean=float(mean[n + 3]),
+            contour_sd=float(sd[n + 3]),
+            contour_bound=self.bound,
+            contour_within_pct=float(100.0 * (counts[1] / count)),
+            max_torque=peaks[0].tolist(),
+            samples=count,
+            task_sd_signed={"x": float(sd[n + 4]), "y": float(sd[n + 5])},
+            saturated_periods=[int(c) for c in saturated],
+            **score_fields(self.scores()),
+        )
 
 
-def sample_scores(samples: Samples, rate: float) -> Scores | None:
-    """The scores (:func:`pdsmc_ros.scores.compute_scores`) of the statistics samples, taken at
-    ``rate`` Hz: the error at every sample, the torque of every sample but the last (the run's
-    closing command, never applied) held until the next. None with fewer than two samples or
-    samples not evenly ``1/rate`` apart (a bag with missing steps): the scores need every instant."""
-    return error_scores(samples.t, samples.q_ref - samples.q, samples.tau, rate)
+def compute_scores(error: FloatArray, torque: FloatArray, rate: float, cutoff: float = DEFAULT_CUTOFF_HZ) -> Scores:
+    """The scores of signals (:mod:`pdsmc_ros.scores`, docs/SCORES.md) through :class:`RunStatistics`.
 
+    Parameters
+    ----------
+    error : ndarray, shape (N + 1, n)
+        ``q_d - q`` at the instants ``t_k = k / rate``, rad.
+    torque : ndarray, shape (N, n)
+        The applied torque of each period (held over it), N m.
+    rate : float
+        Sample rate of the signals, Hz.
+    cutoff : float
+        Frequency above which torque power counts as high-frequency, Hz.
 
-def error_scores(t: FloatArray, axial_error: FloatArray, tau: FloatArray, rate: float) -> Scores | None:
-    """:func:`sample_scores` from the instants, ``q_d - q`` and the torque at them."""
-    if len(t) < 2 or not np.allclose(np.diff(t), 1.0 / rate, rtol=1e-9, atol=0.0):
-        return None
-    return compute_scores(axial_error, tau[:-1], rate)
+    A NaN in the signals (a diverged run) makes the scores it enters NaN.
+
+    Raises
+    ------
+    InvalidInputError
+        If there is no applied period, the shapes disagree, or ``rate``/``cutoff`` is not positive.
+    """
+    error = np.asarray(error, dtype=float)
+    torque = np.asarray(torque, dtype=float)
+    if torque.ndim != 2 or torque.shape[0] < 1 or error.shape != (torque.shape[0] + 1, torque.shape[1]):
+        raise InvalidInputError(f"scores need N >= 1 applied torques (N, n) and N + 1 errors (N + 1, n); got torque "
+                                f"{torque.shape}, error {error.shape}")
+    stats = RunStatistics(torque.shape[1], bound=np.inf, rate=rate, cutoff=cutoff)
+    count = len(error)
+    # the closing command of the last instant is never applied: a zero stands in for it
+    stats.add(error, np.zeros((count, 2)), np.zeros(count), np.vstack([torque, np.zeros((1, torque.shape[1]))]))
+    scores = stats.scores()
+    if scores is None:  # not reached: N >= 1 applied periods were checked above
+        raise InvalidInputError("scores need N >= 1 applied periods")
+    return scores
 
 
 def score_fields(scores: Scores | None) -> dict[str, Any]:

@@ -3,7 +3,7 @@
 The thesis compares its laws on error statistics and peak torque only (:mod:`.metrics`).
 These are the costs a control engineer weighs as well, each per actuated joint and for the
 run, of a signal sampled evenly at ``rate`` (the runs pass their statistics samples:
-:func:`pdsmc_ros.metrics.sample_scores`, docs/SCORES.md says what that rate sees). With ``N``
+``rate`` of :func:`pdsmc_ros.metrics.compute_metrics`, docs/SCORES.md says what that rate sees). With ``N``
 periods of ``h = 1/rate`` (``T = N h``), the tracking error ``e_k = q_d(t_k) - q(t_k)`` at
 ``k = 0..N`` and the torque ``u_k`` held over ``[t_k, t_{k+1})`` for ``k = 0..N-1`` (the command
 at ``t_N`` closes the run and is never applied):
@@ -18,6 +18,10 @@ at ``t_N`` closes the run and is never applied):
   excites dynamics the model leaves out (Section 2.3.3, Fig. 2.11);
 - ``control_energy``: ``int u^2 dt = sum_k u_k^2 h``, exact for the held torque (run: summed);
 - ``torque_rate_peak``: ``max_k |u_k - u_{k-1}| / h`` (run: over joints).
+
+:class:`pdsmc_ros.metrics.RunStatistics` computes them beside the statistics, instant by instant
+(compensated sums; only the applied torque is kept, for its spectrum);
+:func:`pdsmc_ros.metrics.compute_scores` scores two signals.
 """
 
 from __future__ import annotations
@@ -26,7 +30,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import InvalidInputError
 from .robots.base import FloatArray
 
 DEFAULT_CUTOFF_HZ = 50.0
@@ -72,76 +75,10 @@ def high_frequency_power(u: FloatArray, rate: float, cutoff: float) -> tuple[Flo
     return power[frequency > cutoff].sum(axis=0), power.sum(axis=0)
 
 
-def _share(high: FloatArray | float, total: FloatArray | float) -> FloatArray:
+def high_frequency_share(high: FloatArray | float, total: FloatArray | float) -> FloatArray:
     """``high / total``, 0 where there is no power at all (a zero torque has no high share)."""
     high, total = np.asarray(high, dtype=float), np.asarray(total, dtype=float)
     with np.errstate(invalid="ignore", divide="ignore"):
         share: FloatArray = np.where(total > 0.0, high / np.where(total > 0.0, total, 1.0),
                                      np.where(np.isnan(total), np.nan, 0.0))
     return share
-
-
-def compute_scores(error: FloatArray, torque: FloatArray, rate: float, cutoff: float = DEFAULT_CUTOFF_HZ) -> Scores:
-    """The scores of one run (module docstring; docs/SCORES.md).
-
-    Parameters
-    ----------
-    error : ndarray, shape (N + 1, n)
-        ``q_d - q`` at the instants ``t_k = k / rate``, rad.
-    torque : ndarray, shape (N, n)
-        The applied torque of each period (held over it), N m.
-    rate : float
-        Sample rate of the signals, Hz.
-    cutoff : float
-        Frequency above which torque power counts as high-frequency, Hz.
-
-    A NaN in the signals (a diverged run) makes the scores it enters NaN.
-
-    Raises
-    ------
-    InvalidInputError
-        If there is no applied period, the shapes disagree, or ``rate``/``cutoff`` is not positive.
-    """
-    error = np.asarray(error, dtype=float)
-    torque = np.asarray(torque, dtype=float)
-    if not (np.isfinite(rate) and rate > 0.0 and np.isfinite(cutoff) and cutoff > 0.0):
-        raise InvalidInputError(f"scores need a positive rate and cutoff; got rate {rate!r} Hz, cutoff {cutoff!r} Hz")
-    if torque.ndim != 2 or torque.shape[0] < 1 or error.shape != (torque.shape[0] + 1, torque.shape[1]):
-        raise InvalidInputError(f"scores need N >= 1 applied torques (N, n) and N + 1 errors (N + 1, n); got torque "
-                                f"{torque.shape}, error {error.shape}")
-    count = torque.shape[0]
-    h = 1.0 / rate
-    duration = count * h
-    t = np.arange(count + 1) * h
-    norm = np.sqrt(np.sum(error ** 2, axis=1))
-
-    def itae(e: FloatArray) -> FloatArray:  # trapezoid rule of t |e| over the N periods
-        weighted = (t * np.abs(e).T).T
-        total: FloatArray = 0.5 * h * (weighted[:-1] + weighted[1:]).sum(axis=0)
-        return total
-
-    step = np.abs(np.diff(torque, axis=0))
-    tv = step.sum(axis=0) / duration
-    peak = step.max(axis=0) / h if count > 1 else np.zeros(torque.shape[1])  # max propagates a NaN
-    energy = (torque ** 2).sum(axis=0) * h
-    high, total = high_frequency_power(torque, rate, cutoff)
-    share = _share(high, total)
-    run = {
-        "error_rms": float(np.sqrt(np.mean(norm ** 2))),
-        "error_itae": float(itae(norm)),
-        "torque_tv_rate": float(tv.sum()),
-        "torque_hf_share": float(_share(high.sum(), total.sum())),
-        "control_energy": float(energy.sum()),
-        "torque_rate_peak": float(peak.max()),
-    }
-    return Scores(
-        error_rms=np.sqrt(np.mean(error ** 2, axis=0)).tolist(),
-        error_itae=itae(error).tolist(),
-        torque_tv_rate=tv.tolist(),
-        torque_hf_share=share.tolist(),
-        control_energy=energy.tolist(),
-        torque_rate_peak=peak.tolist(),
-        run=run,
-        cutoff_hz=float(cutoff),
-        rate_hz=float(rate),
-    )

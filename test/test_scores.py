@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from pdsmc_ros.errors import InvalidInputError
-from pdsmc_ros.scores import DEFAULT_CUTOFF_HZ, compute_scores, high_frequency_power
+from pdsmc_ros.metrics import compute_scores
+from pdsmc_ros.scores import DEFAULT_CUTOFF_HZ, high_frequency_power
 
 RATE = 1000.0
 
@@ -96,7 +97,7 @@ def test_a_simulated_run_carries_the_scores_of_its_statistics_samples() -> None:
     """The serial arm's SMC at 10 kHz has its statistics samples at 500 Hz; the five-bar's are its steps."""
     import dataclasses
 
-    from pdsmc_ros.metrics import Samples, sample_scores
+    from pdsmc_ros.metrics import Samples, compute_metrics
     from pdsmc_ros.presets import make_run
     from pdsmc_ros.sim import simulate
 
@@ -117,4 +118,5 @@ def test_a_simulated_run_carries_the_scores_of_its_statistics_samples() -> None:
     keep = np.r_[0:10, 11:len(s.t)]
     gap = Samples(s.t[keep], s.q[keep], s.q_ref[keep], s.xy[keep], s.xy_ref[keep], s.tau[keep],
                   s.contour_error[keep])
-    assert sample_scores(gap, 500.0) is None and sample_scores(s, 500.0) is not None
+    assert compute_metrics(gap, spec.bound, rate=500.0).error_rms == []
+    assert compute_metrics(s, spec.bound, rate=500.0).error_rms == m.error_rms

@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import BagError, CdrError
-from ..metrics import Metrics, Samples, build_samples, compute_metrics, sample_scores
+from ..metrics import Metrics, Samples, build_samples, compute_metrics
 from ..presets import RunSpec, control_steps
 from ..robots.base import FloatArray
 from ..robots.catalog import ROBOT_DESCRIPTION, register_description
@@ -214,5 +214,4 @@ def run_metrics(run: RecordedRun) -> Metrics:
     """Thesis statistics of a recorded run, sampled at the thesis's analysis rate, and the scores
     of the same samples as the simulator computes them (none if a sampled step is missing)."""
     samples = run_samples(run)
-    return compute_metrics(samples, run.spec.bound,
-                           scores=sample_scores(samples, run.spec.rate / run.spec.sample_every))
+    return compute_metrics(samples, run.spec.bound, rate=run.spec.rate / run.spec.sample_every)

@@ -17,7 +17,7 @@ from numpy.typing import ArrayLike
 
 from ..control.law import ControlLaw
 from ..control.stability import check_rate
-from ..metrics import Metrics, Samples, build_samples, compute_metrics, sample_scores
+from ..metrics import Metrics, Samples, build_samples, compute_metrics
 from ..presets import RunSpec, control_steps
 from ..robots import ROBOTS
 from ..robots.base import FloatArray, Manipulator
@@ -102,8 +102,7 @@ def simulate(spec: RunSpec, *, check_stability: bool = True, plant: Manipulator 
                                           limit)
     t, xy_ref = _task_samples(spec, reference, steps)
     samples = build_samples(robot, reference.contour, t, out_q, refs[::every, 0], out_tau, xy_ref=xy_ref)
-    metrics = compute_metrics(samples, spec.bound, saturated=outcome.saturated,
-                              scores=sample_scores(samples, spec.rate / every))
+    metrics = compute_metrics(samples, spec.bound, saturated=outcome.saturated, rate=spec.rate / every)
     return RunResult(spec, samples, metrics, steps, time.perf_counter() - start, outcome.diverged,
                      tuple(outcome.warnings))
 

@@ -1,14 +1,13 @@
-"""A run in stretches that keeps its errors, not its samples: memory no longer grows with the
-reference and the states of a long run.
+"""A run in stretches that keeps its statistics, not its samples: memory no longer grows with the
+reference, the states and the errors of a long run.
 
 :func:`pdsmc_ros.sim.simulate` with ``keep_samples=False``. The loop runs the same steps as in
 one call (:func:`~pdsmc_ros.sim.loop.run_loop` carries the state, the law's internal state and the
-step count from one stretch to the next); the reference is sampled one stretch at a time, and of
-each statistics instant only what the statistics read is kept -- ``q_d - q``, ``p_d - p``, the
-contour error and the torque -- from which :func:`pdsmc_ros.metrics.error_metrics` computes the
-same statistics and scores as from the samples (equal to the last digit: a test runs both).
-A run of 3,600 s at 1 kHz keeps 9 floats a statistics instant for the serial arm instead of the
-reference's 9 floats a control step and the samples' 15 (bench/long_run.py).
+step count from one stretch to the next); the reference is sampled one stretch at a time, and each
+stretch's statistics instants go into :class:`pdsmc_ros.metrics.RunStatistics`, which accumulates
+them instant by instant: the same statistics and scores as the run that keeps its samples, to the
+last digit (a test runs both). What grows with the run is the applied torque at the statistics
+instants, kept for its spectrum (``n`` floats an instant; bench/long_run.py).
 """
 
 from __future__ import annotations
@@ -18,7 +17,7 @@ from numpy.typing import ArrayLike
 
 from ..control.law import ControlLaw
 from ..control.safety import DivergenceCheck
-from ..metrics import Metrics, build_samples, error_metrics, error_scores
+from ..metrics import Metrics, RunStatistics, build_samples
 from ..presets import RunSpec, control_steps
 from ..robots.base import Manipulator
 from ..trajectories import JointReference
@@ -48,10 +47,7 @@ def run_in_stretches(spec: RunSpec, robot: Manipulator, reference: JointReferenc
     every = spec.sample_every
     stretch = max(every, (stretch_steps or STRETCH_STEPS) // every * every)
     count = steps // every + 1
-    axial = np.empty((count, robot.n))
-    task = np.empty((count, 2))
-    contour = np.empty(count)
-    tau = np.empty((count, robot.n))
+    stats = RunStatistics(robot.n, bound=spec.bound, rate=spec.rate / every)
     law = ControlLaw.from_spec(spec)
     limit = robot.effort_limits if spec.enforce_limits else None
     check = DivergenceCheck.for_robot(robot)
@@ -70,18 +66,14 @@ def run_in_stretches(spec: RunSpec, robot: Manipulator, reference: JointReferenc
         q, qd = outcome.end_q, outcome.end_qd
         total.saturated = [a + b for a, b in zip(total.saturated, outcome.saturated, strict=True)]
         total.warnings += outcome.warnings
-        rows = slice(start // every, start // every + len(out_q))
         samples = build_samples(robot, reference.contour, k[::every] / spec.rate, out_q, refs[::every, 0], out_tau)
-        axial[rows] = samples.q_ref - samples.q
-        task[rows] = samples.xy_ref - samples.xy
-        contour[rows] = samples.contour_error
-        tau[rows] = out_tau
+        stats.add(samples.q_ref - samples.q, samples.xy_ref - samples.xy, samples.contour_error, out_tau)
         if outcome.diverged:
             total.diverged, total.diverged_step = outcome.diverged, outcome.diverged_step
-            for kept in (axial, task, contour, tau):
-                kept[rows.stop:] = np.nan
+            # the instants after the stretch count as NaN, as in the samples of a run that keeps them
+            while stats.instants < count:
+                rows = min(count - stats.instants, max(1, stretch // every))
+                nan = np.full((rows, robot.n), np.nan)
+                stats.add(nan, np.full((rows, 2), np.nan), np.full(rows, np.nan), nan)
             break
-    scores = error_scores(np.arange(count) * every / spec.rate, axial, tau, spec.rate / every)
-    metrics = error_metrics(axial, task, contour, tau, spec.bound, saturated=total.saturated, scores=scores)
-    return metrics, steps, total
-
+    return stats.metrics(total.saturated), steps, total
