@@ -118,6 +118,34 @@ def sta_presets(source: Mapping[str, FloatArray], model: Manipulator,  # noqa: A
     return {"k1": k1, "k2": LEVANT_K2 * (k1 / LEVANT_K1) ** 2}
 
 
+def ismc_presets(source: Mapping[str, FloatArray], model: Manipulator, q0: FloatArray) -> dict[str, FloatArray]:
+    """lambda from the SMC's presets, so that the ISMC's linear part is the SMC's plus its integral.
+
+    Inside the boundary layer the SMC (Eq. 3.15, ``s = edot + lambda e``) feeds the error back
+    with ``Kp = lambda_S Ks / phi``, ``Kd = s_M Mbar lambda_S + Ks / phi``; the ISMC on the
+    integral surface ``s = edot + 2 lambda e + lambda^2 int e`` (Slotine & Li 1991, Section 7.1)
+    with ``Kp = Mbar lambda^2 + 2 lambda Ks / phi``, ``Kd = 2 Mbar lambda + Ks / phi`` (exact
+    model, :func:`ismc_linear_gains`) and ``lambda^2 Ks / phi`` on ``int e``. Integral sliding
+    mode adds its integral to a nominal design and keeps that design's closed loop (Utkin & Shi
+    1996, "Integral sliding mode in systems operating under uncertainty conditions", Proc. 35th
+    IEEE CDC), so each joint's ``lambda`` solves ``Mbar_ii lambda^2 + 2 lambda Ks / phi =
+    lambda_S Ks / phi`` at the reference's start ``q0``: the SMC's stiffness, which the SMC's
+    presets were tuned (and checked for the real-time loop) with,
+
+        ``lambda = lambda_S / (1 + sqrt(1 + Mbar_ii(q0) lambda_S phi / Ks))``,
+
+    below ``lambda_S / 2``, so the damping ``2 Mbar_ii lambda + Ks / phi`` is at most the SMC's
+    (the two are equal for a massless joint, ``2 lambda = lambda_S``). With the model's estimate
+    ``s_M Mbar``, ``s_M <= 1``, both are at most the SMC's. The SMC's ``lambda`` as it is would
+    double the damping term; the real-time stability check refuses it on the UR5 and the Panda at
+    1 kHz. ``Ks`` and ``phi`` are the SMC's (copied by :meth:`LawEntry.presets_of`).
+    """
+    lam = np.asarray(source["lam"], dtype=float)
+    ks_phi = np.asarray(source["ks"], dtype=float) / np.asarray(source["phi"], dtype=float)
+    inertia = np.diagonal(model.mass_matrix(q0))
+    return {"lam": lam / (1.0 + np.sqrt(1.0 + inertia * lam / ks_phi))}
+
+
 def ismc_linear_gains(g: FloatArray, smc_model: FloatArray, mass: FloatArray) -> tuple[FloatArray, FloatArray]:
     """Inside the boundary layer, as the SMC's with the surface's ``2 lambda`` and ``lambda^2``:
     ``Kp_eff = s_M Mbar lambda^2 + 2 lambda Ks / phi``, ``Kd_eff = s_M Mbar 2 lambda + Ks / phi``.
@@ -133,4 +161,4 @@ register_law(LawEntry("sta", "STA", STA_ROWS, equation="super-twisting (Levant 1
                       model_based=True, state_size=1, presets_from="smc", derive_presets=sta_presets))
 register_law(LawEntry("ismc", "ISMC", ISMC_ROWS, equation="integral sliding mode (Utkin & Shi 1996)", code=ISMC,
                       linear_gains=ismc_linear_gains, model_based=True,
-                      state_size=1, presets_from="smc"))
+                      state_size=1, presets_from="smc", derive_presets=ismc_presets))
