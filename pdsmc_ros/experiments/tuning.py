@@ -104,7 +104,8 @@ def starting_gains(spec: RunSpec, w: float | None = None) -> Gains:
     ``Kd`` above ``lambda_M(K + C^T) / 2``, phi widened to keep ``Ks / phi <= Kd`` (the damping of
     the start), and lambda lowered until the rest hold. A law whose presets derive from another's
     (:attr:`LawEntry.derive_presets`) derives its start from these values (the computed torque:
-    ``omega_n = sqrt(Kp / Mbar_ii)`` at the reference's start, ``zeta = 1``).
+    ``omega_n = sqrt(Kp / Mbar_ii)`` at the reference's start, ``zeta = 1``; the ISMC: the SMC's
+    ``lambda`` lowered to keep the SMC's stiffness, :func:`~pdsmc_ros.control.sliding.ismc_presets`).
     """
     reference = spec.reference()
     t = np.linspace(0.0, reference.duration, 13)
