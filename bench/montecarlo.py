@@ -54,13 +54,13 @@ def profile(tasks: int, specs, spreads) -> None:  # noqa: ANN001
     stats = pstats.Stats(profiler).stats  # type: ignore[attr-defined]
     by_name = {f"{func[0].rsplit('/', 2)[-1]}:{func[2]}": (calls, cumulative)
                for func, (_, calls, _, cumulative, _) in stats.items()}
-    loop = sum(c for name, (_, c) in by_name.items() if name.startswith("loop.py:_closed_loop_"))
+    loop = sum(c for name, (_, c) in by_name.items() if name == "loop.py:closed_loop")
     task = by_name["montecarlo.py:run_sample"][1]
     print(f"{tasks} tasks ({len(specs)} runs each) in {wall:.2f} s ({cpu:.2f} s of CPU): {1000 * task / tasks:.1f} "
           f"ms a task, the compiled loop {100 * loop / task:.1f} %, the rest {1000 * (task - loop) / tasks:.1f} ms "
           "a task", flush=True)
     rest = ("simulator.py:_reference_samples", "simulator.py:_task_samples", "metrics.py:build_samples",
-            "metrics.py:compute_metrics", "scores.py:compute_scores", "law.py:from_spec",
+            "metrics.py:compute_metrics", "metrics.py:scores", "law.py:from_spec",
             "registry.py:make_robot", "montecarlo.py:sample_plant", "safety.py:for_robot")
     for name in rest:
         if name in by_name:

@@ -7,7 +7,7 @@ errors over the sampled instants; axial errors per actuated joint
 contour error (Eqs. 2.9 / 2.10); share of samples within the contour bound;
 maximum |torque| per actuated joint; and (not thesis statistics) the control periods
 in which each joint's torque was clamped to its limit and the scores of :mod:`.scores`
-(tracking, chattering, effort) of the same samples (:func:`sample_scores`).
+(tracking, chattering, effort) of every control step (:meth:`RunStatistics.add_steps`).
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from .errors import InvalidInputError
-from .metrics_kernel import accumulate, new_accumulator
+from .metrics_kernel import accumulate_instants, accumulate_steps, new_accumulator
 from .robots.base import FloatArray
 from .scores import DEFAULT_CUTOFF_HZ, SCORE_NAMES, Scores, high_frequency_power, high_frequency_share
 
@@ -110,32 +110,37 @@ def sample_times(duration: float, sample_rate: float) -> FloatArray:
     return np.arange(count + 1) / sample_rate
 
 
-def compute_metrics(samples: Samples, bound: float, *, saturated: Sequence[int] = (),
-                    rate: float | None = None) -> Metrics:
-    """Thesis-style statistics of sampled signals (docs/THESIS_NOTES.md section 4); ``saturated``: the
-    clamped periods of each joint, counted by the loop (every period, not only the samples);
-    ``rate``: the samples' rate (Hz), to score them too (:class:`RunStatistics`) when they are
-    evenly ``1 / rate`` apart (a bag with a missing step has no scores: they need every instant).
+def compute_metrics(samples: Samples, bound: float, *, saturated: Sequence[int] = ()) -> Metrics:
+    """Thesis-style statistics of sampled signals (docs/THESIS_NOTES.md section 4), without scores;
+    ``saturated``: the clamped periods of each joint, counted by the loop (every period, not only
+    the samples). A run's scores come from its control steps (:meth:`RunStatistics.add_steps`).
 
     Raises
     ------
     InvalidInputError
         If there is no sample (every statistic would be undefined).
     """
-    t = samples.t
-    if rate is not None and (len(t) < 2 or not np.allclose(np.diff(t), 1.0 / rate, rtol=1e-9, atol=0.0)):
-        rate = None
-    stats = RunStatistics(samples.q.shape[1], bound=bound, rate=rate)
-    stats.add(samples.q_ref - samples.q, samples.xy_ref - samples.xy, samples.contour_error, samples.tau)
+    stats = RunStatistics(samples.q.shape[1], bound=bound)
+    stats.add_samples(samples)
     return stats.metrics(saturated)
 
 
-class RunStatistics:
-    """A run's statistics and scores, accumulated over consecutive blocks of its statistics instants.
+SPECTRUM_SEGMENT = 1 << 17
+"""Control steps of a segment of the high-frequency share's spectrum (Welch 1967): a run of at most
+this many applied periods (26 s at 5 kHz, 131 s at 1 kHz) is one segment, the DFT of the whole run;
+a longer one averages the power of consecutive segments (bins of ``rate / 131,072``: 0.08 Hz at
+10 kHz), so that only one segment of torque is kept however long the run."""
 
-    The same numbers whether the instants come at once (:func:`compute_metrics`) or a stretch at
-    a time (:mod:`pdsmc_ros.sim.stretches`): every sum runs instant by instant in the run's order
-    (:mod:`.metrics_kernel`). Only the applied torque is kept (when scoring), for its spectrum.
+
+class RunStatistics:
+    """A run's statistics and scores, accumulated over consecutive blocks of its signals.
+
+    The thesis's statistics come from its statistics instants (:meth:`add`, :meth:`add_samples`),
+    the scores (:mod:`pdsmc_ros.scores`) from its control steps (:meth:`add_steps`): the torque of
+    every period, so that switching faster than the statistics' rate is seen. The same numbers
+    whether the signals come at once or a stretch at a time (:mod:`pdsmc_ros.sim.stretches`):
+    every sum runs row by row in the run's order (:mod:`.metrics_kernel`), the spectrum's segments
+    start at fixed steps. Memory does not grow with the run (one spectrum segment of torque is kept).
 
     Parameters
     ----------
@@ -144,8 +149,8 @@ class RunStatistics:
     bound : float
         The contour bound of ``contour_within_pct``, m.
     rate : float, optional
-        The instants' rate (Hz; instant ``k`` at ``k / rate``): the run is scored
-        (:mod:`pdsmc_ros.scores`); None: statistics only.
+        The control rate (Hz; step ``k`` at ``k / rate``): the steps added are scored; None:
+        statistics only.
     cutoff : float
         The high-frequency share's cutoff, Hz.
 
@@ -168,41 +173,90 @@ class RunStatistics:
         self.rate = None if rate is None else float(rate)
         self.cutoff = float(cutoff)
         self._acc = new_accumulator(self.joints)
-        self._torques: list[FloatArray] = []
+        self._pending: list[FloatArray] = []  # the torque of the steps of the spectrum's open segment
+        self._pending_rows = 0
+        self._high = np.zeros(self.joints)  # summed over closed segments, each of its power per step
+        self._power = np.zeros(self.joints)
 
     @property
     def instants(self) -> int:
-        """Instants added so far."""
+        """Statistics instants added so far."""
         return int(self._acc[4][0])
+
+    @property
+    def steps(self) -> int:
+        """Control steps added so far."""
+        return int(self._acc[4][2])
+
+    @staticmethod
+    def _rows(name: str, values: FloatArray, count: int | None, width: int) -> FloatArray:
+        """``values`` as C-contiguous floats, checked to be ``count`` rows (any if None) of ``width``."""
+        rows = np.ascontiguousarray(values, dtype=float)
+        if rows.ndim != 2 or rows.shape[1] != width or (count is not None and rows.shape[0] != count):
+            expected = f"{'m' if count is None else count} rows of {width}"
+            raise InvalidInputError(f"{name} must be {expected}; got shape {rows.shape}")
+        return rows
 
     def add(self, axial_error: FloatArray, task_error: FloatArray, contour_error: FloatArray,
             tau: FloatArray) -> None:
-        """Add ``m`` consecutive instants: ``q_d - q`` (m, n), ``p_d - p`` (m, 2 or more: x and y
-        are read), the contour error (m,) and the torque (m, n) commanded at each.
+        """Add ``m`` consecutive statistics instants: ``q_d - q`` (m, n), ``p_d - p`` (m, 2 or more:
+        x and y are read), the contour error (m,) and the torque (m, n) commanded at each.
 
         Raises
         ------
         InvalidInputError
-            If the shapes disagree.
+            If the shapes disagree (nothing is added).
         """
-        axial = np.ascontiguousarray(axial_error, dtype=float)
-        task = np.ascontiguousarray(np.asarray(task_error, dtype=float)[:, :2])
         contour = np.ascontiguousarray(contour_error, dtype=float)
-        torque = np.ascontiguousarray(tau, dtype=float)
+        if contour.ndim != 1:
+            raise InvalidInputError(f"the contour error must be one row of m values; got shape {contour.shape}")
         m, n = len(contour), self.joints
-        if axial.shape != (m, n) or task.shape != (m, 2) or torque.shape != (m, n) or contour.ndim != 1:
-            raise InvalidInputError(f"statistics need q_d - q and the torque as (m, {n}), p_d - p as (m, 2) and the "
-                                    f"contour error as (m,); got {axial.shape}, {torque.shape}, {task.shape}, "
-                                    f"{contour.shape}")
-        h = 0.0 if self.rate is None else 1.0 / self.rate
-        accumulate(*self._acc, axial, task, contour, torque, h, self.bound)
-        if self.rate is not None:
-            self._torques.append(torque.copy() if torque is tau else torque)
+        axial = self._rows("q_d - q", axial_error, m, n)
+        task = self._rows("p_d - p", np.asarray(task_error, dtype=float)[..., :2], m, 2)
+        torque = self._rows("the torque", tau, m, n)
+        moments, _, _, peaks, counts = self._acc
+        accumulate_instants(moments, peaks, counts, axial, task, contour, torque, self.bound)
+
+    def add_samples(self, samples: Samples) -> None:
+        """:meth:`add` the instants of ``samples``."""
+        self.add(samples.q_ref - samples.q, samples.xy_ref - samples.xy, samples.contour_error, samples.tau)
+
+    def add_steps(self, error: FloatArray, tau: FloatArray) -> None:
+        """Add ``m`` consecutive control steps: ``q_d - q`` (m, n) and the torque commanded at each
+        (applied over the period that follows, but the run's last: its closing command).
+
+        Raises
+        ------
+        InvalidInputError
+            Without a rate, or if the shapes disagree (nothing is added).
+        """
+        if self.rate is None:
+            raise InvalidInputError("scoring control steps needs the control rate (RunStatistics(rate=...))")
+        errors = self._rows("q_d - q", error, None, self.joints)
+        m = errors.shape[0]
+        torque = self._rows("the torque", tau, m, self.joints)
+        _, sums, last, peaks, counts = self._acc
+        accumulate_steps(sums, last, peaks, counts, errors, torque, 1.0 / self.rate)
+        self._pending.append(torque.copy() if torque is tau else torque)
+        self._pending_rows += m
+        if self._pending_rows > SPECTRUM_SEGMENT:  # a closed segment is one a later step follows
+            rows = np.concatenate(self._pending)
+            start = 0
+            while len(rows) - start > SPECTRUM_SEGMENT:
+                self._add_segment(rows[start : start + SPECTRUM_SEGMENT])
+                start += SPECTRUM_SEGMENT
+            self._pending = [rows[start:].copy()]
+            self._pending_rows = len(rows) - start
+
+    def _add_segment(self, torque: FloatArray) -> None:
+        high, power = high_frequency_power(torque, float(self.rate), self.cutoff)  # type: ignore[arg-type]
+        self._high += high / len(torque)
+        self._power += power / len(torque)
 
     def scores(self) -> Scores | None:
-        """The scores of the instants so far (module :mod:`pdsmc_ros.scores`): None without a rate
-        or with fewer than two instants (no applied period)."""
-        count = self.instants
+        """The scores of the steps so far (:mod:`pdsmc_ros.scores`): None without a rate or with
+        fewer than two steps (no applied period)."""
+        count = self.steps
         if self.rate is None or count < 2:
             return None
         n = self.joints
@@ -210,19 +264,18 @@ class RunStatistics:
         total = sums[0] + sums[1]
         periods = count - 1
         h = 1.0 / self.rate
-        norm_squares = total[n]
         itae = 0.5 * h * total[n + 1 : 2 * n + 2]
         energy = total[2 * n + 2 : 3 * n + 2] * h
         tv = total[3 * n + 2 :] / (periods * h)
         peak = peaks[1] / h
-        high = np.empty(n)
-        power = np.empty(n)
-        for j in range(n):  # a column at a time: the applied torque of each joint, its spectrum
-            column = np.concatenate([block[:, j] for block in self._torques])[:periods]
-            column_high, column_power = high_frequency_power(column[:, None], self.rate, self.cutoff)
-            high[j], power[j] = column_high[0], column_power[0]
+        high, power = self._high.copy(), self._power.copy()
+        applied = np.concatenate(self._pending)[:-1]  # the open segment, less the closing command
+        if len(applied):
+            segment_high, segment_power = high_frequency_power(applied, self.rate, self.cutoff)
+            high += segment_high / len(applied)
+            power += segment_power / len(applied)
         run = {
-            "error_rms": float(np.sqrt(norm_squares / count)),
+            "error_rms": float(np.sqrt(total[n] / count)),
             "error_itae": float(itae[n]),
             "torque_tv_rate": float(tv.sum()),
             "torque_hf_share": float(high_frequency_share(high.sum(), power.sum())),
@@ -242,8 +295,8 @@ class RunStatistics:
         )
 
     def metrics(self, saturated: Sequence[int] = ()) -> Metrics:
-        """The statistics (and scores, with a rate) of the instants so far; ``saturated``: the
-        clamped periods of each joint, counted by the loop.
+        """The statistics of the instants so far, and the scores of the steps (with a rate);
+        ``saturated``: the clamped periods of each joint, counted by the loop.
 
         Raises
         ------
@@ -301,9 +354,8 @@ def compute_scores(error: FloatArray, torque: FloatArray, rate: float, cutoff: f
         raise InvalidInputError(f"scores need N >= 1 applied torques (N, n) and N + 1 errors (N + 1, n); got torque "
                                 f"{torque.shape}, error {error.shape}")
     stats = RunStatistics(torque.shape[1], bound=np.inf, rate=rate, cutoff=cutoff)
-    count = len(error)
     # the closing command of the last instant is never applied: a zero stands in for it
-    stats.add(error, np.zeros((count, 2)), np.zeros(count), np.vstack([torque, np.zeros((1, torque.shape[1]))]))
+    stats.add_steps(error, np.vstack([torque, np.zeros((1, torque.shape[1]))]))
     scores = stats.scores()
     if scores is None:  # not reached: N >= 1 applied periods were checked above
         raise InvalidInputError("scores need N >= 1 applied periods")

@@ -2,8 +2,8 @@
 
 The thesis compares its laws on error statistics and peak torque only (:mod:`.metrics`).
 These are the costs a control engineer weighs as well, each per actuated joint and for the
-run, of a signal sampled evenly at ``rate`` (the runs pass their statistics samples:
-``rate`` of :func:`pdsmc_ros.metrics.compute_metrics`, docs/SCORES.md says what that rate sees). With ``N``
+run, of a signal sampled evenly at ``rate`` (a run's control steps, every one of them:
+:meth:`pdsmc_ros.metrics.RunStatistics.add_steps`, docs/SCORES.md). With ``N``
 periods of ``h = 1/rate`` (``T = N h``), the tracking error ``e_k = q_d(t_k) - q(t_k)`` at
 ``k = 0..N`` and the torque ``u_k`` held over ``[t_k, t_{k+1})`` for ``k = 0..N-1`` (the command
 at ``t_N`` closes the run and is never applied):

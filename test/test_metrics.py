@@ -65,6 +65,7 @@ def test_the_accumulated_statistics_and_scores_are_numpys_to_rounding() -> None:
     axial, task, contour, tau = signals(20_001, 3)
     stats = RunStatistics(3, bound=BOUND, rate=RATE)
     stats.add(axial, task, contour, tau)
+    stats.add_steps(axial, tau)  # here the statistics instants are the steps
     m = stats.metrics([4, 0, 1])
     ref = numpy_reading(axial, task, contour, tau)
     close = {"rel": 1e-13, "abs": 0.0}  # measured: <= 8e-15 (compensated and Welford sums against pairwise)
@@ -91,11 +92,13 @@ def test_the_numbers_do_not_depend_on_how_the_instants_are_split(cuts: list[int]
     axial, task, contour, tau = signals(10_000, 2, seed=8)
     whole = RunStatistics(2, bound=BOUND, rate=RATE)
     whole.add(axial, task, contour, tau)
+    whole.add_steps(axial, tau)
     split = RunStatistics(2, bound=BOUND, rate=RATE)
     edges = [0, *cuts, len(contour)]
     for a, b in zip(edges[:-1], edges[1:], strict=True):
         split.add(axial[a:b], task[a:b], contour[a:b], tau[a:b])
-    assert split.instants == 10_000
+        split.add_steps(axial[a:b], tau[a:b])
+    assert split.instants == split.steps == 10_000
     assert split.metrics().as_dict() == whole.metrics().as_dict()  # every field, every digit
 
 
@@ -105,6 +108,7 @@ def test_a_nan_makes_the_statistics_it_enters_nan_and_keeps_the_others() -> None
     tau[700:, 0] = np.nan
     stats = RunStatistics(2, bound=BOUND, rate=RATE)
     stats.add(axial, task, contour, tau)
+    stats.add_steps(axial, tau)
     m = stats.metrics()
     assert np.isnan(m.axial_mean[1]) and np.isfinite(m.axial_mean[0]) and np.isfinite(m.contour_mean)
     assert np.isnan(m.max_torque[0]) and np.isfinite(m.max_torque[1])
@@ -117,6 +121,8 @@ def test_without_a_rate_there_are_no_scores_and_bad_input_is_one_line() -> None:
     stats = RunStatistics(2, bound=BOUND)
     stats.add(axial, task, contour, tau)
     assert stats.scores() is None and stats.metrics().run_scores == {} and stats.metrics().samples == 100
+    with pytest.raises(InvalidInputError, match="needs the control rate"):
+        stats.add_steps(axial, tau)
     with pytest.raises(InvalidInputError, match="at least one sampled instant"):
         RunStatistics(2, bound=BOUND).metrics()
     for bad in (0, -1, 2.5, True):
@@ -124,9 +130,38 @@ def test_without_a_rate_there_are_no_scores_and_bad_input_is_one_line() -> None:
             RunStatistics(bad, bound=BOUND)  # type: ignore[arg-type]
     with pytest.raises(InvalidInputError, match="positive rate and cutoff"):
         RunStatistics(2, bound=BOUND, rate=-5.0)
-    with pytest.raises(InvalidInputError, match=r"\(m, 2\)") as info:
+    with pytest.raises(InvalidInputError, match=r"q_d - q must be 100 rows of 2; got shape \(100, 1\)") as info:
         stats.add(axial[:, :1], task, contour, tau)
     assert "\n" not in str(info.value) and stats.instants == 100  # a refused block adds nothing
     one = RunStatistics(2, bound=BOUND, rate=RATE)
     one.add(axial[:1], task[:1], contour[:1], tau[:1])
+    one.add_steps(axial[:1], tau[:1])
+    with pytest.raises(InvalidInputError, match="the torque must be 1 rows of 2"):
+        one.add_steps(axial[:1], tau[:2])
     assert one.scores() is None and one.metrics().samples == 1  # no applied period: nothing to score
+
+
+def test_a_long_run_averages_the_spectrum_of_fixed_segments() -> None:
+    """Over SPECTRUM_SEGMENT applied periods the share is Welch's: each segment's power per step,
+    summed; the segments start at fixed steps, so the split of the steps does not matter."""
+    from pdsmc_ros import metrics
+
+    steps = 2 * metrics.SPECTRUM_SEGMENT + 5_001
+    t = np.arange(steps) / 10_000.0
+    slow = np.sin(2 * np.pi * 3.0 * t)
+    tau = np.column_stack([slow + (t > 20.0) * np.sin(2 * np.pi * 700.0 * t), slow])
+    error = np.zeros((steps, 2))
+    stats = RunStatistics(2, bound=BOUND, rate=10_000.0)
+    for a in range(0, steps, 50_000):
+        stats.add_steps(error[a : a + 50_000], tau[a : a + 50_000])
+    applied = tau[:-1]
+    segments = [applied[:metrics.SPECTRUM_SEGMENT], applied[metrics.SPECTRUM_SEGMENT : 2 * metrics.SPECTRUM_SEGMENT],
+                applied[2 * metrics.SPECTRUM_SEGMENT :]]
+    high = sum(high_frequency_power(u, 10_000.0, 50.0)[0] / len(u) for u in segments)
+    power = sum(high_frequency_power(u, 10_000.0, 50.0)[1] / len(u) for u in segments)
+    s = stats.scores()
+    assert s is not None and s.torque_hf_share == pytest.approx(list(high / power), rel=1e-12)
+    assert 0.0 < s.torque_hf_share[0] < 1.0 and s.torque_hf_share[1] < 1e-3  # rectangular window: leakage
+    whole = RunStatistics(2, bound=BOUND, rate=10_000.0)
+    whole.add_steps(error, tau)
+    assert whole.scores() == s

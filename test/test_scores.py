@@ -93,30 +93,32 @@ def test_nan_makes_the_scores_nan_and_bad_shapes_are_one_line() -> None:
         compute_scores(np.zeros((11, 2)), torque, RATE, cutoff=0.0)
 
 
-def test_a_simulated_run_carries_the_scores_of_its_statistics_samples() -> None:
-    """The serial arm's SMC at 10 kHz has its statistics samples at 500 Hz; the five-bar's are its steps."""
+def test_a_simulated_run_carries_the_scores_of_its_control_steps() -> None:
+    """The serial arm's SMC at 10 kHz has its statistics samples at 500 Hz; its scores see every
+    10 kHz period (what the samples alias away), with or without its samples kept."""
     import dataclasses
 
-    from pdsmc_ros.metrics import Samples, compute_metrics
+    from pdsmc_ros.control import ControlLaw
     from pdsmc_ros.presets import make_run
     from pdsmc_ros.sim import simulate
+    from pdsmc_ros.sim.loop import run_loop
+    from pdsmc_ros.sim.simulator import _reference_samples
 
     spec = dataclasses.replace(make_run("serial_3r", "circle", "smc"), duration_factor=0.04)
     result = simulate(spec)
-    m, s = result.metrics, result.samples
+    m = result.metrics
     assert spec.sample_every == 20 and m.samples == result.steps // 20 + 1
-    expected = compute_scores(s.q_ref - s.q, s.tau[:-1], 500.0)
+    _, refs = _reference_samples(spec)
+    robot = spec.robot_model()
+    q, _, tau, _ = run_loop(robot, ControlLaw.from_spec(spec), refs[0, 0], refs, 1.0 / spec.rate, 1,
+                            robot.effort_limits)
+    expected = compute_scores(refs[:, 0] - q, tau[:-1], spec.rate)  # every step, the loop's own samples
     assert m.control_energy == expected.control_energy and m.torque_tv_rate == expected.torque_tv_rate
     assert m.error_itae == expected.error_itae and m.run_scores["error_rms"] == expected.run["error_rms"]
-    assert m.run_scores["rate_hz"] == 500.0 and m.run_scores["cutoff_hz"] == DEFAULT_CUTOFF_HZ
+    assert m.torque_hf_share == expected.torque_hf_share and m.torque_rate_peak == expected.torque_rate_peak
+    assert m.run_scores["rate_hz"] == 10_000.0 and m.run_scores["cutoff_hz"] == DEFAULT_CUTOFF_HZ
     assert np.all(np.isfinite(m.torque_hf_share)) and m.run_scores["error_rms"] > 0
     flat = result.as_dict()
     assert flat["torque_hf_share"] == m.torque_hf_share and "control_energy" in flat["run_scores"]
-    five_bar = simulate(dataclasses.replace(make_run("parallel_5r", "circle", "pdsmc"), duration_factor=0.04))
-    assert five_bar.metrics.run_scores["rate_hz"] == five_bar.spec.rate == 5000.0
-    # samples not evenly spaced (a bag's missing step) have no scores
-    keep = np.r_[0:10, 11:len(s.t)]
-    gap = Samples(s.t[keep], s.q[keep], s.q_ref[keep], s.xy[keep], s.xy_ref[keep], s.tau[keep],
-                  s.contour_error[keep])
-    assert compute_metrics(gap, spec.bound, rate=500.0).error_rms == []
-    assert compute_metrics(s, spec.bound, rate=500.0).error_rms == m.error_rms
+    lean = simulate(spec, keep_samples=False).metrics
+    assert lean.run_scores == m.run_scores and lean.torque_tv_rate == m.torque_tv_rate

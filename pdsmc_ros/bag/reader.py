@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import BagError, CdrError
-from ..metrics import Metrics, Samples, build_samples, compute_metrics
+from ..metrics import Metrics, RunStatistics, Samples, build_samples
 from ..presets import RunSpec, control_steps
 from ..robots.base import FloatArray
 from ..robots.catalog import ROBOT_DESCRIPTION, register_description
@@ -212,6 +212,11 @@ def run_samples(run: RecordedRun) -> Samples:
 
 def run_metrics(run: RecordedRun) -> Metrics:
     """Thesis statistics of a recorded run, sampled at the thesis's analysis rate, and the scores
-    of the same samples as the simulator computes them (none if a sampled step is missing)."""
+    of its control steps as the simulator computes them (none if a step is missing: they need
+    every period)."""
     samples = run_samples(run)
-    return compute_metrics(samples, run.spec.bound, rate=run.spec.rate / run.spec.sample_every)
+    stats = RunStatistics(run.q.shape[1], bound=run.spec.bound, rate=run.spec.rate)
+    stats.add_samples(samples)
+    if len(run.q) >= 2 and not (np.isnan(run.q).any() or np.isnan(run.q_ref).any() or np.isnan(run.tau).any()):
+        stats.add_steps(run.q_ref - run.q, run.tau)
+    return stats.metrics()

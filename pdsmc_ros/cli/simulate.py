@@ -30,7 +30,7 @@ def run(args: argparse.Namespace) -> int:
         from dataclasses import replace
 
         spec = replace(spec, enforce_limits=False)
-    result = simulate(spec)
+    result = simulate(spec, keep_samples=False)  # prints statistics only: memory need not grow with the run
     for line in result.limit_warnings:
         print(f"pdsmc simulate: warning: {line}", file=sys.stderr)
     saturated = result.metrics.saturated_periods

@@ -27,9 +27,11 @@ def _closed_loop_for(kind: int) -> Any:
     """The closed loop compiled for robot code ``kind`` (a constant of the closure: its dynamics inlined)."""
 
     def closed_loop(p, code, gains, smc_model, model_kind, model_p, q0, qd0, refs, h, sample_every,  # noqa: ANN001, ANN202, PLR0913
-                    limit, bounds, first, at, counts, out_q, out_qd, out_tau, work, state, start_step, advance_last):
+                    limit, bounds, first, at, counts, out_q, out_qd, out_tau, step_error, step_tau, work, state,
+                    start_step, advance_last):
         _loop(kind, p, code, gains, smc_model, model_kind, model_p, q0, qd0, refs, h, sample_every,
-              limit, bounds, first, at, counts, out_q, out_qd, out_tau, work, state, start_step, advance_last)
+              limit, bounds, first, at, counts, out_q, out_qd, out_tau, step_error, step_tau, work, state, start_step,
+              advance_last)
 
     return njit(cache=True)(closed_loop)
 
@@ -37,10 +39,12 @@ def _closed_loop_for(kind: int) -> Any:
 @njit(cache=True, inline="always")
 def _loop(  # noqa: ANN202, PLR0913
     kind, p, code, gains, smc_model, model_kind, model_p, q0, qd0, refs, h, sample_every,
-    limit, bounds, first, at, counts, out_q, out_qd, out_tau, work, state, start_step, advance_last,
+    limit, bounds, first, at, counts, out_q, out_qd, out_tau, step_error, step_tau, work, state, start_step,
+    advance_last,
 ):  # noqa: ANN001
     n = robot_compiled.size(kind, q0.shape[0])
     steps = refs.shape[0] - 1
+    every_step = step_error.shape[0] > 0  # the error and torque of every step too (the scores')
     applied = steps + advance_last  # the periods whose torque the plant is stepped with
     stages, rest = carve(work, n)
     q = q0.copy()
@@ -74,6 +78,10 @@ def _loop(  # noqa: ANN202, PLR0913
                 out_q[j, i] = q[i]
                 out_qd[j, i] = qd[i]
                 out_tau[j, i] = tau[i]
+        if every_step:
+            for i in range(n):
+                step_error[k, i] = refs[k, 0, i] - q[i]
+                step_tau[k, i] = tau[i]
         if k < applied:
             rk4_advance(kind, p, q, qd, tau, h, stages, rest)
     for i in range(n):  # the state the loop ends in: where a following stretch of the run starts
@@ -102,6 +110,9 @@ class LoopOutcome:
         The first crossing of each joint's position and velocity limit.
     end_q, end_qd : ndarray, shape (n,)
         The state the loop ended in (after the last period when it advanced the plant over it).
+    step_error, step_tau : ndarray, shape (N + 1, n)
+        ``q_d - q`` and the applied torque at every control instant (``run_loop(...,
+        every_step=True)``; NaN from a diverged step on), else empty.
     """
 
     saturated: list[int]
@@ -110,6 +121,8 @@ class LoopOutcome:
     warnings: list[str] = field(default_factory=list)
     end_q: FloatArray = field(default_factory=lambda: np.zeros(0))
     end_qd: FloatArray = field(default_factory=lambda: np.zeros(0))
+    step_error: FloatArray = field(default_factory=lambda: np.zeros((0, 0)))
+    step_tau: FloatArray = field(default_factory=lambda: np.zeros((0, 0)))
 
 
 def closed_loop(
@@ -123,7 +136,7 @@ def closed_loop(
 def run_loop(
     plant: Manipulator, law: ControlLaw, q0: FloatArray, refs: FloatArray, h: float, sample_every: int,
     torque_limit: FloatArray | None = None, check: DivergenceCheck | None = None, *,
-    qd0: FloatArray | None = None, start_step: int = 0, advance_last: bool = False,
+    qd0: FloatArray | None = None, start_step: int = 0, advance_last: bool = False, every_step: bool = False,
 ) -> tuple[FloatArray, FloatArray, FloatArray, LoopOutcome]:
     """Run the loop from rest at ``q0``; the state and torque at every ``sample_every``-th instant.
 
@@ -162,6 +175,9 @@ def run_loop(
     advance_last : bool
         Also step the plant over the period of the last instant (its torque applied): the loop
         ends at the instant after ``refs``' last, where the next stretch starts.
+    every_step : bool
+        Also keep ``q_d - q`` and the torque of every control instant
+        (:attr:`LoopOutcome.step_error`, :attr:`LoopOutcome.step_tau`: what the scores read).
 
     Returns
     -------
@@ -181,16 +197,22 @@ def run_loop(
     kind, p = robot_compiled.pack(plant)
     end_q = np.array(q0, dtype=float)  # the loop starts here and writes where it ends
     end_qd = np.zeros(n) if qd0 is None else np.array(qd0, dtype=float)
+    rows = refs.shape[0] if every_step else 0
+    step_error = np.empty((rows, n))
+    step_tau = np.empty((rows, n))
     _CLOSED_LOOPS[kind](p, law.code, law.gains, law.smc_model, law.model_kind, law.model_params,
                         end_q, end_qd, refs, h, sample_every, limit, check.bounds, check.first, check.at, counts,
-                        out_q, out_qd, out_tau, robot_compiled.workspace(n), law.state, int(start_step),
-                        int(advance_last))
-    outcome = LoopOutcome(counts[:n].tolist(), warnings=check.new_warnings(1.0 / h), end_q=end_q, end_qd=end_qd)
+                        out_q, out_qd, out_tau, step_error, step_tau, robot_compiled.workspace(n), law.state,
+                        int(start_step), int(advance_last))
+    outcome = LoopOutcome(counts[:n].tolist(), warnings=check.new_warnings(1.0 / h), end_q=end_q, end_qd=end_qd,
+                          step_error=step_error, step_tau=step_tau)
     if counts[n] >= 0:
         step = int(counts[n])
         first_missing = -(-(step - start_step) // sample_every)  # the samples at or after the diverged step
         for out in (out_q, out_qd, out_tau):
             out[first_missing:] = np.nan
+        for out in (step_error, step_tau):
+            out[step - start_step:] = np.nan
         outcome.diverged_step = step
         joint = int(counts[n + 1])
         outcome.diverged = check.diverged(joint, check.at[2], check.at[3], step * h)

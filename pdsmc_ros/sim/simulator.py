@@ -17,7 +17,7 @@ from numpy.typing import ArrayLike
 
 from ..control.law import ControlLaw
 from ..control.stability import check_rate
-from ..metrics import Metrics, Samples, build_samples, compute_metrics
+from ..metrics import Metrics, RunStatistics, Samples, build_samples
 from ..presets import RunSpec, control_steps
 from ..robots import ROBOTS
 from ..robots.base import FloatArray, Manipulator
@@ -99,10 +99,13 @@ def simulate(spec: RunSpec, *, check_stability: bool = True, plant: Manipulator 
     q0 = refs[0, 0] if initial_error is None else refs[0, 0] + np.asarray(initial_error, dtype=float)
     limit = robot.effort_limits if spec.enforce_limits else None
     out_q, _, out_tau, outcome = run_loop(robot, ControlLaw.from_spec(spec), q0, refs, 1.0 / spec.rate, every,
-                                          limit)
+                                          limit, every_step=True)
     t, xy_ref = _task_samples(spec, reference, steps)
     samples = build_samples(robot, reference.contour, t, out_q, refs[::every, 0], out_tau, xy_ref=xy_ref)
-    metrics = compute_metrics(samples, spec.bound, saturated=outcome.saturated, rate=spec.rate / every)
+    stats = RunStatistics(robot.n, bound=spec.bound, rate=spec.rate)
+    stats.add_samples(samples)
+    stats.add_steps(outcome.step_error, outcome.step_tau)
+    metrics = stats.metrics(outcome.saturated)
     return RunResult(spec, samples, metrics, steps, time.perf_counter() - start, outcome.diverged,
                      tuple(outcome.warnings))
 

@@ -4,10 +4,10 @@ reference, the states and the errors of a long run.
 :func:`pdsmc_ros.sim.simulate` with ``keep_samples=False``. The loop runs the same steps as in
 one call (:func:`~pdsmc_ros.sim.loop.run_loop` carries the state, the law's internal state and the
 step count from one stretch to the next); the reference is sampled one stretch at a time, and each
-stretch's statistics instants go into :class:`pdsmc_ros.metrics.RunStatistics`, which accumulates
-them instant by instant: the same statistics and scores as the run that keeps its samples, to the
-last digit (a test runs both). What grows with the run is the applied torque at the statistics
-instants, kept for its spectrum (``n`` floats an instant; bench/long_run.py).
+stretch's statistics instants and control steps go into :class:`pdsmc_ros.metrics.RunStatistics`,
+which accumulates them row by row: the same statistics and scores as the run that keeps its
+samples, to the last digit (a test runs both). Nothing grows with the run but the process's
+bookkeeping (bench/long_run.py).
 """
 
 from __future__ import annotations
@@ -47,7 +47,7 @@ def run_in_stretches(spec: RunSpec, robot: Manipulator, reference: JointReferenc
     every = spec.sample_every
     stretch = max(every, (stretch_steps or STRETCH_STEPS) // every * every)
     count = steps // every + 1
-    stats = RunStatistics(robot.n, bound=spec.bound, rate=spec.rate / every)
+    stats = RunStatistics(robot.n, bound=spec.bound, rate=spec.rate)
     law = ControlLaw.from_spec(spec)
     limit = robot.effort_limits if spec.enforce_limits else None
     check = DivergenceCheck.for_robot(robot)
@@ -62,18 +62,22 @@ def run_in_stretches(spec: RunSpec, robot: Manipulator, reference: JointReferenc
             q = refs[0, 0] if initial_error is None else refs[0, 0] + np.asarray(initial_error, dtype=float)
             qd = np.zeros(robot.n)
         out_q, _, out_tau, outcome = run_loop(robot, law, q, refs, h, every, limit, check, qd0=qd, start_step=start,
-                                              advance_last=not last)
+                                              advance_last=not last, every_step=True)
         q, qd = outcome.end_q, outcome.end_qd
         total.saturated = [a + b for a, b in zip(total.saturated, outcome.saturated, strict=True)]
         total.warnings += outcome.warnings
         samples = build_samples(robot, reference.contour, k[::every] / spec.rate, out_q, refs[::every, 0], out_tau)
-        stats.add(samples.q_ref - samples.q, samples.xy_ref - samples.xy, samples.contour_error, out_tau)
+        stats.add_samples(samples)
+        stats.add_steps(outcome.step_error, outcome.step_tau)
         if outcome.diverged:
             total.diverged, total.diverged_step = outcome.diverged, outcome.diverged_step
-            # the instants after the stretch count as NaN, as in the samples of a run that keeps them
+            # the instants and steps after the stretch count as NaN, as in a run that keeps its samples
             while stats.instants < count:
                 rows = min(count - stats.instants, max(1, stretch // every))
                 nan = np.full((rows, robot.n), np.nan)
                 stats.add(nan, np.full((rows, 2), np.nan), np.full(rows, np.nan), nan)
+            while stats.steps < steps + 1:
+                nan = np.full((min(steps + 1 - stats.steps, stretch), robot.n), np.nan)
+                stats.add_steps(nan, nan)
             break
     return stats.metrics(total.saturated), steps, total
