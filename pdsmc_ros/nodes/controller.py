@@ -40,7 +40,7 @@ from .diagnostics import Diagnostics, InputReport
 from .executor import run_node
 from .follow_joint_trajectory import FollowJointTrajectoryServer, topic_trajectory
 from .inputs import Inputs, Times
-from .lifecycle import EXIT_OK, CommandingEntity, end_when_plant_leaves
+from .lifecycle import EXIT_OK, WATCH_GRACE_S, CommandingEntity, end_when_plant_leaves
 from .params import declare_node_run, description_json
 from .publishers import EffortOutput, RowBatches
 
@@ -171,11 +171,13 @@ class ControllerNode(CommandingEntity):
                     if self.active:
                         self.effort.publish(self.joint_map.to_user(tau), 0)
                 self.timing_rows.add(self.timing.row(now, lateness))
-        self.plant_watch.poll()
+        self.plant_watch.poll(grace=WATCH_GRACE_S)  # only if the loop had no spare time for it
 
     def idle(self, until: float) -> None:
-        """Real time, in the loop's spare time after a tick: the action's feedback and the controller state."""
+        """Real time, in the loop's spare time after a tick: the action's feedback, the controller
+        state and a look at whether the plant is there."""
         self.action.publish(until)
+        self.plant_watch.poll()
 
     def close(self) -> None:
         """Stopping (signal, end of run): a zero command unless the lockstep run is complete."""

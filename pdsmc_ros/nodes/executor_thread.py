@@ -7,7 +7,6 @@ from __future__ import annotations
 import sys
 import threading
 
-import rclpy
 from rclpy.executors import Executor
 from rclpy.node import Node
 
@@ -23,16 +22,17 @@ class ExecutorThread:
     period each time.
     """
 
-    def __init__(self, executor: Executor, node: Node) -> None:
+    def __init__(self, executor: Executor, node: Node, *, name: str = "executor") -> None:
         self.executor = executor
         self.node = node
         self.stopping = threading.Event()
         self.wake = node.create_guard_condition(lambda: None)
-        self.thread = threading.Thread(target=self._spin, name="executor", daemon=True)
+        self.thread = threading.Thread(target=self._spin, name=name, daemon=True)
         self.thread.start()
 
     def _spin(self) -> None:
-        while not self.stopping.is_set() and rclpy.ok():
+        context = self.node.context
+        while not self.stopping.is_set() and context.ok():
             self.executor.spin_once(timeout_sec=COLD_WAIT_S)
 
     def stop(self) -> None:

@@ -53,16 +53,21 @@ def arm_teardown_watch(code: int, seconds: float = TEARDOWN_TIMEOUT_S) -> None:
         faulthandler.dump_traceback_later(seconds, exit=True, file=sys.__stderr__)
 
 
+WATCH_GRACE_S = 1.0
+"""How much later than its period a tick checks the graph itself, when its loop had no spare time."""
+
+
 class UpstreamWatch:
     """Real time: notice that every publisher of a topic has gone after the run began.
 
     A real-time node cannot tell the plant's last message from any other; when
     the plant leaves (its participant is removed from the graph), the node
     downstream of it is done, even if that last message was never delivered.
-    The owner calls :meth:`poll` from its tick, after the tick's work; it reads
-    the graph cache (``count_publishers``) at most every ``period`` seconds. (An
-    executor timer did this at first: each of its turns took the GIL for about
-    half a millisecond and made every hundredth controller period late.)
+    The owner calls :meth:`poll` in its loop's spare time (``idle``) and, in case the
+    loop has none, :meth:`poll` with ``grace`` from its tick; it reads the graph cache
+    (``count_publishers``) at most every ``period`` seconds. (An executor timer did
+    this at first: each of its turns took the GIL for about half a millisecond and
+    made every hundredth controller period late.)
     """
 
     def __init__(self, node: Node, topic: str, on_gone: Callable[[], None], *,
@@ -75,9 +80,10 @@ class UpstreamWatch:
         self.gone = False
         self.next_check = 0.0
 
-    def poll(self) -> None:
+    def poll(self, grace: float = 0.0) -> None:
+        """Check the graph if ``period`` (plus ``grace``) has passed since the last check."""
         now = time.perf_counter()
-        if self.gone or now < self.next_check:
+        if self.gone or now < self.next_check + grace:
             return
         self.next_check = now + self.period
         self.check()

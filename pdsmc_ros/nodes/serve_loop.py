@@ -98,6 +98,7 @@ def serve_loop(executor: SingleThreadedExecutor, group: Any,
     next_report = clock() + STATISTICS_EVERY_S
     unpublished: list[LoopReport] = []
     holding = False  # real time: the GIL kept through the spin and the tick (HOLD_SWITCH_S)
+    started = False  # real time: the first tick has run
     try:
         next_cold = float("inf") if period else 0.0
         next_tick = clock() + period if period else float("inf")
@@ -123,6 +124,8 @@ def serve_loop(executor: SingleThreadedExecutor, group: Any,
             if now >= next_tick:
                 if not ok():
                     return
+                if not started:  # the schedule starts at the first tick: the passes before it are
+                    started, next_tick = True, now  # start-up (a backlog, first calls), not late periods
                 group.tick(now - next_tick)
                 if holding:
                     sys.setswitchinterval(GIL_SWITCH_S)

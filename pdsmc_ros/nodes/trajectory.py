@@ -34,14 +34,15 @@ from rclpy.node import Node
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory
 
-from ..bag.cdr import decode_stamp, encode_joint_trajectories, encode_point_stamped
+from ..bag.cdr import decode_stamp, encode_point_stamped
 from ..bag.stamps import stamp_step, step_stamp
 from ..errors import CdrError
 from ..presets import control_steps
+from ..runtime.reference_windows import ReferenceWindows
 from .descriptors import declare_int_parameter
 from .executor import run_node
 from .inputs import Inputs
-from .lifecycle import EXIT_OK, end_when_plant_leaves
+from .lifecycle import EXIT_OK, WATCH_GRACE_S, end_when_plant_leaves
 from .params import declare_node_run, refuse_run_changes
 from .publishers import GuardedPublisher
 from .topics import (
@@ -54,7 +55,6 @@ from .topics import (
 )
 
 LOOKAHEAD_STEPS = 500  # lockstep: 50 ms at 10 kHz; far below STREAM_DEPTH
-ENCODE_WINDOW = 1024  # references serialized at a time (numpy, about 1 us each instead of 6)
 TRAJECTORY_BATCH_S = 0.002  # lockstep: take the plant's states every 2 ms, in batches
 
 
@@ -86,7 +86,7 @@ class TrajectoryNode:
         self.states_received = 0
         self.first_stamp: tuple[int, int] | None = None  # real time: the plant's first state
         self.clock_start: float | None = None  # real time: perf_counter() at the plant's t = 0
-        self.window_start, self.window = 0, []  # encoded references (see encoded())
+        self.references = ReferenceWindows(self.refs.q, self.refs.qd, self.refs.qdd, self.names, self.spec.rate)
         self.started = False
         self.done = False
         self.exit_code = EXIT_OK
@@ -108,20 +108,8 @@ class TrajectoryNode:
             f"{self.last_step + 1} references"
         )
 
-    def encoded(self, step: int) -> bytes:
-        """The serialized reference of ``step``, encoded ``ENCODE_WINDOW`` steps at a time."""
-        index = step - self.window_start
-        if not 0 <= index < len(self.window):
-            end = min(step + ENCODE_WINDOW, self.last_step + 1)
-            rows = slice(step, end)
-            self.window = encode_joint_trajectories(
-                [step_stamp(k, self.spec.rate) for k in range(step, end)], self.names,
-                self.refs.q[rows], self.refs.qd[rows], self.refs.qdd[rows])
-            self.window_start, index = step, 0
-        return self.window[index]
-
     def publish(self, step: int) -> None:
-        self.pub_ref.publish(self.encoded(step))
+        self.pub_ref.publish(self.references[step])
         if step % self.ee_every and step != self.last_step:
             return  # the desired end-effector point goes out at the statistics rate
         sec, nanosec = step_stamp(step, self.spec.rate)
@@ -181,7 +169,13 @@ class TrajectoryNode:
         if self.clock_start is not None:
             step = min(int((time.perf_counter() - self.clock_start) * self.spec.rate) + 1, self.last_step)
         self.publish(step)
+        self.plant_watch.poll(grace=WATCH_GRACE_S)  # only if the loop had no spare time for it
+
+    def idle(self, until: float) -> None:
+        """Real time, in the loop's spare time after a tick: the next window of references
+        serialized ahead, a piece at a time, and a look at whether the plant is there."""
         self.plant_watch.poll()
+        self.references.encode_ahead(until)
 
 
 def main(args: Sequence[str] | None = None) -> int:
