@@ -12,6 +12,8 @@ engine or the number of workers.
 from __future__ import annotations
 
 import contextlib
+import ctypes
+import ctypes.util
 import logging
 import os
 import re
@@ -85,7 +87,7 @@ def run_tasks(client: Any, fn: Callable[..., Any], arguments: Sequence[tuple[Any
     from distributed import as_completed
 
     batch = uuid.uuid4().hex  # unique keys per call; "pdsmc_<fn>" is what a dashboard groups them by
-    futures = [client.submit(fn, *args, key=f"pdsmc_{fn.__name__}-{i}-{batch}", pure=False)
+    futures = [client.submit(_task, fn, *args, key=f"pdsmc_{fn.__name__}-{i}-{batch}", pure=False)
                for i, args in enumerate(arguments)]
     index = {future.key: i for i, future in enumerate(futures)}
     try:
@@ -94,6 +96,41 @@ def run_tasks(client: Any, fn: Callable[..., Any], arguments: Sequence[tuple[Any
     except KeyboardInterrupt:
         client.cancel(futures)
         raise
+
+
+def _task(fn: Callable[..., Any], *args: Any) -> Any:
+    """``fn(*args)`` in a worker whose allocator keeps freed memory (:func:`keep_freed_memory`)."""
+    keep_freed_memory()
+    return fn(*args)
+
+
+# glibc's mallopt parameters (<malloc.h>)
+M_TRIM_THRESHOLD = -1
+M_MMAP_THRESHOLD = -3
+HEAP_ARRAYS_BYTES = 64 << 20
+_allocator_set = False
+
+
+def keep_freed_memory() -> None:
+    """Have glibc's allocator keep freed memory for the next run (once per process).
+
+    By default glibc serves an allocation above 128 kB (and up to 32 MB as it adapts) with fresh
+    ``mmap``'d pages and returns them on ``free``: a worker that allocates and frees a run's
+    arrays thousands of times takes a page fault on every 4 kB of them. 150 five-bar runs x 3 laws:
+    3.0 M minor faults and 8.5-9.4 s of system time by default; with arrays up to
+    ``HEAP_ARRAYS_BYTES`` from the heap and freed memory kept up to four times that, 0.1 M and
+    1.0-1.2 s, the wall time -10 %, the same table (docs/PERFORMANCE.md). Not glibc: nothing done.
+    """
+    global _allocator_set  # noqa: PLW0603 - once per process
+    if _allocator_set:
+        return
+    _allocator_set = True
+    try:
+        mallopt = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6").mallopt
+    except (OSError, AttributeError):  # another C library: its own policy
+        return
+    mallopt(M_MMAP_THRESHOLD, HEAP_ARRAYS_BYTES)
+    mallopt(M_TRIM_THRESHOLD, 4 * HEAP_ARRAYS_BYTES)
 
 
 class Progress:

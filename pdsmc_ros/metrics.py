@@ -12,8 +12,10 @@ in which each joint's torque was clamped to its limit and the scores of :mod:`.s
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
+from numbers import Real
 from typing import Any
 
 import numpy as np
@@ -125,6 +127,11 @@ def compute_metrics(samples: Samples, bound: float, *, saturated: Sequence[int] 
     return stats.metrics(saturated)
 
 
+def _positive(value: object) -> bool:
+    """A finite real number above zero."""
+    return isinstance(value, Real) and math.isfinite(value) and value > 0.0
+
+
 SPECTRUM_SEGMENT = 1 << 17
 """Control steps of a segment of the high-frequency share's spectrum (Welch 1967): a run of at most
 this many applied periods (26 s at 5 kHz, 131 s at 1 kHz) is one segment, the DFT of the whole run;
@@ -164,10 +171,11 @@ class RunStatistics:
                  cutoff: float = DEFAULT_CUTOFF_HZ) -> None:
         if isinstance(joints, bool) or not isinstance(joints, int | np.integer) or joints < 1:
             raise InvalidInputError(f"joints must be a positive integer, got {joints!r}")
-        rate_ok = rate is None or (np.isfinite(rate) and rate > 0.0)
-        if not (rate_ok and np.isfinite(cutoff) and cutoff > 0.0):
+        if not (rate is None or _positive(rate)) or not _positive(cutoff):
             raise InvalidInputError(f"scores need a positive rate and cutoff; got rate {rate!r} Hz, "
                                     f"cutoff {cutoff!r} Hz")
+        if not isinstance(bound, Real) or not bound >= 0.0:
+            raise InvalidInputError(f"the contour bound must be a number >= 0 (m), got {bound!r}")
         self.joints = int(joints)
         self.bound = float(bound)
         self.rate = None if rate is None else float(rate)

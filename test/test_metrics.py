@@ -128,8 +128,12 @@ def test_without_a_rate_there_are_no_scores_and_bad_input_is_one_line() -> None:
     for bad in (0, -1, 2.5, True):
         with pytest.raises(InvalidInputError, match="joints must be a positive integer"):
             RunStatistics(bad, bound=BOUND)  # type: ignore[arg-type]
-    with pytest.raises(InvalidInputError, match="positive rate and cutoff"):
-        RunStatistics(2, bound=BOUND, rate=-5.0)
+    for rate, cutoff in ((-5.0, 50.0), ("fast", 50.0), (500.0, float("nan")), (500.0, 0.0)):
+        with pytest.raises(InvalidInputError, match="positive rate and cutoff"):
+            RunStatistics(2, bound=BOUND, rate=rate, cutoff=cutoff)  # type: ignore[arg-type]
+    for bound in (-1.0, float("nan"), "wide"):
+        with pytest.raises(InvalidInputError, match="contour bound must be a number >= 0"):
+            RunStatistics(2, bound=bound)  # type: ignore[arg-type]
     with pytest.raises(InvalidInputError, match=r"q_d - q must be 100 rows of 2; got shape \(100, 1\)") as info:
         stats.add(axial[:, :1], task, contour, tau)
     assert "\n" not in str(info.value) and stats.instants == 100  # a refused block adds nothing
