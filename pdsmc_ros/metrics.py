@@ -15,7 +15,6 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
-from numbers import Real
 from typing import Any
 
 import numpy as np
@@ -127,9 +126,17 @@ def compute_metrics(samples: Samples, bound: float, *, saturated: Sequence[int] 
     return stats.metrics(saturated)
 
 
+def _number(value: object) -> float:
+    """``value`` as a float if it is a real number (not a bool), else NaN."""
+    if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating):
+        return math.nan
+    return float(value)
+
+
 def _positive(value: object) -> bool:
     """A finite real number above zero."""
-    return isinstance(value, Real) and math.isfinite(value) and value > 0.0
+    number = _number(value)
+    return math.isfinite(number) and number > 0.0
 
 
 SPECTRUM_SEGMENT = 1 << 17
@@ -174,7 +181,7 @@ class RunStatistics:
         if not (rate is None or _positive(rate)) or not _positive(cutoff):
             raise InvalidInputError(f"scores need a positive rate and cutoff; got rate {rate!r} Hz, "
                                     f"cutoff {cutoff!r} Hz")
-        if not isinstance(bound, Real) or not bound >= 0.0:
+        if not _number(bound) >= 0.0:
             raise InvalidInputError(f"the contour bound must be a number >= 0 (m), got {bound!r}")
         self.joints = int(joints)
         self.bound = float(bound)

@@ -86,6 +86,7 @@ def simulate(spec: RunSpec, *, check_stability: bool = True, plant: Manipulator 
     robot = plant or spec.robot_model()
     if not keep_samples:
         reference = spec.reference()
+        control_steps(reference.contour.duration, spec.rate)  # a run too long to hold is refused first
         if check_stability:
             check_rate(spec, reference)
         metrics, count, outcome = run_in_stretches(spec, robot, reference, initial_error)
