@@ -187,7 +187,8 @@ class RunStatistics:
         self.bound = float(bound)
         self.rate = None if rate is None else float(rate)
         self.cutoff = float(cutoff)
-        self._acc = new_accumulator(self.joints)
+        # the accumulator's arrays (metrics_kernel's docstring)
+        self._moments, self._sums, self._last, self._peaks, self._counts = new_accumulator(self.joints)
         self._pending: list[FloatArray] = []  # the torque of the steps of the spectrum's open segment
         self._pending_rows = 0
         self._high = np.zeros(self.joints)  # summed over closed segments, each of its power per step
@@ -196,12 +197,12 @@ class RunStatistics:
     @property
     def instants(self) -> int:
         """Statistics instants added so far."""
-        return int(self._acc[4][0])
+        return int(self._counts[0])
 
     @property
     def steps(self) -> int:
         """Control steps added so far."""
-        return int(self._acc[4][2])
+        return int(self._counts[2])
 
     @staticmethod
     def _rows(name: str, values: FloatArray, count: int | None, width: int) -> FloatArray:
@@ -229,8 +230,7 @@ class RunStatistics:
         axial = self._rows("q_d - q", axial_error, m, n)
         task = self._rows("p_d - p", np.asarray(task_error, dtype=float)[..., :2], m, 2)
         torque = self._rows("the torque", tau, m, n)
-        moments, _, _, peaks, counts = self._acc
-        accumulate_instants(moments, peaks, counts, axial, task, contour, torque, self.bound)
+        accumulate_instants(self._moments, self._peaks, self._counts, axial, task, contour, torque, self.bound)
 
     def add_samples(self, samples: Samples) -> None:
         """:meth:`add` the instants of ``samples``."""
@@ -250,8 +250,7 @@ class RunStatistics:
         errors = self._rows("q_d - q", error, None, self.joints)
         m = errors.shape[0]
         torque = self._rows("the torque", tau, m, self.joints)
-        _, sums, last, peaks, counts = self._acc
-        accumulate_steps(sums, last, peaks, counts, errors, torque, 1.0 / self.rate)
+        accumulate_steps(self._sums, self._last, self._peaks, self._counts, errors, torque, 1.0 / self.rate)
         self._pending.append(torque.copy() if torque is tau else torque)
         self._pending_rows += m
         if self._pending_rows > SPECTRUM_SEGMENT:  # a closed segment is one a later step follows
@@ -262,6 +261,18 @@ class RunStatistics:
                 start += SPECTRUM_SEGMENT
             self._pending = [rows[start:].copy()]
             self._pending_rows = len(rows) - start
+
+    def pad_nan(self, instants: int, steps: int, *, block: int = 1 << 13) -> None:
+        """Add NaN instants and steps up to ``instants`` and ``steps`` in all, ``block`` rows at a time:
+        the rest of a run that stopped where it diverged, as NaN as its kept samples."""
+        n = self.joints
+        while self.instants < instants:
+            rows = min(instants - self.instants, block)
+            nan = np.full((rows, n), np.nan)
+            self.add(nan, np.full((rows, 2), np.nan), np.full(rows, np.nan), nan)
+        while self.rate is not None and self.steps < steps:
+            nan = np.full((min(steps - self.steps, block), n), np.nan)
+            self.add_steps(nan, nan)
 
     def _add_segment(self, torque: FloatArray) -> None:
         high, power = high_frequency_power(torque, float(self.rate), self.cutoff)  # type: ignore[arg-type]
@@ -275,14 +286,13 @@ class RunStatistics:
         if self.rate is None or count < 2:
             return None
         n = self.joints
-        _, sums, _, peaks, _ = self._acc
-        total = sums[0] + sums[1]
+        total = self._sums[0] + self._sums[1]
         periods = count - 1
         h = 1.0 / self.rate
         itae = 0.5 * h * total[n + 1 : 2 * n + 2]
         energy = total[2 * n + 2 : 3 * n + 2] * h
         tv = total[3 * n + 2 :] / (periods * h)
-        peak = peaks[1] / h
+        peak = self._peaks[1] / h
         high, power = self._high.copy(), self._power.copy()
         applied = np.concatenate(self._pending)[:-1]  # the open segment, less the closing command
         if len(applied):
@@ -322,9 +332,8 @@ class RunStatistics:
         if not count:
             raise InvalidInputError("statistics need at least one sampled instant; got none")
         n = self.joints
-        moments, _, _, peaks, counts = self._acc
-        mean = moments[0]
-        sd = np.sqrt(moments[1] / count)
+        mean = self._moments[0]
+        sd = np.sqrt(self._moments[1] / count)
         return Metrics(
             axial_mean=mean[:n].tolist(),
             axial_sd=sd[:n].tolist(),
@@ -333,8 +342,8 @@ class RunStatistics:
             contour_mean=float(mean[n + 3]),
             contour_sd=float(sd[n + 3]),
             contour_bound=self.bound,
-            contour_within_pct=float(100.0 * (counts[1] / count)),
-            max_torque=peaks[0].tolist(),
+            contour_within_pct=float(100.0 * (self._counts[1] / count)),
+            max_torque=self._peaks[0].tolist(),
             samples=count,
             task_sd_signed={"x": float(sd[n + 4]), "y": float(sd[n + 5])},
             saturated_periods=[int(c) for c in saturated],

@@ -71,13 +71,6 @@ def run_in_stretches(spec: RunSpec, robot: Manipulator, reference: JointReferenc
         stats.add_steps(outcome.step_error, outcome.step_tau)
         if outcome.diverged:
             total.diverged, total.diverged_step = outcome.diverged, outcome.diverged_step
-            # the instants and steps after the stretch count as NaN, as in a run that keeps its samples
-            while stats.instants < count:
-                rows = min(count - stats.instants, max(1, stretch // every))
-                nan = np.full((rows, robot.n), np.nan)
-                stats.add(nan, np.full((rows, 2), np.nan), np.full(rows, np.nan), nan)
-            while stats.steps < steps + 1:
-                nan = np.full((min(steps + 1 - stats.steps, stretch), robot.n), np.nan)
-                stats.add_steps(nan, nan)
+            stats.pad_nan(count, steps + 1)  # the rest of the run, NaN as in a run that keeps its samples
             break
     return stats.metrics(total.saturated), steps, total
