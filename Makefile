@@ -47,6 +47,9 @@ $(STAMP): $(DEPS_STAMP) $(SOURCES) | $(INTERFACES_STAMP)
 	@# numba checks a cached kernel against its own file only, not the kernels it calls: a new
 	@# install starts from an empty cache so no kernel calls an older version of another
 	@rm -rf $(NUMBA_CACHE_DIR)
+	@# ... and fills it: the kernels every robot kind and law uses, compiled once here rather than
+	@# by the first command (or by each of the nodes a launch starts at once)
+	$(PY) -m pdsmc_ros.precompile
 	@# ament layout: executables under <prefix>/lib/<package>, as colcon installs them
 	@mkdir -p $(VENV)/lib/pdsmc_ros
 	@for exe in $(EXECUTABLES); do ln -sf ../../bin/$$exe $(VENV)/lib/pdsmc_ros/$$exe; done

@@ -19,8 +19,8 @@ from conftest import ROOT
 
 from pdsmc_ros import kernel_cache
 
-COMMAND = [sys.executable, "-m", "pdsmc_ros.cli", "simulate", "--robot", "serial_3r", "--contour", "circle",
-           "--controller", "pdsmc"]
+COMMAND = (sys.executable, "-m", "pdsmc_ros.cli", "simulate", "--robot", "serial_3r", "--contour", "circle",
+           "--controller", "pdsmc")
 
 
 def kernel_files(cache: Path) -> dict[Path, tuple[int, int, str]]:
@@ -33,9 +33,9 @@ def kernel_files(cache: Path) -> dict[Path, tuple[int, int, str]]:
     return files
 
 
-def run(cache: Path) -> str:
+def run(cache: Path, command: tuple[str, ...] | list[str] = COMMAND) -> str:
     env = dict(os.environ, NUMBA_CACHE_DIR=str(cache), NUMBA_DEBUG_CACHE="1")
-    proc = subprocess.run(COMMAND, cwd=ROOT, env=env, capture_output=True, text=True, timeout=900)
+    proc = subprocess.run(command, cwd=ROOT, env=env, capture_output=True, text=True, timeout=900)
     assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
     return proc.stdout
 
@@ -59,7 +59,7 @@ def test_refresh_marks_directories_numba_has_not_created_yet(tmp_path: Path,
 
 @pytest.mark.timeout(2400)
 def test_commands_after_the_first_load_its_kernels_without_compiling(tmp_path: Path) -> None:
-    cache = tmp_path / "numba-cache"  # empty, as after `make setup`
+    cache = tmp_path / "numba-cache"  # empty, as after an install before make setup's precompile
     first = run(cache)
     assert "[cache] data saved" in first  # the first command compiled and wrote its kernels
     compiled = kernel_files(cache)
@@ -70,3 +70,17 @@ def test_commands_after_the_first_load_its_kernels_without_compiling(tmp_path: P
         assert not saved, f"the {label} command compiled again: " + "; ".join(saved[:5])
         assert "[cache] data loaded" in out
         assert kernel_files(cache) == compiled, f"the {label} command rewrote or removed cached kernels"
+
+
+@pytest.mark.timeout(2400)
+def test_after_the_precompile_of_make_setup_every_law_loads_without_compiling(tmp_path: Path) -> None:
+    cache = tmp_path / "numba-cache"
+    first = run(cache, [sys.executable, "-m", "pdsmc_ros.precompile", "--robots", "serial_3r"])
+    assert "[cache] data saved" in first
+    compiled = kernel_files(cache)
+    # laws other than the precompile's runs' (theirs compiled through a controller's entry point)
+    for command in ([*COMMAND[:-1], "sta", "--json"], [*COMMAND[:-1], "ismc"]):
+        out = run(cache, command)
+        saved = [line for line in out.splitlines() if "saved" in line and line.startswith("[cache]")]
+        assert not saved, f"{' '.join(command[2:])} compiled after the precompile: " + "; ".join(saved[:5])
+        assert kernel_files(cache) == compiled
