@@ -61,7 +61,7 @@ demo: setup
 	$(PY) -m pdsmc_ros.demo
 
 test: setup
-	$(PY) -m pytest -q test
+	$(PY) -m pytest -q --durations=20 test
 
 # the thesis-style comparison figures the README shows: the demo's three runs over DDS, analysed
 figures: setup

@@ -47,6 +47,14 @@ def precompile(robots: Sequence[str] = ROBOTS) -> None:
         model = spec.robot_model()
         rest = np.zeros(model.n)
         PlantStepper(model, 1.0 / spec.rate, rest, rest).warm_up()
+        # the model's own methods, which analysis, the nodes' checks and users' scripts call
+        home = model.home_configuration()
+        q = rest if home is None else home
+        model.forward_kinematics(q)
+        model.jacobian(q)
+        model.coriolis_matrix(q, rest)
+        model.inverse_dynamics(q, rest, rest)
+        model.total_energy(q, rest)
         for name in law_names():
             ControlLaw.from_spec(make_run(robot, "circle", name, needs_gains=False)).warm_up(rest, rest)
 
