@@ -19,6 +19,7 @@ from rclpy.parameter import Parameter
 from ..errors import ConfigError
 from ..runtime.realtime import (
     FIFO_BUSY_WAIT_S,
+    FIFO_COMPOSED_BUSY_WAIT_S,
     MAX_PRIORITY,
     Applied,
     Collector,
@@ -119,7 +120,8 @@ def apply_settings(reports: Sequence[LoopReport], node: Node, period: float | No
 
     A thread at SCHED_FIFO wakes on time (it preempts normal threads at once, without timer
     slack), so it needs less spinning before a tick than the default ``busy_wait`` (0.2 ms)
-    bought at normal priority: ``FIFO_BUSY_WAIT_S`` unless ``busy_wait`` was given, and never
+    bought at normal priority: ``FIFO_BUSY_WAIT_S`` unless ``busy_wait`` was given
+    (``FIFO_COMPOSED_BUSY_WAIT_S`` when this thread ticks several loop nodes), and never
     more than ``FIFO_BUSY_SHARE`` of the period -- a FIFO thread that never sleeps is stopped by
     the kernel's real-time throttling (``sched_rt_runtime_us``: 50 ms of every second). Less
     spinning also leaves the cores to the other loop processes: three FIFO loops of equal
@@ -131,7 +133,8 @@ def apply_settings(reports: Sequence[LoopReport], node: Node, period: float | No
     if applied.warning:
         logger.warn(applied.warning)
     if applied.fifo and period and busy_wait == BUSY_WAIT_S:
-        busy_wait = FIFO_BUSY_WAIT_S
+        loops = sum(r.stats is not None for r in reports)
+        busy_wait = min(FIFO_COMPOSED_BUSY_WAIT_S if loops > 1 else FIFO_BUSY_WAIT_S, FIFO_BUSY_SHARE * period)
     if applied.fifo and period and busy_wait > FIFO_BUSY_SHARE * period:
         logger.info(f"busy_wait {busy_wait:g} s at SCHED_FIFO: spinning at most {FIFO_BUSY_SHARE:g} of each period")
         busy_wait = FIFO_BUSY_SHARE * period

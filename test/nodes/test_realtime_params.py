@@ -1,0 +1,58 @@
+"""The spin before a tick that apply_settings chooses at SCHED_FIFO (pdsmc_ros/nodes/realtime_params.py):
+a thread ticking one loop node spins FIFO_BUSY_WAIT_S, a composed thread ticking several spins
+FIFO_COMPOSED_BUSY_WAIT_S (never more than FIFO_BUSY_SHARE of the period), a value given is kept."""
+
+from __future__ import annotations
+
+import os
+from types import SimpleNamespace
+
+import pytest
+
+pytest.importorskip("rclpy")
+
+from pdsmc_ros.nodes.realtime_params import FIFO_BUSY_SHARE, apply_settings  # noqa: E402
+from pdsmc_ros.runtime.realtime import (  # noqa: E402
+    BUSY_WAIT_S,
+    FIFO_BUSY_WAIT_S,
+    FIFO_COMPOSED_BUSY_WAIT_S,
+    RealtimeSettings,
+    restore,
+)
+
+
+class Logger:
+    def __init__(self) -> None:
+        self.lines: list[str] = []
+
+    def info(self, text: str) -> None:
+        self.lines.append(text)
+
+    warn = info
+
+
+def spin(loops: int, period: float, busy_wait: float = BUSY_WAIT_S) -> tuple[float, bool, list[str]]:
+    """The busy-wait apply_settings returns for ``loops`` loop nodes at FIFO 1, whether FIFO held."""
+    logger = Logger()
+    node = SimpleNamespace(get_logger=lambda: logger)
+    reports = [SimpleNamespace(settings=RealtimeSettings(thread_priority=1), stats=object()) for _ in range(loops)]
+    reports.append(SimpleNamespace(settings=RealtimeSettings(), stats=None))  # an observer: not a loop
+    applied, chosen = apply_settings(reports, node, period, busy_wait)  # type: ignore[arg-type]
+    try:
+        return chosen, os.sched_getscheduler(0) == os.SCHED_FIFO, logger.lines
+    finally:
+        restore(applied)
+
+
+def test_one_loop_spins_briefly_a_composed_loop_longer_and_a_given_value_is_kept() -> None:
+    chosen, fifo, lines = spin(1, 1e-3)
+    if not fifo:
+        pytest.skip("SCHED_FIFO is not allowed here: the spin is chosen only at SCHED_FIFO")
+    assert chosen == FIFO_BUSY_WAIT_S
+    assert f"busy-wait {1e6 * FIFO_BUSY_WAIT_S:g} us" in lines[-1]
+    assert spin(3, 1e-3)[0] == FIFO_COMPOSED_BUSY_WAIT_S > FIFO_BUSY_WAIT_S
+    # at 2 kHz the composed spin is held to its share of the period, without a line about it
+    chosen, _, lines = spin(3, 5e-4)
+    assert chosen == FIFO_BUSY_SHARE * 5e-4 and not any("at most" in line for line in lines)
+    assert spin(3, 1e-3, busy_wait=1e-4)[0] == 1e-4
+    assert os.sched_getscheduler(0) == os.SCHED_OTHER  # each call's settings undone
