@@ -37,7 +37,8 @@ class LocalInputs:
 
 
 STATISTICS_EVERY_S = 1.0  # real time: loop statistics on /diagnostics this often
-IDLE_MARGIN = 0.2  # real time: spare-time work (the young generation, a window ahead) only with this share of a period to spare
+# real time: spare-time work (the young generation, a window ahead) only with this share of a period to spare
+IDLE_MARGIN = 0.2
 COLD_PERIOD_S = 0.02  # lockstep: the executor's turn (timers, parameters, /clock) this often
 # (one turn costs 0.2-1 ms of Python; every 5 ms it took 15 % of the lockstep rate)
 GIL_SWITCH_S = 0.0001  # real time: longest the executor thread keeps the GIL from the loop
