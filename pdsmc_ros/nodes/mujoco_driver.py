@@ -31,6 +31,7 @@ from ..errors import CdrError, ConfigError, InvalidInputError
 from ..robots.catalog import allowed_robots, resolve_robot
 from ..robots.registry import make_robot
 from ..runtime.joints import check_joint_names
+from ..runtime.realtime import PLANT_PRIORITY
 from ..sim.mujoco_driver import (
     JOINT_STATE_ORDERS,
     MujocoDriver,
@@ -64,6 +65,8 @@ def _number(node: Node, name: str, default: float, description: str, lo: float, 
 
 class MujocoDriverNode:
     """Thin wrapper: parameters, topics and the wall-clock tick around :class:`MujocoDriver`."""
+
+    realtime_priority = PLANT_PRIORITY  # thread_priority's default: the arm's stand-in, below the controller
 
     def __init__(self) -> None:
         self.node = node = Node("mujoco_driver")

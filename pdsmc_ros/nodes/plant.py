@@ -46,6 +46,7 @@ from ..bag.cdr import (
 from ..bag.stamps import step_stamp
 from ..errors import CdrError
 from ..presets import control_steps
+from ..runtime.realtime import PLANT_PRIORITY
 from ..sim.plant import PlantStepper
 from ..sim.supervised import SupervisedPlant
 from .descriptors import decimation
@@ -74,6 +75,7 @@ class PlantNode:
     """Thin wrapper: parameters, QoS and topics around :class:`SupervisedPlant`."""
 
     publishes_states = True  # composed in real time: its end is the end of the states
+    realtime_priority = PLANT_PRIORITY  # thread_priority's default in real time: below the controller's
 
     def __init__(self) -> None:
         self.node = node = Node("plant")

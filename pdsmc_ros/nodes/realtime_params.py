@@ -18,9 +18,12 @@ from rclpy.parameter import Parameter
 
 from ..errors import ConfigError
 from ..runtime.realtime import (
+    DEFAULT_PRIORITY,
     FIFO_BUSY_WAIT_S,
     FIFO_COMPOSED_BUSY_WAIT_S,
     MAX_PRIORITY,
+    PLANT_PRIORITY,
+    TRAJECTORY_PRIORITY,
     Applied,
     Collector,
     RealtimeSettings,
@@ -34,13 +37,15 @@ from .diagnostics import Diagnostics
 NAMES = ("thread_priority", "cpu_affinity", "lock_memory")
 
 
-def declare_realtime_parameters(node: Node, mode: str) -> RealtimeSettings:
-    """Declare the three parameters on ``node`` with ``mode``'s defaults; the validated
-    settings, or a ConfigError naming the parameter and what it allows."""
-    default = RealtimeSettings.for_mode(mode)
+def declare_realtime_parameters(node: Node, mode: str, priority: int = DEFAULT_PRIORITY) -> RealtimeSettings:
+    """Declare the three parameters on ``node`` with ``mode``'s defaults (``priority`` in real
+    time); the validated settings, or a ConfigError naming the parameter and what it allows."""
+    default = RealtimeSettings.for_mode(mode, priority)
     node.declare_parameter("thread_priority", default.thread_priority, ParameterDescriptor(
         description=f"SCHED_FIFO priority of the loop's thread, 1-{MAX_PRIORITY} (0: normal scheduling; "
-                    "default 50 in real time, as ros2_control's controller manager)", dynamic_typing=True))
+                    f"default {priority} in real time: the controller 50, as ros2_control's controller manager, "
+                    f"the plant {PLANT_PRIORITY} and the trajectory {TRAJECTORY_PRIORITY} just below it)",
+        dynamic_typing=True))
     node.declare_parameter("cpu_affinity", [-1], ParameterDescriptor(
         description="cores the loop's thread may run on, e.g. [1] (default [-1]: any core)", dynamic_typing=True))
     node.declare_parameter("lock_memory", default.lock_memory, ParameterDescriptor(
@@ -86,7 +91,7 @@ class LoopReport:
 
     def __init__(self, wrapper: Any, mode: str) -> None:
         node: Node = wrapper.node
-        self.settings = declare_realtime_parameters(node, mode)
+        self.settings = declare_realtime_parameters(node, mode, getattr(wrapper, "realtime_priority", DEFAULT_PRIORITY))
         period = getattr(wrapper, "period", None)
         self.stats = LoopStatistics(period) if period else None
         self.diagnostics = None if self.stats is None else Diagnostics(

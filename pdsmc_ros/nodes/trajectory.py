@@ -38,6 +38,7 @@ from ..bag.cdr import decode_stamp, encode_point_stamped
 from ..bag.stamps import stamp_step, step_stamp
 from ..errors import CdrError
 from ..presets import control_steps
+from ..runtime.realtime import TRAJECTORY_PRIORITY
 from ..runtime.reference_windows import ReferenceWindows
 from .descriptors import declare_int_parameter
 from .executor import run_node
@@ -60,6 +61,8 @@ TRAJECTORY_BATCH_S = 0.002  # lockstep: take the plant's states every 2 ms, in b
 
 class TrajectoryNode:
     """Thin wrapper around :class:`~pdsmc_ros.trajectories.JointReference`."""
+
+    realtime_priority = TRAJECTORY_PRIORITY  # thread_priority's default in real time: below the plant's
 
     def __init__(self) -> None:
         self.node = Node("trajectory")

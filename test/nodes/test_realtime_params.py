@@ -56,3 +56,36 @@ def test_one_loop_spins_briefly_a_composed_loop_longer_and_a_given_value_is_kept
     assert chosen == FIFO_BUSY_SHARE * 5e-4 and not any("at most" in line for line in lines)
     assert spin(3, 1e-3, busy_wait=1e-4)[0] == 1e-4
     assert os.sched_getscheduler(0) == os.SCHED_OTHER  # each call's settings undone
+
+
+def test_the_controller_ticks_at_the_highest_default_priority_the_plant_and_trajectory_below() -> None:
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.node import Node
+
+    from pdsmc_ros.nodes.controller import ControllerNode
+    from pdsmc_ros.nodes.mujoco_driver import MujocoDriverNode
+    from pdsmc_ros.nodes.plant import PlantNode
+    from pdsmc_ros.nodes.realtime_params import LoopReport
+    from pdsmc_ros.nodes.trajectory import TrajectoryNode
+
+    ctx = Context()
+    rclpy.init(context=ctx, domain_id=0)
+    try:
+        declared = {}
+        for cls in (ControllerNode, PlantNode, MujocoDriverNode, TrajectoryNode):
+            node = Node(f"priority_{cls.__name__.lower()}", context=ctx, start_parameter_services=False)
+            wrapper = cls.__new__(cls)  # the node class's own attributes, without its run's set-up
+            wrapper.node = node
+            declared[cls.__name__] = (LoopReport(wrapper, "realtime").settings.thread_priority,
+                                      node.get_parameter("thread_priority").value)
+            lockstep = Node(f"lockstep_{cls.__name__.lower()}", context=ctx, start_parameter_services=False)
+            wrapper.node = lockstep
+            assert LoopReport(wrapper, "lockstep").settings.thread_priority == 0
+            node.destroy_node()
+            lockstep.destroy_node()
+    finally:
+        rclpy.shutdown(context=ctx)
+    # ros2_control's controller manager runs at 50; the hardware's stand-in and the reference below it
+    assert declared == {"ControllerNode": (50, 50), "PlantNode": (49, 49), "MujocoDriverNode": (49, 49),
+                        "TrajectoryNode": (48, 48)}
