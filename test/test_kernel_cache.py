@@ -1,5 +1,5 @@
-"""The numba kernel cache after a fresh install (issue 25, item 4): the first command compiles,
-every later one loads what the first compiled.
+"""The numba kernel cache after a fresh install (issue 25, item 4): the first command (make
+setup's precompile) compiles, every later one loads what it compiled -- other laws' runs too.
 
 The refresh (pdsmc_ros.kernel_cache) used to record its marker only in cache directories that
 already existed; numba creates them on the first compile, so the second command found the
@@ -58,29 +58,18 @@ def test_refresh_marks_directories_numba_has_not_created_yet(tmp_path: Path,
 
 
 @pytest.mark.timeout(2400)
-def test_commands_after_the_first_load_its_kernels_without_compiling(tmp_path: Path) -> None:
-    cache = tmp_path / "numba-cache"  # empty, as after an install before make setup's precompile
-    first = run(cache)
-    assert "[cache] data saved" in first  # the first command compiled and wrote its kernels
+def test_after_the_first_command_every_command_loads_its_kernels_without_compiling(tmp_path: Path) -> None:
+    cache = tmp_path / "numba-cache"  # empty, as after an install
+    # the first command: make setup's precompile (of one robot, for time)
+    first = run(cache, [sys.executable, "-m", "pdsmc_ros.precompile", "--robots", "serial_3r"])
+    assert "[cache] data saved" in first  # it compiled and wrote its kernels
     compiled = kernel_files(cache)
     assert compiled, f"numba cached nothing in {cache}"
-    for label in ("second", "third"):
-        out = run(cache)
-        saved = [line for line in out.splitlines() if "saved" in line and line.startswith("[cache]")]
-        assert not saved, f"the {label} command compiled again: " + "; ".join(saved[:5])
-        assert "[cache] data loaded" in out
-        assert kernel_files(cache) == compiled, f"the {label} command rewrote or removed cached kernels"
-
-
-@pytest.mark.timeout(2400)
-def test_after_the_precompile_of_make_setup_every_law_loads_without_compiling(tmp_path: Path) -> None:
-    cache = tmp_path / "numba-cache"
-    first = run(cache, [sys.executable, "-m", "pdsmc_ros.precompile", "--robots", "serial_3r"])
-    assert "[cache] data saved" in first
-    compiled = kernel_files(cache)
-    # laws other than the precompile's runs' (theirs compiled through a controller's entry point)
-    for command in ([*COMMAND[:-1], "sta", "--json"], [*COMMAND[:-1], "ismc"]):
+    # the thesis's law, then laws other than the precompile's runs' (theirs compiled through a
+    # controller's entry point), each a new process
+    for command in (COMMAND, [*COMMAND[:-1], "sta", "--json"], [*COMMAND[:-1], "ismc"]):
         out = run(cache, command)
         saved = [line for line in out.splitlines() if "saved" in line and line.startswith("[cache]")]
-        assert not saved, f"{' '.join(command[2:])} compiled after the precompile: " + "; ".join(saved[:5])
-        assert kernel_files(cache) == compiled
+        assert not saved, f"{' '.join(command[2:])} compiled again: " + "; ".join(saved[:5])
+        assert "[cache] data loaded" in out
+        assert kernel_files(cache) == compiled, f"{' '.join(command[2:])} rewrote or removed cached kernels"
