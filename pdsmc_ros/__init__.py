@@ -19,8 +19,8 @@ def _venv_kernel_cache() -> None:
     :mod:`pdsmc_ros.precompile`) unless ``NUMBA_CACHE_DIR`` names another.
 
     Without it a command run as ``.venv/bin/pdsmc`` or from a script, with no ``make`` around it,
-    compiled every kernel again into the installed package's ``__pycache__`` (a clean
-    environment's ``pdsmc simulate``: 99 s instead of a few). Set before any kernel is defined
+    compiled every kernel again into the installed package's ``__pycache__`` instead of loading
+    what ``make setup`` compiled. Set before any kernel is defined
     (numba picks a function's cache directory when it is decorated); the nodes a command starts
     inherit it. Outside a venv, or where the venv cannot be written, numba's own default stays.
     """

@@ -1,9 +1,10 @@
 """Compile the package's numba kernels into numba's on-disk cache, once, at install time.
 
 numba compiles a kernel on its first call in a process and keeps it in its cache
-(``NUMBA_CACHE_DIR``; the Makefile puts it in the venv). With an empty cache the first
-command after an install compiles for 12-32 s per robot kind before it computes
-anything, and the nodes a launch starts together each compile the same kernels at once.
+(``NUMBA_CACHE_DIR``; the venv's ``numba-cache``). With an empty cache the first
+command after an install compiles for tens of seconds per robot kind before it computes
+anything, and the nodes a launch starts together each compile the same kernels at once
+(figures: docs/PERFORMANCE.md).
 ``make setup`` runs ``python -m pdsmc_ros.precompile`` after installing: every compiled
 robot kind (the thesis's serial arm, the five-bar, a URDF chain) runs a short closed
 loop (every law's branch is in it), its plant step, every law's torque as the

@@ -43,8 +43,9 @@ def declare_realtime_parameters(node: Node, mode: str, priority: int = DEFAULT_P
     default = RealtimeSettings.for_mode(mode, priority)
     node.declare_parameter("thread_priority", default.thread_priority, ParameterDescriptor(
         description=f"SCHED_FIFO priority of the loop's thread, 1-{MAX_PRIORITY} (0: normal scheduling; "
-                    f"default {priority} in real time: the controller 50, as ros2_control's controller manager, "
-                    f"the plant {PLANT_PRIORITY} and the trajectory {TRAJECTORY_PRIORITY} just below it)",
+                    f"default {priority} in real time: the controller {DEFAULT_PRIORITY}, as ros2_control's "
+                    f"controller manager, the plant {PLANT_PRIORITY} and the trajectory {TRAJECTORY_PRIORITY} "
+                    "just below it)",
         dynamic_typing=True))
     node.declare_parameter("cpu_affinity", [-1], ParameterDescriptor(
         description="cores the loop's thread may run on, e.g. [1] (default [-1]: any core)", dynamic_typing=True))

@@ -179,8 +179,8 @@ class TrajectoryNode:
         serialized ahead, a piece at a time, and a look at whether the plant is there."""
         self.plant_watch.poll()
         if self.clock_start is not None and not self.clock_start_logged:
-            # here, not where the clock starts: a log line (console and /rosout) took 0.5-0.9 ms
-            # of a control period there
+            # here, not where the clock starts: a log line (console and /rosout) costs a large
+            # share of a control period, which the state handler must not spend
             self.clock_start_logged = True
             self.node.get_logger().info("the plant's time has started: contour clock running")
         self.references.encode_ahead(until)

@@ -36,15 +36,15 @@ from ..errors import ConfigError
 DEFAULT_PRIORITY = 50  # ros2_control's controller manager: SCHED_FIFO 50 (the controller's default)
 # the plant (the hardware's stand-in) and the trajectory (the controller's reference) tick at FIFO
 # too, just below the controller: when three loop processes contend for two cores, the controller
-# goes first (six alternating pairs of four-process runs: 0 missed periods in each against 9 in all)
+# goes first (measured: docs/PERFORMANCE.md, sixteenth session)
 PLANT_PRIORITY = DEFAULT_PRIORITY - 1
 TRAJECTORY_PRIORITY = DEFAULT_PRIORITY - 2
 BUSY_WAIT_S = 0.0002  # seconds spun before each tick at normal priority (the nodes' busy_wait default)
 FIFO_BUSY_WAIT_S = 0.00005  # at SCHED_FIFO unless busy_wait is given: a FIFO thread wakes on time
-# ... except for about 1 % of its wake-ups from a sleep (cyclictest at SCHED_FIFO 50 here: p99
-# 47-52 us, p99.9 100-267 us): a process whose one thread ticks several loop nodes (composed)
-# spins this long instead, beyond the p99.9; separate loop processes keep FIFO_BUSY_WAIT_S,
-# since three FIFO loops spinning at the same instants on two cores wait for one another
+# ... except for about 1 % of its wake-ups from a sleep (cyclictest: docs/PERFORMANCE.md): a
+# process whose one thread ticks several loop nodes (composed) spins this long instead, beyond
+# the wake-ups' p99.9; separate loop processes keep FIFO_BUSY_WAIT_S, since three FIFO loops
+# spinning at the same instants on two cores wait for one another
 FIFO_COMPOSED_BUSY_WAIT_S = 0.0003
 MAX_PRIORITY = 99
 # mlockall flags of Linux on x86, arm and riscv (<bits/mman-linux.h>)

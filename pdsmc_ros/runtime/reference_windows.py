@@ -47,7 +47,7 @@ class ReferenceWindows:
         self.steps = len(q)  # steps 0 .. steps - 1
         self.window_start = 0
         # the first window now, before any loop runs: serialized in the first tick, it made that
-        # tick about 1.5 ms long and the controller's first command late in a composed process
+        # tick longer than a period and the controller's first command late in a composed process
         self.window: list[bytes] = self.encode(0, min(ENCODE_WINDOW, self.steps))
         self.ahead: list[bytes] = []  # the next window's first references, serialized in spare time
 
