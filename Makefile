@@ -48,8 +48,12 @@ $(STAMP): $(DEPS_STAMP) $(SOURCES) | $(INTERFACES_STAMP)
 	@# install starts from an empty cache so no kernel calls an older version of another
 	@rm -rf $(NUMBA_CACHE_DIR)
 	@# ... and fills it: the kernels every robot kind and law uses, compiled once here rather than
-	@# by the first command (or by each of the nodes a launch starts at once)
-	$(PY) -m pdsmc_ros.precompile
+	@# by the first command (or by each of the nodes a launch starts at once). numba caches a
+	@# kernel per source file path, so the installed copy (console scripts, nodes: -P keeps the
+	@# clone off sys.path) and the clone's tree (`python -m` from here, the tests) are compiled
+	@# each, side by side on two cores
+	@$(PY) -m pdsmc_ros.precompile & tree=$$!; status=0; \
+	  $(PY) -P -m pdsmc_ros.precompile || status=$$?; wait $$tree || status=$$?; exit $$status
 	@# ament layout: executables under <prefix>/lib/<package>, as colcon installs them
 	@mkdir -p $(VENV)/lib/pdsmc_ros
 	@for exe in $(EXECUTABLES); do ln -sf ../../bin/$$exe $(VENV)/lib/pdsmc_ros/$$exe; done

@@ -10,6 +10,8 @@ robot kind (the thesis's serial arm, the five-bar, a URDF chain) runs a short cl
 loop (every law's branch is in it), its plant step, every law's torque as the
 controller node computes it, and the run statistics, so later commands load them.
 
+numba keys its cache by a kernel's source file path: a clone with the package installed
+from it has two copies, each compiled by its own run (``make setup`` runs both at once).
 Nothing is kept but the cache; a kernel this does not reach still compiles on first use.
 ROS-free.
 """
@@ -20,6 +22,7 @@ import dataclasses
 import sys
 import time
 from collections.abc import Sequence
+from pathlib import Path
 
 import numpy as np
 
@@ -77,7 +80,7 @@ def main(args: Sequence[str] | None = None) -> int:
         print(f"precompile: error: {exc}", file=sys.stderr, flush=True)
         return EXIT_USAGE
     print(f"precompile: the kernels of {', '.join(robots)} and every law compiled in "
-          f"{time.perf_counter() - start:.0f} s", flush=True)
+          f"{time.perf_counter() - start:.0f} s ({Path(__file__).resolve().parent})", flush=True)
     return 0
 
 
