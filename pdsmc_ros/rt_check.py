@@ -28,15 +28,15 @@ import numpy as np
 from .errors import InvalidInputError
 from .runtime.realtime import (
     AFFINITY_FIX,
-    BUSY_WAIT_S,
+    AUTO_BUSY_WAIT,
     DEFAULT_PRIORITY,
-    FIFO_BUSY_WAIT_S,
     FIFO_FIX,
     MAX_PRIORITY,
     MEMLOCK_FIX,
     Collector,
     RealtimeSettings,
     apply,
+    busy_wait_for,
     minor_faults,
     restore,
 )
@@ -71,8 +71,8 @@ def settings_from(args: argparse.Namespace) -> tuple[RealtimeSettings, float, fl
     if not (np.isfinite(args.rate) and 1.0 <= args.rate <= 20000.0):
         raise InvalidInputError(f"--rate must be Hz in [1, 20000], got {args.rate:g}")
     period = 1.0 / args.rate
-    if args.busy_wait is None:  # as the nodes' serve loop chooses (nodes/realtime_params.py)
-        args.busy_wait = FIFO_BUSY_WAIT_S if args.priority > 0 else BUSY_WAIT_S
+    if args.busy_wait is None:  # as a loop node's serve loop chooses at this priority
+        args.busy_wait = busy_wait_for(AUTO_BUSY_WAIT, fifo=args.priority > 0, loops=1, period=period)
     if not (np.isfinite(args.busy_wait) and 0.0 <= args.busy_wait <= period):
         raise InvalidInputError(f"--busy-wait must be seconds in [0, {period:g}] (one period), got {args.busy_wait:g}")
     try:

@@ -342,8 +342,9 @@ def test_whole_number_parameters_are_checked(ros_env: dict, node: str, param: st
 
 @pytest.mark.timeout(120)
 @pytest.mark.parametrize(("value", "message"), [
-    ("fast", "parameter busy_wait must be a number of seconds in [0, 1], got 'fast'"),
-    ("2.0", "Parameter busy_wait out of range Min: 0.0, Max: 1.0, value: 2.0"),
+    ("fast", "parameter busy_wait must be -1 (automatic) or a number of seconds in [0, 1], got 'fast'"),
+    ("2.0", "Parameter busy_wait out of range Min: -1.0, Max: 1.0, value: 2.0"),
+    ("-0.5", "parameter busy_wait must be -1 (automatic) or a number of seconds in [0, 1], got -0.5"),
 ])
 def test_busy_wait_is_checked(ros_env: dict, value: str, message: str) -> None:
     proc = subprocess.run(["ros2", "run", "pdsmc_ros", "trajectory", "--ros-args", "-p", f"busy_wait:={value}"],

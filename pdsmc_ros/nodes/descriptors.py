@@ -10,8 +10,7 @@ from rclpy.node import Node
 
 from ..control.safety import MAX_SAFE_DAMPING, MAX_SAFE_STIFFNESS, SafetyConfig
 from ..errors import ConfigError, InvalidInputError
-
-BUSY_WAIT_S = 0.0002  # real time: default busy-wait before a tick (parameter busy_wait)
+from ..runtime.realtime import AUTO_BUSY_WAIT
 
 
 def descriptor(
@@ -81,14 +80,17 @@ def declare_int_parameter(node: Node, name: str, default: int, description: str,
 
 def declare_busy_wait(node: Node) -> float:
     """Declare ``busy_wait`` and return it: real time, seconds before each tick spent
-    busy-waiting instead of sleeping (see :func:`~pdsmc_ros.nodes.serve_loop.serve_loop`); a ConfigError if bad."""
-    node.declare_parameter("busy_wait", BUSY_WAIT_S, descriptor(
+    busy-waiting instead of sleeping, or ``AUTO_BUSY_WAIT`` (-1, the default: chosen from the
+    scheduling by :func:`~pdsmc_ros.runtime.realtime.busy_wait_for`); a ConfigError if bad."""
+    node.declare_parameter("busy_wait", AUTO_BUSY_WAIT, descriptor(
         "real time: seconds before each tick spent busy-waiting instead of sleeping (absorbs late "
-        "wake-ups, costs that share of a core; a process running every ticking node: up to the whole period)",
-        lo=0.0, hi=1.0))
+        "wake-ups, costs that share of a core); -1 (default): 0.0002 at normal priority, at SCHED_FIFO "
+        "0.00005, 0.0003 for a process ticking several loop nodes; at SCHED_FIFO at most half a period",
+        lo=AUTO_BUSY_WAIT, hi=1.0))
     value = node.get_parameter("busy_wait").value
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0.0 <= value <= 1.0:
-        raise ConfigError(f"parameter busy_wait must be a number of seconds in [0, 1], got {value!r}")
+    if (isinstance(value, bool) or not isinstance(value, (int, float))
+            or not (value == AUTO_BUSY_WAIT or 0.0 <= value <= 1.0)):
+        raise ConfigError(f"parameter busy_wait must be -1 (automatic) or a number of seconds in [0, 1], got {value!r}")
     return float(value)
 
 

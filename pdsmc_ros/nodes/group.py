@@ -6,7 +6,7 @@ import time
 from collections.abc import Sequence
 from typing import Any
 
-from .descriptors import BUSY_WAIT_S
+from ..runtime.realtime import AUTO_BUSY_WAIT
 from .realtime_params import LoopReport
 
 
@@ -23,8 +23,9 @@ class NodeGroup:
         self.stopped_by_signal: str | None = None
         periods = {getattr(w, "period", None) for w in self.wrappers} - {None}
         self.period = min(periods) if periods else None
-        self.busy_wait = max((getattr(w, "busy_wait", BUSY_WAIT_S) for w in self.wrappers
-                              if getattr(w, "period", None)), default=BUSY_WAIT_S)
+        # the largest spin a ticking node was given, else automatic (every one left at -1)
+        self.busy_wait = max((getattr(w, "busy_wait", AUTO_BUSY_WAIT) for w in self.wrappers
+                              if getattr(w, "period", None)), default=AUTO_BUSY_WAIT)
         # real time, composed: the plant's node stays in the graph after its run, so the
         # nodes that watch for it to leave are told when it is done
         self.state_sources = [w for w in self.wrappers if getattr(w, "publishes_states", False)]

@@ -19,8 +19,7 @@ from rclpy.parameter import Parameter
 from ..errors import ConfigError
 from ..runtime.realtime import (
     DEFAULT_PRIORITY,
-    FIFO_BUSY_WAIT_S,
-    FIFO_COMPOSED_BUSY_WAIT_S,
+    FIFO_BUSY_SHARE,
     MAX_PRIORITY,
     PLANT_PRIORITY,
     TRAJECTORY_PRIORITY,
@@ -28,10 +27,10 @@ from ..runtime.realtime import (
     Collector,
     RealtimeSettings,
     apply,
+    busy_wait_for,
     minor_faults,
 )
 from ..runtime.statistics import LoopStatistics, status_name
-from .descriptors import BUSY_WAIT_S
 from .diagnostics import Diagnostics
 
 NAMES = ("thread_priority", "cpu_affinity", "lock_memory")
@@ -115,35 +114,25 @@ def loop_reports(wrapper: Any) -> list[LoopReport]:
     return [LoopReport(wrapper, "lockstep")] if getattr(wrapper, "observer", False) else []
 
 
-FIFO_BUSY_SHARE = 0.5  # at SCHED_FIFO: the share of a period the loop may spin at most
-
-
 def apply_settings(reports: Sequence[LoopReport], node: Node, period: float | None,
                    busy_wait: float) -> tuple[Applied, float]:
     """Apply the loop nodes' settings (merged: one thread ticks them all) to the calling
     thread; one info line of what holds and, if the system refused something, one warning.
-    Returns what was applied and the busy-wait to use.
-
-    A thread at SCHED_FIFO wakes on time (it preempts normal threads at once, without timer
-    slack), so it needs less spinning before a tick than the default ``busy_wait`` (0.2 ms)
-    bought at normal priority: ``FIFO_BUSY_WAIT_S`` unless ``busy_wait`` was given
-    (``FIFO_COMPOSED_BUSY_WAIT_S`` when this thread ticks several loop nodes), and never
-    more than ``FIFO_BUSY_SHARE`` of the period -- a FIFO thread that never sleeps is stopped by
-    the kernel's real-time throttling (``sched_rt_runtime_us``: 50 ms of every second). Less
-    spinning also leaves the cores to the other loop processes: three FIFO loops of equal
-    priority spinning 0.2 ms each on two cores keep one another waiting.
+    Returns what was applied and the busy-wait to use: ``busy_wait`` as
+    :func:`~pdsmc_ros.runtime.realtime.busy_wait_for` settles it once the scheduling is known
+    (a thread at SCHED_FIFO wakes on time and spins less, leaving the cores to the other loop
+    processes). A given value cut to its share of the period at FIFO is said in a line.
     """
     settings = RealtimeSettings.merged([r.settings for r in reports])
     applied = apply(settings)
     logger = node.get_logger()
     if applied.warning:
         logger.warn(applied.warning)
-    if applied.fifo and period and busy_wait == BUSY_WAIT_S:
-        loops = sum(r.stats is not None for r in reports)
-        busy_wait = min(FIFO_COMPOSED_BUSY_WAIT_S if loops > 1 else FIFO_BUSY_WAIT_S, FIFO_BUSY_SHARE * period)
-    if applied.fifo and period and busy_wait > FIFO_BUSY_SHARE * period:
-        logger.info(f"busy_wait {busy_wait:g} s at SCHED_FIFO: spinning at most {FIFO_BUSY_SHARE:g} of each period")
-        busy_wait = FIFO_BUSY_SHARE * period
+    requested = busy_wait
+    loops = sum(r.stats is not None for r in reports)
+    busy_wait = busy_wait_for(requested, fifo=applied.fifo, loops=loops, period=period)
+    if 0.0 <= requested != busy_wait:
+        logger.info(f"busy_wait {requested:g} s at SCHED_FIFO: spinning at most {FIFO_BUSY_SHARE:g} of each period")
     # real time: this line says the loop runs (run_experiment.sh waits for it)
     if settings != RealtimeSettings() or period:
         spin = f", busy-wait {1e6 * busy_wait:g} us before each tick" if period else ""

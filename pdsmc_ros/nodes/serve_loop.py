@@ -14,8 +14,7 @@ from typing import Any
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy_impl
 
-from ..runtime.realtime import Collector, restore
-from .descriptors import BUSY_WAIT_S
+from ..runtime.realtime import AUTO_BUSY_WAIT, Collector, restore
 from .executor_thread import ExecutorThread
 from .inputs import (
     pending,
@@ -51,7 +50,7 @@ def serve_loop(executor: SingleThreadedExecutor, group: Any,
                 hot: Sequence[tuple[Any, Callable[[bytes], None]]], period: float | None,
                 observed: Sequence[tuple[Any, Callable[[bytes], None]]] = (),
                 observe_every: float = 0.0, local: LocalInputs | None = None, *,
-                busy_wait: float = BUSY_WAIT_S, reports: Sequence[LoopReport] = ()) -> None:
+                busy_wait: float = AUTO_BUSY_WAIT, reports: Sequence[LoopReport] = ()) -> None:
     """Take the loop's inputs with a wait set of their own; serve the rest beside them.
 
     Every ready input of ``hot`` is drained (``take_message`` until empty) and handed to

@@ -46,6 +46,8 @@ FIFO_BUSY_WAIT_S = 0.00005  # at SCHED_FIFO unless busy_wait is given: a FIFO th
 # the wake-ups' p99.9; separate loop processes keep FIFO_BUSY_WAIT_S, since three FIFO loops
 # spinning at the same instants on two cores wait for one another
 FIFO_COMPOSED_BUSY_WAIT_S = 0.0003
+FIFO_BUSY_SHARE = 0.5  # at SCHED_FIFO: the share of a period the loop may spin at most
+AUTO_BUSY_WAIT = -1.0  # busy_wait's default: chosen by busy_wait_for from the scheduling and the loops
 MAX_PRIORITY = 99
 # mlockall flags of Linux on x86, arm and riscv (<bits/mman-linux.h>)
 MCL_CURRENT, MCL_FUTURE = 1, 2
@@ -308,3 +310,34 @@ class Collector:
         if self._was_enabled:
             gc.enable()
         gc.unfreeze()
+
+
+def busy_wait_for(requested: float, *, fifo: bool, loops: int, period: float | None) -> float:
+    """The seconds a paced loop spins before each tick instead of sleeping.
+
+    Parameters
+    ----------
+    requested : float
+        ``AUTO_BUSY_WAIT`` (the nodes' default), or seconds the user gave (kept, up to the cap).
+    fifo : bool
+        Whether the loop's thread runs at ``SCHED_FIFO``.
+    loops : int
+        How many loop nodes the thread ticks (more than one: a composed process).
+    period : float or None
+        The loop's period in seconds; None when it is not paced (lockstep).
+
+    Returns
+    -------
+    float
+        Automatic: ``BUSY_WAIT_S`` at normal priority (sleeps wake late there); at FIFO
+        ``FIFO_BUSY_WAIT_S``, or ``FIFO_COMPOSED_BUSY_WAIT_S`` for several loops. At FIFO never
+        more than ``FIFO_BUSY_SHARE`` of the period: a FIFO thread that never sleeps is stopped
+        by the kernel's real-time throttling (``sched_rt_runtime_us``).
+    """
+    if requested < 0.0:
+        if not fifo:
+            return BUSY_WAIT_S
+        requested = FIFO_COMPOSED_BUSY_WAIT_S if loops > 1 else FIFO_BUSY_WAIT_S
+    if fifo and period:
+        return min(requested, FIFO_BUSY_SHARE * period)
+    return requested

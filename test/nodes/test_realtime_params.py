@@ -1,6 +1,7 @@
 """The spin before a tick that apply_settings chooses at SCHED_FIFO (pdsmc_ros/nodes/realtime_params.py):
 a thread ticking one loop node spins FIFO_BUSY_WAIT_S, a composed thread ticking several spins
-FIFO_COMPOSED_BUSY_WAIT_S (never more than FIFO_BUSY_SHARE of the period), a value given is kept."""
+FIFO_COMPOSED_BUSY_WAIT_S (never more than FIFO_BUSY_SHARE of the period), a value given is kept --
+also the value that is the automatic choice at normal priority."""
 
 from __future__ import annotations
 
@@ -11,9 +12,11 @@ import pytest
 
 pytest.importorskip("rclpy")
 
-from pdsmc_ros.nodes.realtime_params import FIFO_BUSY_SHARE, apply_settings  # noqa: E402
+from pdsmc_ros.nodes.realtime_params import apply_settings  # noqa: E402
 from pdsmc_ros.runtime.realtime import (  # noqa: E402
+    AUTO_BUSY_WAIT,
     BUSY_WAIT_S,
+    FIFO_BUSY_SHARE,
     FIFO_BUSY_WAIT_S,
     FIFO_COMPOSED_BUSY_WAIT_S,
     RealtimeSettings,
@@ -31,7 +34,7 @@ class Logger:
     warn = info
 
 
-def spin(loops: int, period: float, busy_wait: float = BUSY_WAIT_S) -> tuple[float, bool, list[str]]:
+def spin(loops: int, period: float, busy_wait: float = AUTO_BUSY_WAIT) -> tuple[float, bool, list[str]]:
     """The busy-wait apply_settings returns for ``loops`` loop nodes at FIFO 1, whether FIFO held."""
     logger = Logger()
     node = SimpleNamespace(get_logger=lambda: logger)
@@ -55,6 +58,12 @@ def test_one_loop_spins_briefly_a_composed_loop_longer_and_a_given_value_is_kept
     chosen, _, lines = spin(3, 5e-4)
     assert chosen == FIFO_BUSY_SHARE * 5e-4 and not any("at most" in line for line in lines)
     assert spin(3, 1e-3, busy_wait=1e-4)[0] == 1e-4
+    # a given value equal to the normal-priority default is the user's, not "automatic"
+    chosen, _, lines = spin(1, 1e-3, busy_wait=BUSY_WAIT_S)
+    assert chosen == BUSY_WAIT_S and not any("at most" in line for line in lines)
+    # one too large for the period is cut to its share, said in a line
+    chosen, _, lines = spin(1, 1e-3, busy_wait=8e-4)
+    assert chosen == FIFO_BUSY_SHARE * 1e-3 and any("busy_wait 0.0008 s at SCHED_FIFO" in line for line in lines)
     assert os.sched_getscheduler(0) == os.SCHED_OTHER  # each call's settings undone
 
 

@@ -18,7 +18,16 @@ from pathlib import Path
 import pytest
 
 from pdsmc_ros.errors import ConfigError
-from pdsmc_ros.runtime.realtime import Collector, RealtimeSettings
+from pdsmc_ros.runtime.realtime import (
+    AUTO_BUSY_WAIT,
+    BUSY_WAIT_S,
+    FIFO_BUSY_SHARE,
+    FIFO_BUSY_WAIT_S,
+    FIFO_COMPOSED_BUSY_WAIT_S,
+    Collector,
+    RealtimeSettings,
+    busy_wait_for,
+)
 from pdsmc_ros.runtime.statistics import LoopStatistics, parse_values
 
 ROOT = Path(__file__).resolve().parent.parent.parent
@@ -154,3 +163,17 @@ def test_the_last_statistics_of_each_node_are_read_back_from_a_bag(tmp_path: Pat
     assert stats["plant"]["missed"] == 0
     lines = format_loop_statistics("run", stats)
     assert lines[0].startswith("run: controller loop: 10 ticks, missed 3 (30.000 %)")
+
+
+def test_the_automatic_spin_follows_the_scheduling_and_a_given_one_is_kept() -> None:
+    auto = AUTO_BUSY_WAIT
+    assert busy_wait_for(auto, fifo=False, loops=3, period=1e-3) == BUSY_WAIT_S
+    assert busy_wait_for(auto, fifo=True, loops=1, period=1e-3) == FIFO_BUSY_WAIT_S
+    assert busy_wait_for(auto, fifo=True, loops=3, period=1e-3) == FIFO_COMPOSED_BUSY_WAIT_S
+    assert busy_wait_for(auto, fifo=True, loops=3, period=4e-4) == FIFO_BUSY_SHARE * 4e-4
+    assert busy_wait_for(auto, fifo=True, loops=1, period=None) == FIFO_BUSY_WAIT_S  # lockstep: not paced
+    # a value given is the user's, also one equal to an automatic choice; FIFO caps it at its share
+    for given in (0.0, BUSY_WAIT_S, FIFO_BUSY_WAIT_S):
+        assert busy_wait_for(given, fifo=True, loops=1, period=1e-3) == given
+    assert busy_wait_for(1e-3, fifo=False, loops=1, period=1e-3) == 1e-3
+    assert busy_wait_for(1e-3, fifo=True, loops=1, period=1e-3) == FIFO_BUSY_SHARE * 1e-3
