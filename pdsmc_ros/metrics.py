@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from .checks import is_real, is_whole
 from .errors import InvalidInputError
 from .metrics_kernel import accumulate_instants, accumulate_steps, new_accumulator
 from .robots.base import FloatArray
@@ -128,7 +129,7 @@ def compute_metrics(samples: Samples, bound: float, *, saturated: Sequence[int] 
 
 def _number(value: object) -> float:
     """``value`` as a float if it is a real number (not a bool), else NaN."""
-    if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating):
+    if not is_real(value):
         return math.nan
     return float(value)
 
@@ -176,7 +177,7 @@ class RunStatistics:
 
     def __init__(self, joints: int, *, bound: float, rate: float | None = None,
                  cutoff: float = DEFAULT_CUTOFF_HZ) -> None:
-        if isinstance(joints, bool) or not isinstance(joints, int | np.integer) or joints < 1:
+        if not is_whole(joints) or joints < 1:
             raise InvalidInputError(f"joints must be a positive integer, got {joints!r}")
         if not (rate is None or _positive(rate)) or not _positive(cutoff):
             raise InvalidInputError(f"scores need a positive rate and cutoff; got rate {rate!r} Hz, "

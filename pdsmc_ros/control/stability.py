@@ -32,6 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..checks import is_whole
 from ..errors import InvalidInputError, UnstableRateError
 from ..robots.base import FloatArray
 from ..trajectories import JointReference
@@ -60,7 +61,7 @@ def loop_matrix(mass: FloatArray, kp: FloatArray, kd: FloatArray, h: float | Flo
     plain held-input map of the module docstring. Works on one configuration or on a stack
     (leading axis ``m``, ``h`` scalar or of shape ``(m,)``).
     """
-    if isinstance(delay, bool) or not isinstance(delay, (int, np.integer)) or delay < 0:
+    if not is_whole(delay) or delay < 0:
         raise InvalidInputError(f"delay must be a whole number of periods >= 0, got {delay!r}")
     mass = np.asarray(mass, dtype=float)
     n = mass.shape[-1]
@@ -138,7 +139,7 @@ def loop_delay(mode: str, delay_periods: int = 0) -> int:
     """Periods of delay the check models: the mode's own plus ``delay_periods`` declared."""
     if mode not in COMPUTATION_DELAY:
         raise InvalidInputError(f"unknown mode {mode!r}; choose one of: {', '.join(MODES)}")
-    if isinstance(delay_periods, bool) or not isinstance(delay_periods, (int, np.integer)) or delay_periods < 0:
+    if not is_whole(delay_periods) or delay_periods < 0:
         raise InvalidInputError(f"delay_periods must be a whole number >= 0, got {delay_periods!r}")
     return COMPUTATION_DELAY[mode] + int(delay_periods)
 

@@ -22,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from ..checks import is_real
 from ..config import load_config, read_yaml
 from ..errors import ConfigError
 from ..presets import RunSpec, make_run
@@ -81,7 +82,7 @@ def load_uncertainty(path: str | Path | None = None) -> dict[str, Spread]:
         values = {}
         for key in ("relative", "low", "high", "sd"):
             value = entry.get(key, 0.0)
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            if not is_real(value) or not math.isfinite(value):
                 raise ConfigError(f"{where}: {name}.{key} must be a finite number, got {value!r}")
             if value < 0.0:
                 raise ConfigError(f"{where}: {name}.{key} must be >= 0 (a spread), got {value!r}")

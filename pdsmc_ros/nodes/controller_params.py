@@ -18,6 +18,7 @@ from rclpy.exceptions import ParameterUninitializedException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
+from ..checks import are_real, is_real
 from ..control import GAINS, Gains
 from ..errors import ConfigError
 from ..presets import RunSpec, scenario_gain_factors
@@ -37,7 +38,7 @@ def torque_limit_from_parameters(node: Node, n: int) -> np.ndarray | None:
     value = node.get_parameter("torque_limit").value
     if value is None or (not isinstance(value, str) and len(value) == 0):
         return None
-    if isinstance(value, str) or not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value):
+    if not are_real(value):
         raise ConfigError(f"parameter torque_limit must be a list of {n} numbers, got {value!r}")
     limit = np.asarray(value, dtype=float)
     if limit.shape != (n,) or not np.all(np.isfinite(limit)) or np.any(limit <= 0):
@@ -64,7 +65,7 @@ class ControllerParameters:
 def _number(node: Node, name: str, default: float, description: str) -> float:
     node.declare_parameter(name, default, ParameterDescriptor(description=description, dynamic_typing=True))
     value = node.get_parameter(name).value
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not value >= 0.0:
+    if not is_real(value) or not value >= 0.0:
         raise ConfigError(f"parameter {name} must be a number >= 0, got {value!r}")
     return float(value)
 

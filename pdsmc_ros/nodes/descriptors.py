@@ -8,6 +8,7 @@ from typing import Any
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 from rclpy.node import Node
 
+from ..checks import is_real, is_whole
 from ..control.safety import MAX_SAFE_DAMPING, MAX_SAFE_STIFFNESS, SafetyConfig
 from ..errors import ConfigError, InvalidInputError
 from ..runtime.realtime import AUTO_BUSY_WAIT
@@ -49,12 +50,11 @@ def safety_from_parameters(node: Node) -> SafetyConfig:
     """The plant's SafetyConfig, validated (ConfigError naming the parameter)."""
     values = {name: node.get_parameter(name).value for name in SAFETY_PARAMETERS}
     for name in ("watchdog_timeout", "safe_damping", "safe_stiffness", "safe_time_scale"):
-        if isinstance(values[name], bool) or not isinstance(values[name], (int, float)):
+        if not is_real(values[name]):
             raise ConfigError(f"parameter {name} must be a number, got {values[name]!r}")
     if not 0.0 <= values["safe_time_scale"] <= 1000.0:
         raise ConfigError(f"parameter safe_time_scale must be in [0, 1000], got {values['safe_time_scale']!r}")
-    if isinstance(values["watchdog_periods"], bool) or not isinstance(values["watchdog_periods"], int) \
-            or values["watchdog_periods"] < 1:
+    if not is_whole(values["watchdog_periods"]) or values["watchdog_periods"] < 1:
         raise ConfigError(f"parameter watchdog_periods must be a whole number >= 1, got {values['watchdog_periods']!r}")
     try:
         return SafetyConfig(mode=values["safe_mode"], damping=float(values["safe_damping"]),
@@ -73,7 +73,7 @@ def declare_int_parameter(node: Node, name: str, default: int, description: str,
         description=description, additional_constraints=f"a whole number in [{lo}, {hi}]",
         dynamic_typing=True))
     value = node.get_parameter(name).value
-    if isinstance(value, bool) or not isinstance(value, int) or not lo <= value <= hi:
+    if not is_whole(value) or not lo <= value <= hi:
         raise ConfigError(f"parameter {name} must be a whole number in [{lo}, {hi}], got {value!r}")
     return value
 
@@ -88,8 +88,7 @@ def declare_busy_wait(node: Node) -> float:
         "0.00005, 0.0003 for a process ticking several loop nodes; at SCHED_FIFO at most half a period",
         lo=AUTO_BUSY_WAIT, hi=1.0))
     value = node.get_parameter("busy_wait").value
-    if (isinstance(value, bool) or not isinstance(value, (int, float))
-            or not (value == AUTO_BUSY_WAIT or 0.0 <= value <= 1.0)):
+    if not is_real(value) or not (value == AUTO_BUSY_WAIT or 0.0 <= value <= 1.0):
         raise ConfigError(f"parameter busy_wait must be -1 (automatic) or a number of seconds in [0, 1], got {value!r}")
     return float(value)
 

@@ -10,6 +10,7 @@ from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
+from ..checks import is_real
 from ..control import GAINS, Gains
 from ..errors import InvalidInputError
 from ..presets import RunSpec, scenario_gain_factors
@@ -44,7 +45,7 @@ class GainUpdates:
         for param in params:
             if param.name in GAINS:
                 value = param.value
-                scalar = isinstance(value, (int, float)) and not isinstance(value, bool)
+                scalar = is_real(value)
                 merged[param.name] = [value] if scalar else list(value or [])
                 changed = True
             elif param.name in RUN_PARAMETERS or param.name in ("joints", "autostart"):

@@ -27,6 +27,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray, String
 
 from ..bag.cdr import decode_float64_multi_array, encode_joint_state
+from ..checks import are_real, is_real
 from ..errors import CdrError, ConfigError, InvalidInputError
 from ..robots.catalog import allowed_robots, resolve_robot
 from ..robots.registry import make_robot
@@ -58,7 +59,7 @@ def _declare(node: Node, name: str, default: Any, description: str) -> Any:
 
 def _number(node: Node, name: str, default: float, description: str, lo: float, hi: float) -> float:
     value = _declare(node, name, default, description)
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not lo <= value <= hi:
+    if not is_real(value) or not lo <= value <= hi:
         raise ConfigError(f"parameter {name} must be a number in [{lo:g}, {hi:g}], got {value!r}")
     return float(value)
 
@@ -123,7 +124,7 @@ class MujocoDriverNode:
 
     @staticmethod
     def _positions(value: Any, n: int) -> np.ndarray:
-        if isinstance(value, str) or not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value):
+        if not are_real(value):
             raise ConfigError(f"parameter initial_positions must be {n} numbers (rad), got {value!r}")
         q = np.asarray(list(value), dtype=float)
         if q.shape != (n,) or not np.all(np.isfinite(q)):

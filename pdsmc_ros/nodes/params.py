@@ -16,6 +16,7 @@ from rclpy.exceptions import ParameterUninitializedException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
+from ..checks import are_real, is_real, is_whole
 from ..config import choice
 from ..control import GAINS, gain_names, law, law_names
 from ..errors import ConfigError
@@ -85,10 +86,10 @@ def declare_node_run(node: Node, *, gains: bool = False) -> NodeRun:
 def stability_from_parameters(node: Node, mode: str) -> dict[str, Any]:
     """``check_rate``'s keywords from ``stability_margin`` and ``delay_periods`` (ConfigError if bad)."""
     margin = node.get_parameter("stability_margin").value
-    if isinstance(margin, bool) or not isinstance(margin, (int, float)) or not 0.0 <= margin <= 1.0e6:
+    if not is_real(margin) or not 0.0 <= margin <= 1.0e6:
         raise ConfigError(f"parameter stability_margin must be a number >= 0 (0: the mode's), got {margin!r}")
     delay = node.get_parameter("delay_periods").value
-    if isinstance(delay, bool) or not isinstance(delay, int) or not 0 <= delay <= 1000:
+    if not is_whole(delay) or not 0 <= delay <= 1000:
         raise ConfigError(f"parameter delay_periods must be a whole number in [0, 1000], got {delay!r}")
     return {"mode": mode, "delay_periods": delay, "margin": float(margin) or None, "entry": "node"}
 
@@ -134,7 +135,7 @@ def run_spec_from_parameters(node: Node, *, needs_gains: bool = True) -> RunSpec
             if not isinstance(value, str):
                 raise ConfigError(f"parameter {name} must be a string, got {value!r}")
         else:
-            if isinstance(value, bool) or not isinstance(value, (int, float)):
+            if not is_real(value):
                 raise ConfigError(f"parameter {name} must be a number, got {value!r}")
             value = float(value)
             lo, hi = _range_of(name)
@@ -151,12 +152,10 @@ def run_spec_from_parameters(node: Node, *, needs_gains: bool = True) -> RunSpec
             value = node.get_parameter(name).value
         except ParameterUninitializedException:
             continue  # not given: the preset applies
-        if isinstance(value, (int, float)) and not isinstance(value, bool):
+        if is_real(value):
             value = [value]  # a scalar gain given as a number
         if value is not None and len(value) > 0:
-            if isinstance(value, str) or not all(
-                isinstance(v, (int, float)) and not isinstance(v, bool) for v in value
-            ):
+            if not are_real(value):
                 raise ConfigError(f"parameter {name} must be a list of numbers, got {value!r}")
             overrides[name] = [float(v) for v in value]
     try:

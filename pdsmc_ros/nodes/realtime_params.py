@@ -16,6 +16,7 @@ from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
+from ..checks import is_whole
 from ..errors import ConfigError
 from ..runtime.realtime import (
     DEFAULT_PRIORITY,
@@ -53,11 +54,11 @@ def declare_realtime_parameters(node: Node, mode: str, priority: int = DEFAULT_P
         dynamic_typing=True))
     node.add_on_set_parameters_callback(_refuse_changes)
     priority = node.get_parameter("thread_priority").value
-    if isinstance(priority, bool) or not isinstance(priority, int):
+    if not is_whole(priority):
         raise ConfigError(f"parameter thread_priority must be a whole number in [0, {MAX_PRIORITY}] "
                           f"(0: normal scheduling), got {priority!r}")
     cores = node.get_parameter("cpu_affinity").value
-    if isinstance(cores, int) and not isinstance(cores, bool):
+    if is_whole(cores):
         cores = [cores]
     if isinstance(cores, str) or not isinstance(cores, (list, tuple)) or not all(
             isinstance(c, int) and not isinstance(c, bool) for c in cores):

@@ -19,6 +19,7 @@ from rclpy.node import Node
 from sensor_msgs.msg import JointState
 
 from ..bag.cdr import decode_joint_state_named
+from ..checks import is_real
 from ..errors import CdrError, ConfigError
 from ..live_view import DEFAULT_DISPLAY_RATE, FoxgloveView, LiveView
 from .descriptors import declare_int_parameter
@@ -41,7 +42,7 @@ class ViewerNode:
                                      lo=0, hi=65535)
         host = str(node.declare_parameter("host", "127.0.0.1").value)
         rate = node.declare_parameter("display_rate", DEFAULT_DISPLAY_RATE).value
-        if isinstance(rate, bool) or not isinstance(rate, (int, float)) or not 0.0 < rate <= MAX_DISPLAY_RATE:
+        if not is_real(rate) or not 0.0 < rate <= MAX_DISPLAY_RATE:
             raise ConfigError(f"parameter display_rate: frames per second of wall time in (0, {MAX_DISPLAY_RATE:g}], "
                               f"got {rate!r}")
         node.add_on_set_parameters_callback(refuse_run_changes)

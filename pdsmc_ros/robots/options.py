@@ -11,16 +11,13 @@ from typing import Any
 
 import numpy as np
 
+from ..checks import are_real, is_real
 from ..errors import ConfigError, InvalidInputError
 from .base import FloatArray
 
 OPTION_KEYS = ("armature", "ee_frame", "locked_joints", "home", "plane", "orientation", "effort_limits",
                "velocity_limits", "position_limits")
 SETTING_KEYS = ("control_rate", "sample_rate", "contour_bound", "contour_size", "contours", "gains")
-
-
-def _number(value: Any) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool)
 
 
 def check_entry(entry: Mapping[str, Any], where: str) -> None:
@@ -43,13 +40,13 @@ def check_entry(entry: Mapping[str, Any], where: str) -> None:
         raise ConfigError(f"{where}: locked_joints must be a list of joint names, got {locked!r}")
     plane = entry.get("plane")
     if plane is not None and (not isinstance(plane, dict) or set(plane) != {"origin", "u", "v"} or not all(
-            isinstance(v, list) and len(v) == 3 and all(map(_number, v)) for v in plane.values())):
+            isinstance(v, list) and len(v) == 3 and are_real(v) for v in plane.values())):
         raise ConfigError(f"{where}: plane must give origin, u and v (3 numbers each), got {plane!r}")
     for key in ("control_rate", "sample_rate", "contour_bound"):
-        if key in entry and not (_number(entry[key]) and 0.0 < entry[key] < float("inf")):
+        if key in entry and not (is_real(entry[key]) and 0.0 < entry[key] < float("inf")):
             raise ConfigError(f"{where}: {key} must be a number > 0, got {entry[key]!r}")
     size = entry.get("contour_size")
-    if size is not None and not (_number(size) and 0.0 < size < float("inf")):
+    if size is not None and not (is_real(size) and 0.0 < size < float("inf")):
         raise ConfigError(f"{where}: contour_size must be a number > 0 (m) or null, got {size!r}")
     gains = entry.get("gains")
     if gains is not None and not isinstance(gains, (str, dict)):
