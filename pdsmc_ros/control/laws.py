@@ -115,7 +115,7 @@ def model_part(m, kind, p, q, qd, q_ref, qd_ref, a, v, tau, work):  # noqa: ANN0
     of the nominal robot ``(kind, p)`` at the measured state, or at the desired one
     (``m`` is :attr:`LawSetup.smc_model`); ``a`` and ``v`` are the law's: the SMC's
     ``qdd_r`` and ``qd_r``, the computed torque's commanded acceleration and the velocity.
-    ``work`` holds ``3 n + n^2`` floats and the robot's scratch.
+    ``work`` holds ``2 n + n^2`` floats and the robot's scratch.
     """
     n = q.shape[0]
     qm = q
@@ -123,17 +123,13 @@ def model_part(m, kind, p, q, qd, q_ref, qd_ref, a, v, tau, work):  # noqa: ANN0
     if m[AT_DESIRED] != 0.0:
         qm = q_ref
         qdm = qd_ref
-    bias = work[0:n]
-    grav = work[n : 2 * n]
-    cor = work[2 * n : 3 * n]
-    mass = work[3 * n : 3 * n + n * n].reshape((n, n))
-    rest = work[3 * n + n * n :]
-    robot.terms(kind, p, qm, qdm, mass, bias, rest)
+    grav = work[0:n]
+    cor = work[n : 2 * n]
+    mass = work[2 * n : 2 * n + n * n].reshape((n, n))
+    robot.model_terms(kind, p, qm, qdm, v, mass, grav, cor, work[2 * n + n * n :])
     if m[WITH_MOTOR_INERTIA] == 0.0:
         for i in range(n):
             mass[i, i] -= robot.motor_inertia(kind, p, i)
-    robot.gravity(kind, p, qm, grav, rest)
-    robot.coriolis_times(kind, p, qm, qdm, v, cor, rest)
     for i in range(n):
         acc = 0.0
         for j in range(n):

@@ -68,6 +68,11 @@ class CompiledRobot:
     outputs : ``(p, q, qd, out, work)``
         End effector ``(x, y)`` into ``out[0:2]``; a robot with passive joints also their
         angles ``out[2:4]`` and rates ``out[4:6]``.
+    model_terms : ``(p, q, qd, v, mass, grav, cor, work)``, optional
+        ``mass = Mbar(q)``, ``grav = G(q)`` and ``cor = C(q, qd) v`` in one call, the same floats as
+        ``terms``, ``gravity`` and ``coriolis_times`` (what a model-based law needs every step). By
+        default those three, one after the other; a robot whose three share costly work (the
+        five-bar's loop closure) gives its own.
     """
 
     joints: int
@@ -78,6 +83,22 @@ class CompiledRobot:
     damping: Callable[..., float]
     motor_inertia: Callable[..., float]
     outputs: Callable[..., None]
+    model_terms: Callable[..., None] | None = None
+
+    def __post_init__(self) -> None:
+        if self.model_terms is None:
+            object.__setattr__(self, "model_terms", _one_after_another(self.terms, self.gravity, self.coriolis_times))
+
+
+def _one_after_another(terms: Any, gravity: Any, coriolis_times: Any) -> Callable[..., None]:
+    """``model_terms`` made of a robot's ``terms``, ``gravity`` and ``coriolis_times``."""
+
+    def model_terms(p, q, qd, v, mass, grav, cor, work):  # noqa: ANN001, ANN202, PLR0913
+        terms(p, q, qd, mass, cor, work)  # its C qd + G lands in cor, which C v then overwrites
+        gravity(p, q, grav, work)
+        coriolis_times(p, q, qd, v, cor, work)
+
+    return njit(inline="always")(model_terms)
 
 
 COMPILED: dict[int, CompiledRobot] = {
@@ -85,7 +106,7 @@ COMPILED: dict[int, CompiledRobot] = {
                                     serial.gravity, serial.damping, serial.motor_inertia, serial.outputs),
     five_bar.PARALLEL_5R: CompiledRobot(five_bar.N, five_bar.terms, five_bar.accelerations,
                                         five_bar.coriolis_times, five_bar.gravity, five_bar.damping,
-                                        five_bar.motor_inertia, five_bar.outputs),
+                                        five_bar.motor_inertia, five_bar.outputs, five_bar.model_terms),
     spatial_layout.SERIAL_CHAIN: CompiledRobot(0, chain.terms, chain.accelerations, chain.coriolis_times,
                                                chain.gravity, chain.damping, chain.motor_inertia,
                                                chain_kinematics.outputs),
@@ -127,7 +148,10 @@ def _caller(fn: Any) -> Callable[..., Any]:
         return njit(inline="always")(lambda args: fn(args[0], args[1], args[2], args[3], args[4]))
     if arity == 6:
         return njit(inline="always")(lambda args: fn(args[0], args[1], args[2], args[3], args[4], args[5]))
-    raise TypeError(f"{fn.py_func.__qualname__}: {arity} parameters; CompiledRobot's functions take 2, 4, 5 or 6")
+    if arity == 8:
+        return njit(inline="always")(
+            lambda args: fn(args[0], args[1], args[2], args[3], args[4], args[5], args[6], args[7]))
+    raise TypeError(f"{fn.py_func.__qualname__}: {arity} parameters; CompiledRobot's functions take 2, 4, 5, 6 or 8")
 
 
 def by_code(function: str, entries: tuple[tuple[int, CompiledRobot], ...] | None = None) -> Callable[..., Any]:
@@ -159,6 +183,7 @@ _DAMPING = by_code("damping")
 _MOTOR_INERTIA = by_code("motor_inertia")
 _OUTPUTS = by_code("outputs")
 _ACCELERATIONS = by_code("accelerations")
+_MODEL_TERMS = by_code("model_terms")
 
 
 def size(kind: int, n: int) -> int:
@@ -222,6 +247,13 @@ def coriolis_times(kind, p, q, qd, v, out, work):  # noqa: ANN001, ANN201
 def gravity(kind, p, q, out, work):  # noqa: ANN001, ANN201
     """``G(q)``."""
     _GRAVITY(kind, (p, q, out, work))
+
+
+@njit(cache=True)
+def model_terms(kind, p, q, qd, v, mass, grav, cor, work):  # noqa: ANN001, ANN201, PLR0913
+    """``Mbar(q)``, ``G(q)`` and ``C(q, qd) v``: :func:`terms`' mass, :func:`gravity` and
+    :func:`coriolis_times` in one call (:attr:`CompiledRobot.model_terms`)."""
+    _MODEL_TERMS(kind, (p, q, qd, v, mass, grav, cor, work))
 
 
 @njit(cache=True)

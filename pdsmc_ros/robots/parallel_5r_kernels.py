@@ -106,10 +106,18 @@ def _geometry(p, q, qd, geo):  # noqa: ANN001, ANN202
     geo[9] = r01
     geo[10] = r10
     geo[11] = r11
-    geo[4] = qd[0]
-    geo[5] = r00 * qd[0] + r01 * qd[1]
-    geo[6] = qd[1]
-    geo[7] = r10 * qd[0] + r11 * qd[1]
+    _rates(geo, qd[0], qd[1])
+
+
+@njit(cache=True, inline="always")
+def _rates(geo, w0, w1):  # noqa: ANN001, ANN202
+    """The open tree's rates ``qdl``, ``qdr`` (``geo[4:8]``) at actuated rates ``(w0, w1)``, from
+    ``rho`` (``geo[8:12]``): positions fix the rest of :func:`_geometry`, so one geometry serves
+    several rates (:func:`model_terms`)."""
+    geo[4] = w0
+    geo[5] = geo[8] * w0 + geo[9] * w1
+    geo[6] = w1
+    geo[7] = geo[10] * w0 + geo[11] * w1
 
 
 @njit(cache=True, inline="always")
@@ -240,6 +248,32 @@ def coriolis_times(p, q, qd, v, out, work):  # noqa: ANN001, ANN202
     """``C(q, qd) v`` of the reduced model, ``C = rho^T C' rho + rho^T M' rhodot``."""
     geo = work[0:GEOMETRY_SIZE]
     _geometry(p, q, qd, geo)
+    _coriolis_at(p, geo, v, out, work)
+
+
+@njit(cache=True)
+def model_terms(p, q, qd, v, mass, grav, cor, work):  # noqa: ANN001, ANN202, PLR0913
+    """``Mbar(q)``, ``G(q)`` and ``C(q, qd) v`` from one :func:`_geometry`: what a model-based law needs
+    at every step (:func:`pdsmc_ros.control.laws.model_part`), the very floats of :func:`terms`,
+    :func:`gravity` and :func:`coriolis_times` called apart (test/robots: bit for bit), which solve
+    the loop closure three times."""
+    geo = work[0:GEOMETRY_SIZE]
+    _geometry(p, q, qd, geo)
+    m00, m01, m11, _, _ = _terms(p, geo)
+    mass[0, 0] = m00
+    mass[0, 1] = m01
+    mass[1, 0] = m01
+    mass[1, 1] = m11
+    _coriolis_at(p, geo, v, cor, work)
+    _rates(geo, 0.0, 0.0)  # gravity: C qd + G at rest
+    _, _, _, g0, g1 = _terms(p, geo)
+    grav[0] = g0
+    grav[1] = g1
+
+
+@njit(cache=True, inline="always")
+def _coriolis_at(p, geo, v, out, work):  # noqa: ANN001, ANN202
+    """:func:`coriolis_times` at a computed geometry; scratch from ``work[GEOMETRY_SIZE:]``."""
     rho = geo[8:12]
     vl = work[16:18]
     vr = work[18:20]
