@@ -33,7 +33,9 @@ _B = 23
 _G = 25
 _MODE = 26  # assembly mode, +1 or -1
 
-GEOMETRY_SIZE = 16
+GEOMETRY_SIZE = 24
+_TRIG = 16
+"""Where :func:`_geometry` puts ``cos, sin`` of the left chain's links, then the right's."""
 
 
 
@@ -41,9 +43,14 @@ GEOMETRY_SIZE = 16
 def _geometry(p, q, qd, geo):  # noqa: ANN001, ANN202
     """Open-tree angles/rates and ``R = d(q3, q4)/d(q1, q2)`` into ``geo``.
 
-    ``geo`` (16 floats) receives ``ql = (q1, q3)`` [0:2], ``qr = (q2, q4)``
+    ``geo`` (:data:`GEOMETRY_SIZE` floats) receives ``ql = (q1, q3)`` [0:2], ``qr = (q2, q4)``
     [2:4], their rates ``qdl`` [4:6] and ``qdr`` [6:8], ``rho`` [8:12]
-    (row-major 2x2, rows q3, q4) and ``A_pas^{-1}`` [12:16] (row-major 2x2).
+    (row-major 2x2, rows q3, q4), ``A_pas^{-1}`` [12:16] (row-major 2x2) and the cosine and
+    sine of each link's absolute angle [16:24] (:data:`_TRIG`).
+
+    The chains' terms and ``Jdot`` read those instead of taking their own: the same angles, formed
+    the same way, so the same floats, once per evaluation. The compiler cannot see that itself in
+    the production loop, whose states live in arrays that may share memory with ``geo``.
     """
     l1 = p[_L1]
     l3 = p[_L3]
@@ -75,6 +82,17 @@ def _geometry(p, q, qd, geo):  # noqa: ANN001, ANN202
     geo[1] = th13 - q[0]
     geo[2] = q[1]
     geo[3] = th24 - q[1]
+    # the links' absolute angles as the chains form them (q1 + (th13 - q1) need not be th13's float)
+    left = geo[0] + geo[1]
+    right = geo[2] + geo[3]
+    geo[_TRIG] = c1
+    geo[_TRIG + 1] = s1
+    geo[_TRIG + 2] = math.cos(left)
+    geo[_TRIG + 3] = math.sin(left)
+    geo[_TRIG + 4] = c2
+    geo[_TRIG + 5] = s2
+    geo[_TRIG + 6] = math.cos(right)
+    geo[_TRIG + 7] = math.sin(right)
     s13 = math.sin(th13)
     c13 = math.cos(th13)
     s24 = math.sin(th24)
@@ -121,39 +139,40 @@ def _rates(geo, w0, w1):  # noqa: ANN001, ANN202
 
 
 @njit(cache=True, inline="always")
-def _chain_jdot_times(la, lb, th_a, th_ab, w_a, w_ab, v0, v1):  # noqa: ANN001, ANN202, PLR0913
-    """``Jdot v`` of a 2-link chain (lengths ``la``, ``lb``; absolute angles and rates of its links),
-    ``Jdot = [[-la ca wa - lb cab wab, -lb cab wab], [-la sa wa - lb sab wab, -lb sab wab]]``."""
-    x = (-la * math.cos(th_a) * w_a - lb * math.cos(th_ab) * w_ab) * v0 - lb * math.cos(th_ab) * w_ab * v1
-    y = (-la * math.sin(th_a) * w_a - lb * math.sin(th_ab) * w_ab) * v0 - lb * math.sin(th_ab) * w_ab * v1
+def _chain_jdot_times(la, lb, ca, sa, cab, sab, w_a, w_ab, v0, v1):  # noqa: ANN001, ANN202, PLR0913
+    """``Jdot v`` of a 2-link chain (lengths ``la``, ``lb``; cosines, sines and rates of its links'
+    absolute angles), ``Jdot = [[-la ca wa - lb cab wab, -lb cab wab], [-la sa wa - lb sab wab, -lb sab wab]]``."""
+    x = (-la * ca * w_a - lb * cab * w_ab) * v0 - lb * cab * w_ab * v1
+    y = (-la * sa * w_a - lb * sab * w_ab) * v0 - lb * sab * w_ab * v1
     return x, y
 
 
 @njit(cache=True, inline="always")
 def _jdot_times(p, geo, vl0, vl1, vr0, vr1):  # noqa: ANN001, ANN202
     """``Jdot_left vl - Jdot_right vr`` (rates of the constraint), as two floats."""
-    lx, ly = _chain_jdot_times(p[_L1], p[_L3], geo[0], geo[0] + geo[1], geo[4], geo[4] + geo[5], vl0, vl1)
-    rx, ry = _chain_jdot_times(p[_L2], p[_L4], geo[2], geo[2] + geo[3], geo[6], geo[6] + geo[7], vr0, vr1)
+    t = _TRIG
+    lx, ly = _chain_jdot_times(p[_L1], p[_L3], geo[t], geo[t + 1], geo[t + 2], geo[t + 3], geo[4], geo[4] + geo[5],
+                               vl0, vl1)
+    rx, ry = _chain_jdot_times(p[_L2], p[_L4], geo[t + 4], geo[t + 5], geo[t + 6], geo[t + 7], geo[6],
+                               geo[6] + geo[7], vr0, vr1)
     return lx - rx, ly - ry
 
 
 @njit(cache=True, inline="always")
-def _chain(p, base, g, th0, th1, d0, d1):  # noqa: ANN001, ANN202, PLR0913
-    """One open 2-link chain (parameters from ``p[base]``, layout ``W(4) w(2) I(2)``) at
-    relative angles ``th`` and rates ``d``: its mass matrix ``(k00, k01, k11)`` and
-    ``C' qd' + G'`` ``(b0, b1)``.
+def _chain(p, base, g, geo, trig, d0, d1):  # noqa: ANN001, ANN202, PLR0913
+    """One open 2-link chain (parameters from ``p[base]``, layout ``W(4) w(2) I(2)``) with the
+    cosines and sines of its links' absolute angles at ``geo[trig:trig + 4]`` (:func:`_geometry`)
+    and relative rates ``d``: its mass matrix ``(k00, k01, k11)`` and ``C' qd' + G'`` ``(b0, b1)``.
 
     :class:`pdsmc_ros.robots.chain.PlanarChain`'s terms written out for two links,
     in scalars so a closed loop keeps them in registers.
     """
-    a0 = th0
-    a1 = a0 + th1
     e0 = d0
     e1 = e0 + d1
-    c0 = math.cos(a0)
-    s0 = math.sin(a0)
-    c1 = math.cos(a1)
-    s1 = math.sin(a1)
+    c0 = geo[trig]
+    s0 = geo[trig + 1]
+    c1 = geo[trig + 2]
+    s1 = geo[trig + 3]
     w00 = p[base]
     w01 = p[base + 1]
     w10 = p[base + 2]
@@ -182,8 +201,8 @@ def _passive_rates(geo, cdot0, cdot1):  # noqa: ANN001, ANN202
 @njit(cache=True, inline="always")
 def _terms(p, geo):  # noqa: ANN001, ANN202
     """Reduced ``Mbar`` ``(m00, m01, m11)`` and ``C qd + G`` ``(b0, b1)`` at ``geo`` (:func:`_geometry`)."""
-    l00, l01, l11, lb0, lb1 = _chain(p, _LEFT, p[_G], geo[0], geo[1], geo[4], geo[5])
-    q00, q01, q11, qb0, qb1 = _chain(p, _RIGHT, p[_G], geo[2], geo[3], geo[6], geo[7])
+    l00, l01, l11, lb0, lb1 = _chain(p, _LEFT, p[_G], geo, _TRIG, geo[4], geo[5])
+    q00, q01, q11, qb0, qb1 = _chain(p, _RIGHT, p[_G], geo, _TRIG + 4, geo[6], geo[7])
     cdot0, cdot1 = _jdot_times(p, geo, geo[4], geo[5], geo[6], geo[7])
     pas0, pas1 = _passive_rates(geo, cdot0, cdot1)
     # f = C' qd' + M' rhodot qd + G' per chain
@@ -275,20 +294,20 @@ def model_terms(p, q, qd, v, mass, grav, cor, work):  # noqa: ANN001, ANN202, PL
 def _coriolis_at(p, geo, v, out, work):  # noqa: ANN001, ANN202
     """:func:`coriolis_times` at a computed geometry; scratch from ``work[GEOMETRY_SIZE:]``."""
     rho = geo[8:12]
-    vl = work[16:18]
-    vr = work[18:20]
+    vl = work[GEOMETRY_SIZE : GEOMETRY_SIZE + 2]
+    vr = work[GEOMETRY_SIZE + 2 : GEOMETRY_SIZE + 4]
     vl[0] = v[0]
     vl[1] = rho[0] * v[0] + rho[1] * v[1]
     vr[0] = v[1]
     vr[1] = rho[2] * v[0] + rho[3] * v[1]
-    cl = work[20:22]
-    cr = work[22:24]
-    chain_coriolis_times(p[_LEFT:_LEFT + 4], geo[0:2], geo[4:6], vl, cl, work[40:], N)
-    chain_coriolis_times(p[_RIGHT:_RIGHT + 4], geo[2:4], geo[6:8], vr, cr, work[40:], N)
+    cl = work[GEOMETRY_SIZE + 4 : GEOMETRY_SIZE + 6]
+    cr = work[GEOMETRY_SIZE + 6 : GEOMETRY_SIZE + 8]
+    chain_coriolis_times(p[_LEFT:_LEFT + 4], geo[0:2], geo[4:6], vl, cl, work[GEOMETRY_SIZE + 8 :], N)
+    chain_coriolis_times(p[_RIGHT:_RIGHT + 4], geo[2:4], geo[6:8], vr, cr, work[GEOMETRY_SIZE + 8 :], N)
     cdot0, cdot1 = _jdot_times(p, geo, vl[0], vl[1], vr[0], vr[1])
     pas0, pas1 = _passive_rates(geo, cdot0, cdot1)
-    _, l01, l11, _, _ = _chain(p, _LEFT, 0.0, geo[0], geo[1], geo[4], geo[5])
-    _, q01, q11, _, _ = _chain(p, _RIGHT, 0.0, geo[2], geo[3], geo[6], geo[7])
+    _, l01, l11, _, _ = _chain(p, _LEFT, 0.0, geo, _TRIG, geo[4], geo[5])
+    _, q01, q11, _, _ = _chain(p, _RIGHT, 0.0, geo, _TRIG + 4, geo[6], geo[7])
     fl0 = cl[0] + l01 * pas0
     fl1 = cl[1] + l11 * pas0
     fr0 = cr[0] + q01 * pas1
@@ -319,9 +338,8 @@ def outputs(p, q, qd, out, work):  # noqa: ANN001, ANN201
     ``out[4:6]``."""
     geo = work[0:GEOMETRY_SIZE]
     _geometry(p, q, qd, geo)
-    th13 = geo[0] + geo[1]
-    out[0] = p[_L1] * math.cos(geo[0]) + p[_L3] * math.cos(th13)
-    out[1] = p[_L1] * math.sin(geo[0]) + p[_L3] * math.sin(th13)
+    out[0] = p[_L1] * geo[_TRIG] + p[_L3] * geo[_TRIG + 2]
+    out[1] = p[_L1] * geo[_TRIG + 1] + p[_L3] * geo[_TRIG + 3]
     for i in range(2):
         angle = geo[1 + 2 * i]
         out[2 + i] = math.pi - (math.pi - angle) % (2.0 * math.pi)
