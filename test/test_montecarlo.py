@@ -69,6 +69,19 @@ def test_every_csv_cell_is_a_plain_number_or_word(tmp_path: Path) -> None:
         assert row["run"] in ("0", "1") and "np." not in "".join(row.values())
 
 
+def test_the_summary_takes_the_runs_in_their_order_whatever_order_they_finish_in() -> None:
+    """The engine hands rows back as tasks finish; a mean's last digit depends on its order of summation."""
+    from pdsmc_ros.experiments.montecarlo import summarize
+
+    # in run order the small means add up before the large one; reversed, each is lost against it
+    values = [1e-16] * 10 + [1.0]
+    rows = [{"run": i, "controller": "pd", "contour_mean": v} for i, v in enumerate(values)]
+    assert sum(values) != sum(reversed(values))
+    ordered = summarize(rows, ["pd"], 0.5)
+    assert summarize(rows[::-1], ["pd"], 0.5) == ordered
+    assert ordered["pd"]["contour_mean_mean"] == float(np.mean(values))
+
+
 def test_bad_uncertainty_files_are_one_line(tmp_path: Path) -> None:
     cases = {
         "link_mas: {distribution: uniform, relative: 0.1}\n": "unknown parameter 'link_mas'",

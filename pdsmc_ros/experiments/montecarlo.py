@@ -188,7 +188,12 @@ def base_specs(robot: str, contour: str, controllers: Sequence[str], **options: 
 def summarize(rows: Sequence[Mapping[str, Any]], controllers: Sequence[str], bound: float) -> dict[str, Any]:
     """Per controller: mean, p5, p50, p95 and worst of the runs' mean contour error, the share
     of runs whose mean contour error is within the bound (runs that failed count as outside), and
-    the mean of each run score (``<score>_mean``: :data:`pdsmc_ros.scores.SCORE_NAMES`)."""
+    the mean of each run score (``<score>_mean``: :data:`pdsmc_ros.scores.SCORE_NAMES`).
+
+    The rows are taken in run order whatever order they come in (the engine hands them back as
+    they finish): a sum's last digit depends on its order, and the summary depends on the seed alone.
+    """
+    rows = sorted(rows, key=lambda r: r["run"])
     out: dict[str, Any] = {}
     for controller in controllers:
         values = np.array([float(r.get("contour_mean", math.nan)) for r in rows if r["controller"] == controller])
