@@ -24,18 +24,18 @@ import statistics
 import sys
 import time
 
-from pdsmc_ros.engine import dask_client
+from pdsmc_ros.engine import dask_client, keep_freed_memory, run_tasks
 from pdsmc_ros.experiments.montecarlo import base_specs, load_uncertainty, run_sample
 
 ROBOT, CONTOUR, CONTROLLERS = "parallel_5r", "circle", ("pd", "smc", "pdsmc")
 
 
 def timed_tasks(client, runs: int, first: int, specs, spreads, workers=None) -> float:  # noqa: ANN001
-    """Wall time of ``runs`` Monte Carlo tasks on ``client`` (on ``workers`` only, if given)."""
+    """Wall time of ``runs`` Monte Carlo tasks on ``client`` (on ``workers`` only, if given), submitted as
+    ``pdsmc montecarlo`` submits them (the engine's ``run_tasks``: its tasks set the worker's allocator up)."""
     start = time.perf_counter()
-    futures = [client.submit(run_sample, first + i, 1, specs, spreads, workers=workers, pure=False)
-               for i in range(runs)]
-    client.gather(futures)
+    for _ in run_tasks(client, run_sample, [(first + i, 1, specs, spreads) for i in range(runs)], workers=workers):
+        pass
     return time.perf_counter() - start
 
 
@@ -78,6 +78,7 @@ def main() -> int:
     args = parser.parse_args()
     specs = base_specs(ROBOT, CONTOUR, list(CONTROLLERS))
     spreads = load_uncertainty()
+    keep_freed_memory()  # as the engine's tasks do: the in-process figures are of the same allocator
     run_sample(10_000, 1, specs, spreads)  # compile here too
     if args.profile:
         profile(args.profile, specs, spreads)
@@ -87,8 +88,8 @@ def main() -> int:
     with dask_client(None, 2) as client:
         addresses = sorted(client.scheduler_info()["workers"])
         # every worker loads its kernels before any clock starts
-        client.gather([client.submit(run_sample, 10_000 + i, 1, specs, spreads, workers=[address], pure=False)
-                       for i, address in enumerate(addresses)])
+        for i, address in enumerate(addresses):
+            timed_tasks(client, 1, 10_000 + i, specs, spreads, workers=[address])
         # alternating rounds: this machine's speed drifts by +-25 % within minutes
         for r in range(args.rounds):
             first = 1_000 * r

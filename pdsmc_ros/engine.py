@@ -79,15 +79,18 @@ def dask_client(scheduler: str | None = None, workers: int | None = None) -> Ite
         cluster.close()
 
 
-def run_tasks(client: Any, fn: Callable[..., Any], arguments: Sequence[tuple[Any, ...]]) -> Iterator[tuple[int, Any]]:
-    """``(index, fn(*arguments[index]))`` as the tasks finish, on ``client``'s workers.
+def run_tasks(client: Any, fn: Callable[..., Any], arguments: Sequence[tuple[Any, ...]], *,
+              workers: Sequence[str] | None = None) -> Iterator[tuple[int, Any]]:
+    """``(index, fn(*arguments[index]))`` as the tasks finish, on ``client``'s workers (on ``workers``
+    only: their addresses, if given).
 
     On KeyboardInterrupt the tasks not yet finished are cancelled and the interrupt re-raised.
     """
     from distributed import as_completed
 
     batch = uuid.uuid4().hex  # unique keys per call; "pdsmc_<fn>" is what a dashboard groups them by
-    futures = [client.submit(_task, fn, *args, key=f"pdsmc_{fn.__name__}-{i}-{batch}", pure=False)
+    futures = [client.submit(_task, fn, *args, key=f"pdsmc_{fn.__name__}-{i}-{batch}", pure=False,
+                             workers=None if workers is None else list(workers))
                for i, args in enumerate(arguments)]
     index = {future.key: i for i, future in enumerate(futures)}
     try:
