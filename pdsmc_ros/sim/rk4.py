@@ -15,6 +15,9 @@ from numba import njit
 from ..robots import compiled as robot
 from ..robots.base import FloatArray
 
+# the rows of ``stages``: the accelerations a1..a4, the trial rates v2..v4, the trial angles, the result
+A1, A2, A3, A4, V2, V3, V4, X, Q_OUT, QD_OUT = range(10)
+
 
 @njit(cache=True)
 def rk4_advance(kind, p, q, qd, tau, h, stages, work):  # noqa: ANN001, ANN201, PLR0913
@@ -24,44 +27,37 @@ def rk4_advance(kind, p, q, qd, tau, h, stages, work):  # noqa: ANN001, ANN201, 
     the end; ``q`` advances by ``h/6 (qd + 2 v2 + 2 v3 + v4)``, ``qd`` by ``h/6 (a1 + 2 a2 + 2 a3 + a4)``.
 
     ``kind`` is a compile-time constant (see :func:`pdsmc_ros.robots.compiled.accelerations`);
-    ``stages`` is ``(STAGE_ROWS, n)``, ``work`` the rest: a loop of many steps carves
-    them once (:func:`pdsmc_ros.sim.loop.closed_loop`).
+    ``stages`` is ``(STAGE_ROWS, n)`` (rows :data:`A1` ... :data:`QD_OUT`), ``work`` the rest: a loop of
+    many steps carves them once (:func:`pdsmc_ros.sim.loop.closed_loop`). The arithmetic indexes
+    ``stages`` by row and joint rather than through a view of each row: a view a row a step cost the
+    closed loop about 5 % (docs/PERFORMANCE.md).
     """
     n = robot.size(kind, tau.shape[0])
     half = 0.5 * h
-    a1 = stages[0]
-    a2 = stages[1]
-    a3 = stages[2]
-    a4 = stages[3]
-    v2 = stages[4]
-    v3 = stages[5]
-    v4 = stages[6]
-    x = stages[7]
-    q_out = stages[8]
-    qd_out = stages[9]
-    robot.accelerations(kind, p, q, qd, tau, a1, work)
+    robot.accelerations(kind, p, q, qd, tau, stages[A1], work)
     for i in range(n):
-        v2[i] = qd[i] + half * a1[i]
-        x[i] = q[i] + half * qd[i]
-    robot.accelerations(kind, p, x, v2, tau, a2, work)
+        stages[V2, i] = qd[i] + half * stages[A1, i]
+        stages[X, i] = q[i] + half * qd[i]
+    robot.accelerations(kind, p, stages[X], stages[V2], tau, stages[A2], work)
     for i in range(n):
-        v3[i] = qd[i] + half * a2[i]
-        x[i] = q[i] + half * v2[i]
-    robot.accelerations(kind, p, x, v3, tau, a3, work)
+        stages[V3, i] = qd[i] + half * stages[A2, i]
+        stages[X, i] = q[i] + half * stages[V2, i]
+    robot.accelerations(kind, p, stages[X], stages[V3], tau, stages[A3], work)
     for i in range(n):
-        v4[i] = qd[i] + h * a3[i]
-        x[i] = q[i] + h * v3[i]
-    robot.accelerations(kind, p, x, v4, tau, a4, work)
+        stages[V4, i] = qd[i] + h * stages[A3, i]
+        stages[X, i] = q[i] + h * stages[V3, i]
+    robot.accelerations(kind, p, stages[X], stages[V4], tau, stages[A4], work)
     sixth = h / 6.0
     for i in range(n):
-        q_out[i] = q[i] + sixth * (qd[i] + 2.0 * v2[i] + 2.0 * v3[i] + v4[i])
-        qd_out[i] = qd[i] + sixth * (a1[i] + 2.0 * a2[i] + 2.0 * a3[i] + a4[i])
+        stages[Q_OUT, i] = q[i] + sixth * (qd[i] + 2.0 * stages[V2, i] + 2.0 * stages[V3, i] + stages[V4, i])
+        stages[QD_OUT, i] = qd[i] + sixth * (stages[A1, i] + 2.0 * stages[A2, i] + 2.0 * stages[A3, i]
+                                             + stages[A4, i])
     for i in range(n):
-        q[i] = q_out[i]
-        qd[i] = qd_out[i]
+        q[i] = stages[Q_OUT, i]
+        qd[i] = stages[QD_OUT, i]
 
 
-STAGE_ROWS = 10
+STAGE_ROWS = QD_OUT + 1
 """Rows of ``n`` floats :func:`rk4_advance` needs (stages, trial state, result)."""
 
 
