@@ -14,7 +14,7 @@ from __future__ import annotations
 from numba import njit
 
 from .baselines import CTC, PDG, ctc, pdg
-from .laws import PD, PDSMC, SMC, errors, pd, pdsmc, smc
+from .laws import PD, PDSMC, SMC, errors, joint_errors, pd, pdsmc, smc
 from .python_form import PYTHON_LAW
 from .python_form import torque as python_torque
 from .sliding import ISMC, STA, ismc, sta
@@ -30,15 +30,19 @@ def law_torque(code, gains, smc_model, kind, p, q, qd, q_ref, qd_ref, qdd_ref, t
     if code >= PDG:  # a law beside the thesis's (codes 3 and up: its gain matrix has other rows)
         _beside_the_thesis(code, gains, smc_model, kind, p, q, qd, q_ref, qd_ref, qdd_ref, tau, work, n, state, h)
         return
-    e = work[0:n]
-    ed = work[n : 2 * n]
-    sat = work[2 * n : 3 * n]
-    errors(gains, q, qd, q_ref, qd_ref, e, ed, sat, n)
     if code == PD:
-        pd(gains, e, ed, tau, n)
+        for i in range(n):
+            e, ed, _ = joint_errors(gains, q, qd, q_ref, qd_ref, i)
+            tau[i] = pd(gains, e, ed, i)
     elif code == PDSMC:
-        pdsmc(gains, e, ed, sat, tau, n)
+        for i in range(n):
+            e, ed, sat = joint_errors(gains, q, qd, q_ref, qd_ref, i)
+            tau[i] = pdsmc(gains, e, ed, sat, i)
     elif code == SMC:
+        e = work[0:n]
+        ed = work[n : 2 * n]
+        sat = work[2 * n : 3 * n]
+        errors(gains, q, qd, q_ref, qd_ref, e, ed, sat, n)
         smc(gains, smc_model, kind, p, q, qd, q_ref, qd_ref, qdd_ref, e, ed, sat, tau, work[3 * n :])
 
 

@@ -80,31 +80,41 @@ def smc_linear_gains(g: FloatArray, smc_model: FloatArray, mass: FloatArray) -> 
 # Compiled forms (one state; scratch from ``work``)
 # --------------------------------------------------------------------------- #
 @njit(cache=True, inline="always")
+def joint_errors(g, q, qd, q_ref, qd_ref, i):  # noqa: ANN001, ANN201, PLR0913
+    """Joint ``i``'s ``e``, ``edot`` (Eq. 3.2) and ``sat(s / phi)`` (Eq. 3.45) of the thesis laws' gain
+    matrix, as three floats.
+
+    The thesis laws are written per joint, in scalars: the loop that calls them keeps them in
+    registers (through scratch arrays they cost the serial arm's closed loop about 4 %,
+    docs/PERFORMANCE.md).
+    """
+    e = q_ref[i] - q[i]
+    ed = qd_ref[i] - qd[i]
+    s = (g[LAM, i] * e + ed) / g[PHI, i]
+    if s > 1.0:
+        s = 1.0
+    elif s < -1.0:
+        s = -1.0
+    return e, ed, s
+
+
+@njit(cache=True, inline="always")
 def errors(g, q, qd, q_ref, qd_ref, e, ed, sat, n):  # noqa: ANN001, ANN201, PLR0913
-    """``e``, ``edot`` (Eq. 3.2) and ``sat(s / phi)`` (Eq. 3.45) of the thesis laws' gain matrix."""
+    """:func:`joint_errors` of every joint, into ``e``, ``edot`` and ``sat`` (the laws that need them as arrays)."""
     for i in range(n):
-        e[i] = q_ref[i] - q[i]
-        ed[i] = qd_ref[i] - qd[i]
-        s = (g[LAM, i] * e[i] + ed[i]) / g[PHI, i]
-        if s > 1.0:
-            s = 1.0
-        elif s < -1.0:
-            s = -1.0
-        sat[i] = s
+        e[i], ed[i], sat[i] = joint_errors(g, q, qd, q_ref, qd_ref, i)
 
 
 @njit(cache=True, inline="always")
-def pd(g, e, ed, tau, n):  # noqa: ANN001, ANN201
-    """PD, Eq. (3.4)."""
-    for i in range(n):
-        tau[i] = g[KP, i] * e[i] + g[KD, i] * ed[i]
+def pd(g, e, ed, i):  # noqa: ANN001, ANN201
+    """PD, Eq. (3.4): joint ``i``'s torque."""
+    return g[KP, i] * e + g[KD, i] * ed
 
 
 @njit(cache=True, inline="always")
-def pdsmc(g, e, ed, sat, tau, n):  # noqa: ANN001, ANN201
-    """PD-SMC, Eq. (3.44)."""
-    for i in range(n):
-        tau[i] = g[KP, i] * e[i] + g[KD, i] * ed[i] + g[KS, i] * sat[i]
+def pdsmc(g, e, ed, sat, i):  # noqa: ANN001, ANN201
+    """PD-SMC, Eq. (3.44): joint ``i``'s torque."""
+    return g[KP, i] * e + g[KD, i] * ed + g[KS, i] * sat
 
 
 @njit(cache=True)
