@@ -11,7 +11,6 @@ import math
 
 from numba import njit
 
-from .chain import chain_coriolis_times
 from .kernel_math import entry_at
 
 PARALLEL_5R = 1
@@ -267,7 +266,7 @@ def coriolis_times(p, q, qd, v, out, work):  # noqa: ANN001, ANN202
     """``C(q, qd) v`` of the reduced model, ``C = rho^T C' rho + rho^T M' rhodot``."""
     geo = work[0:GEOMETRY_SIZE]
     _geometry(p, q, qd, geo)
-    _coriolis_at(p, geo, v, out, work)
+    _coriolis_at(p, geo, v, out)
 
 
 @njit(cache=True)
@@ -283,7 +282,7 @@ def model_terms(p, q, qd, v, mass, grav, cor, work):  # noqa: ANN001, ANN202, PL
     mass[0, 1] = m01
     mass[1, 0] = m01
     mass[1, 1] = m11
-    _coriolis_at(p, geo, v, cor, work)
+    _coriolis_at(p, geo, v, cor)
     _rates(geo, 0.0, 0.0)  # gravity: C qd + G at rest
     _, _, _, g0, g1 = _terms(p, geo)
     grav[0] = g0
@@ -291,29 +290,45 @@ def model_terms(p, q, qd, v, mass, grav, cor, work):  # noqa: ANN001, ANN202, PL
 
 
 @njit(cache=True, inline="always")
-def _coriolis_at(p, geo, v, out, work):  # noqa: ANN001, ANN202
-    """:func:`coriolis_times` at a computed geometry; scratch from ``work[GEOMETRY_SIZE:]``."""
-    rho = geo[8:12]
-    vl = work[GEOMETRY_SIZE : GEOMETRY_SIZE + 2]
-    vr = work[GEOMETRY_SIZE + 2 : GEOMETRY_SIZE + 4]
-    vl[0] = v[0]
-    vl[1] = rho[0] * v[0] + rho[1] * v[1]
-    vr[0] = v[1]
-    vr[1] = rho[2] * v[0] + rho[3] * v[1]
-    cl = work[GEOMETRY_SIZE + 4 : GEOMETRY_SIZE + 6]
-    cr = work[GEOMETRY_SIZE + 6 : GEOMETRY_SIZE + 8]
-    chain_coriolis_times(p[_LEFT:_LEFT + 4], geo[0:2], geo[4:6], vl, cl, work[GEOMETRY_SIZE + 8 :], N)
-    chain_coriolis_times(p[_RIGHT:_RIGHT + 4], geo[2:4], geo[6:8], vr, cr, work[GEOMETRY_SIZE + 8 :], N)
-    cdot0, cdot1 = _jdot_times(p, geo, vl[0], vl[1], vr[0], vr[1])
+def _chain_coriolis_times(p, base, geo, trig, d0, d1, v0, v1):  # noqa: ANN001, ANN202, PLR0913
+    """``C'(q', qd') v`` of one open 2-link chain (``W`` from ``p[base]``), cosines and sines of its links at
+    ``geo[trig:trig + 4]``, relative rates ``d`` and ``v``: :func:`~pdsmc_ros.robots.chain.chain_coriolis_times`
+    written out for two links in the same order of operations, as two floats (its sums start from 0.0 as
+    its loops do: the very floats, but for the sign of a link angle that is exactly -0.0)."""
+    c0 = geo[trig]
+    s0 = geo[trig + 1]
+    c1 = geo[trig + 2]
+    s1 = geo[trig + 3]
+    thd0 = 0.0 + d0
+    thd1 = thd0 + d1
+    thv0 = 0.0 + v0
+    thv1 = thv0 + v1
+    y0 = 0.0 + p[base] * (s0 * c0 - c0 * s0) * thd0 * thv0
+    y0 += p[base + 1] * (s0 * c1 - c0 * s1) * thd1 * thv1
+    y1 = 0.0 + p[base + 2] * (s1 * c0 - c1 * s0) * thd0 * thv0
+    y1 += p[base + 3] * (s1 * c1 - c1 * s1) * thd1 * thv1
+    return 0.0 + y0 + y1, 0.0 + y1
+
+
+@njit(cache=True, inline="always")
+def _coriolis_at(p, geo, v, out):  # noqa: ANN001, ANN202
+    """:func:`coriolis_times` at a computed geometry, in scalars (no scratch)."""
+    vl0 = v[0]
+    vl1 = geo[8] * v[0] + geo[9] * v[1]
+    vr0 = v[1]
+    vr1 = geo[10] * v[0] + geo[11] * v[1]
+    cl0, cl1 = _chain_coriolis_times(p, _LEFT, geo, _TRIG, geo[4], geo[5], vl0, vl1)
+    cr0, cr1 = _chain_coriolis_times(p, _RIGHT, geo, _TRIG + 4, geo[6], geo[7], vr0, vr1)
+    cdot0, cdot1 = _jdot_times(p, geo, vl0, vl1, vr0, vr1)
     pas0, pas1 = _passive_rates(geo, cdot0, cdot1)
     _, l01, l11, _, _ = _chain(p, _LEFT, 0.0, geo, _TRIG, geo[4], geo[5])
     _, q01, q11, _, _ = _chain(p, _RIGHT, 0.0, geo, _TRIG + 4, geo[6], geo[7])
-    fl0 = cl[0] + l01 * pas0
-    fl1 = cl[1] + l11 * pas0
-    fr0 = cr[0] + q01 * pas1
-    fr1 = cr[1] + q11 * pas1
-    out[0] = fl0 + rho[0] * fl1 + rho[2] * fr1
-    out[1] = rho[1] * fl1 + fr0 + rho[3] * fr1
+    fl0 = cl0 + l01 * pas0
+    fl1 = cl1 + l11 * pas0
+    fr0 = cr0 + q01 * pas1
+    fr1 = cr1 + q11 * pas1
+    out[0] = fl0 + geo[8] * fl1 + geo[10] * fr1
+    out[1] = geo[9] * fl1 + fr0 + geo[11] * fr1
 
 
 @njit(cache=True)
