@@ -245,12 +245,18 @@ def terms(p, q, qd, mass, bias, work):  # noqa: ANN001, ANN202
     geo = work[0:GEOMETRY_SIZE]
     _geometry(p, q, qd, geo)
     m00, m01, m11, b0, b1 = _terms(p, geo)
+    _put_mass(mass, m00, m01, m11)
+    bias[0] = b0
+    bias[1] = b1
+
+
+@njit(cache=True, inline="always")
+def _put_mass(mass, m00, m01, m11):  # noqa: ANN001, ANN202
+    """The symmetric 2 x 2 ``Mbar`` of :func:`_terms` into ``mass``."""
     mass[0, 0] = m00
     mass[0, 1] = m01
     mass[1, 0] = m01
     mass[1, 1] = m11
-    bias[0] = b0
-    bias[1] = b1
 
 
 @njit(cache=True, inline="always")
@@ -278,10 +284,7 @@ def model_terms(p, q, qd, v, mass, grav, cor, work):  # noqa: ANN001, ANN202, PL
     geo = work[0:GEOMETRY_SIZE]
     _geometry(p, q, qd, geo)
     m00, m01, m11, _, _ = _terms(p, geo)
-    mass[0, 0] = m00
-    mass[0, 1] = m01
-    mass[1, 0] = m01
-    mass[1, 1] = m11
+    _put_mass(mass, m00, m01, m11)
     _coriolis_at(p, geo, v, cor)
     _rates(geo, 0.0, 0.0)  # gravity: C qd + G at rest
     _, _, _, g0, g1 = _terms(p, geo)
