@@ -28,9 +28,14 @@ KERNEL = re.compile(r"^@njit\b", re.MULTILINE)
 _done = False
 
 
+OPTIONS = PACKAGE_DIR / "kernel_options.py"
+"""The kernels' compile options: a change there changes every kernel, and no kernel's file."""
+
+
 def kernel_sources() -> list[Path]:
-    """The package's source files that define numba kernels."""
-    return sorted(path for path in PACKAGE_DIR.rglob("*.py") if KERNEL.search(path.read_text(errors="replace")))
+    """The package's source files that define numba kernels, and their compile options."""
+    return sorted(path for path in PACKAGE_DIR.rglob("*.py")
+                  if path == OPTIONS or KERNEL.search(path.read_text(errors="replace")))
 
 
 def digest(sources: list[Path]) -> str:

@@ -31,6 +31,8 @@ import math
 import numpy as np
 from numba import njit
 
+from .kernel_options import ALLOCATION_FREE
+
 MOMENT_COLUMNS = 6
 """Columns of ``moments`` after the joints' (x, y, magnitude, contour, signed x, signed y)."""
 
@@ -74,7 +76,7 @@ def _peak(peaks, row, j, x):  # noqa: ANN001, ANN202
         peaks[row, j] = x
 
 
-@njit(cache=True)
+@njit(**ALLOCATION_FREE)
 def accumulate_instants(moments, peaks, counts, axial, task, contour, tau, bound):  # noqa: ANN001, ANN201, PLR0913
     """Add the consecutive statistics instants ``axial = q_d - q`` (m, n), ``task = p_d - p``
     (m, 2), the contour error (m,) and the torque (m, n); ``bound`` is the contour bound."""
@@ -98,7 +100,7 @@ def accumulate_instants(moments, peaks, counts, axial, task, contour, tau, bound
             counts[1] += 1
 
 
-@njit(cache=True)
+@njit(**ALLOCATION_FREE)
 def accumulate_steps(sums, last, peaks, counts, error, tau, h):  # noqa: ANN001, ANN201, PLR0913
     """Add the consecutive control steps ``error = q_d - q`` (m, n) and their torque (m, n); ``h``
     is the control period (step ``k`` at ``k h``)."""

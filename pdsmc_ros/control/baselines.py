@@ -14,6 +14,7 @@ from collections.abc import Mapping
 import numpy as np
 from numba import njit
 
+from ..kernel_options import ALLOCATION_FREE
 from ..robots import compiled as robot
 from ..robots.base import FloatArray, Manipulator
 from .laws import GAIN_KD, GAIN_KP, THESIS_ROWS, model_part, pd_linear_gains
@@ -31,7 +32,7 @@ CTC_ROWS = (GAIN_OMEGA, GAIN_ZETA)
 OMEGA, ZETA = range(2)
 
 
-@njit(cache=True)
+@njit(**ALLOCATION_FREE)
 def pdg(g, m, kind, p, q, q_ref, e, ed, tau, work):  # noqa: ANN001, ANN201, PLR0913
     """PD with gravity compensation: ``tau = Kp e + Kd edot + Ghat(q)``.
 
@@ -49,7 +50,7 @@ def pdg(g, m, kind, p, q, q_ref, e, ed, tau, work):  # noqa: ANN001, ANN201, PLR
         tau[i] = g[KP, i] * e[i] + g[KD, i] * ed[i] + m[S_GRAVITY] * grav[i]
 
 
-@njit(cache=True)
+@njit(**ALLOCATION_FREE)
 def ctc(g, m, kind, p, q, qd, q_ref, qd_ref, qdd_ref, tau, work):  # noqa: ANN001, ANN201, PLR0913
     """Computed torque: ``tau = Mhat(q) (qdd_d + Kd edot + Kp e) + Chat(q, qd) qd + Ghat(q) + Bhat qd``.
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from numba import njit
 
+from ..kernel_options import ALLOCATION_FREE
 from .baselines import CTC, PDG, ctc, pdg
 from .laws import PD, PDSMC, SMC, errors, joint_errors, pd, pdsmc, smc
 from .python_form import PYTHON_LAW
@@ -46,7 +47,7 @@ def law_torque(code, gains, smc_model, kind, p, q, qd, q_ref, qd_ref, qdd_ref, t
         smc(gains, smc_model, kind, p, q, qd, q_ref, qd_ref, qdd_ref, e, ed, sat, tau, work[3 * n :])
 
 
-@njit(cache=True)
+@njit(**ALLOCATION_FREE)
 def _beside_the_thesis(code, gains, smc_model, kind, p, q, qd, q_ref, qd_ref, qdd_ref, tau, work, n, state, h):  # noqa: ANN001, ANN202, PLR0913
     """The laws beside the thesis's, behind one call: the thesis laws' path stays what the compiled
     loop inlined before they came (bench/kernel.py within its noise of main's)."""
@@ -68,7 +69,7 @@ def _beside_the_thesis(code, gains, smc_model, kind, p, q, qd, q_ref, qd_ref, qd
         raise ValueError("unknown control law code: no branch in control.dispatch")
 
 
-@njit(cache=True)
+@njit(**ALLOCATION_FREE)
 def compiled_torque(code, gains, smc_model, kind, p, x, tau, work, state, h):  # noqa: ANN001, ANN201, PLR0913
     """The law ``code`` for one state, into ``tau``; its internal ``state`` stepped by ``h``.
 

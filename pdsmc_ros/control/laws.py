@@ -17,6 +17,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from ..kernel_options import ALLOCATION_FREE
 from ..robots import compiled as robot
 from ..robots.base import FloatArray
 from .registry import (
@@ -117,7 +118,7 @@ def pdsmc(g, e, ed, sat, i):  # noqa: ANN001, ANN201
     return g[KP, i] * e + g[KD, i] * ed + g[KS, i] * sat
 
 
-@njit(cache=True)
+@njit(**ALLOCATION_FREE)
 def model_part(m, kind, p, q, qd, q_ref, qd_ref, a, v, tau, work):  # noqa: ANN001, ANN201, PLR0913
     """The model estimate's torque, ``Mhat a + Chat v + Ghat + s_B B v``, into ``tau`` (Eq. 3.15's model terms).
 
@@ -152,7 +153,7 @@ def model_part(m, kind, p, q, qd, q_ref, qd_ref, a, v, tau, work):  # noqa: ANN0
         )
 
 
-@njit(cache=True)
+@njit(**ALLOCATION_FREE)
 def smc(g, m, kind, p, q, qd, q_ref, qd_ref, qdd_ref, e, ed, sat, tau, work):  # noqa: ANN001, ANN201, PLR0913
     """SMC, Eq. (3.15): the model part with ``qdd_r = qdd_d + lambda edot``, ``qd_r = qd_d + lambda e``,
     plus ``Ks sat(s / phi)`` (added last: the same roundings as the equation's sum in its order)."""

@@ -15,6 +15,7 @@ from typing import Protocol
 
 from numba import njit, objmode
 
+from ..kernel_options import WITH_RUNTIME
 from ..robots.base import FloatArray
 
 PYTHON_LAW = 1000
@@ -43,7 +44,7 @@ def _call(code: int, q: FloatArray, qd: FloatArray, q_ref: FloatArray, qd_ref: F
     _LAWS[code - PYTHON_LAW].python_torque(q.copy(), qd.copy(), q_ref.copy(), qd_ref.copy(), qdd_ref.copy(), tau)
 
 
-@njit(cache=True)
+@njit(**WITH_RUNTIME)
 def torque(code, q, qd, q_ref, qd_ref, qdd_ref, tau):  # noqa: ANN001, ANN201, PLR0913
     """The Python law of ``code`` for one state, into ``tau``."""
     with objmode():

@@ -22,6 +22,7 @@ from numba import njit
 from numpy.typing import NDArray
 
 from ..errors import InvalidInputError
+from ..kernel_options import ALLOCATION_FREE
 from ..robots.base import FloatArray, Manipulator
 
 SAFE_MODES = ("damp", "hold")
@@ -231,7 +232,7 @@ runaway bounds (lower, upper position, rate), and the smaller of the velocity li
 runaway rate (the common case's test)."""
 
 
-@njit(cache=True)  # numba types the kernel when it compiles it
+@njit(**ALLOCATION_FREE)  # type: ignore[untyped-decorator]  # numba's stubs know no runtime option
 def watch(q: FloatArray, qd: FloatArray, step: int, bounds: FloatArray, first: NDArray[np.int64],
           at: FloatArray) -> int:
     """Check one state: whether it diverged, and record the first limit crossing of each joint.

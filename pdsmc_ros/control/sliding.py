@@ -17,6 +17,7 @@ from collections.abc import Mapping
 import numpy as np
 from numba import njit
 
+from ..kernel_options import ALLOCATION_FREE
 from ..robots.base import FloatArray, Manipulator
 from .laws import GAIN_KS, GAIN_LAM, GAIN_PHI, model_part
 from .registry import S_MASS, GainSpec, LawEntry, register_law
@@ -46,7 +47,7 @@ def _scratch(work, n):  # noqa: ANN001, ANN202
     return work[0:n], work[n : 2 * n], work[2 * n : 3 * n], work[3 * n : 4 * n], work[4 * n :]
 
 
-@njit(cache=True)
+@njit(**ALLOCATION_FREE)
 def sta(g, m, kind, p, q, qd, q_ref, qd_ref, qdd_ref, tau, work, state, h):  # noqa: ANN001, ANN201, PLR0913
     """Super-twisting SMC: the SMC's model part plus ``k1 |s|^(1/2) sign(s) + v``, ``vdot = k2 sign(s)``.
 
@@ -72,7 +73,7 @@ def sta(g, m, kind, p, q, qd, q_ref, qd_ref, qdd_ref, tau, work, state, h):  # n
         state[0, i] += h * g[K2, i] * sign[i]
 
 
-@njit(cache=True)
+@njit(**ALLOCATION_FREE)
 def ismc(g, m, kind, p, q, qd, q_ref, qd_ref, qdd_ref, tau, work, state, h):  # noqa: ANN001, ANN201, PLR0913
     """Integral SMC: the SMC's model part on ``s = edot + 2 lambda e + lambda^2 z``, ``z = int e dt``.
 

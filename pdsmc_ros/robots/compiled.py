@@ -35,6 +35,7 @@ from numba.core import types
 from numba.core.errors import TypingError
 from numba.extending import overload
 
+from ..kernel_options import ALLOCATION_FREE
 from . import parallel_5r_kernels as five_bar
 from . import python_form, spatial_layout
 from . import serial_3r as serial
@@ -231,44 +232,44 @@ def _accelerations(kind, p, q, qd, tau, out, work):  # noqa: ANN001, ANN202, PLR
 # --------------------------------------------------------------------------- #
 # The interface, for a code known at run time (callable from Python too)
 # --------------------------------------------------------------------------- #
-@njit(cache=True)
+@njit(**ALLOCATION_FREE)
 def terms(kind, p, q, qd, mass, bias, work):  # noqa: ANN001, ANN201
     """``Mbar(q)`` (motor inertia included) and ``C(q, qd) qd + G(q)``."""
     _TERMS(kind, (p, q, qd, mass, bias, work))
 
 
-@njit(cache=True)
+@njit(**ALLOCATION_FREE)
 def coriolis_times(kind, p, q, qd, v, out, work):  # noqa: ANN001, ANN201
     """``C(q, qd) v``."""
     _CORIOLIS_TIMES(kind, (p, q, qd, v, out, work))
 
 
-@njit(cache=True)
+@njit(**ALLOCATION_FREE)
 def gravity(kind, p, q, out, work):  # noqa: ANN001, ANN201
     """``G(q)``."""
     _GRAVITY(kind, (p, q, out, work))
 
 
-@njit(cache=True)
+@njit(**ALLOCATION_FREE)
 def model_terms(kind, p, q, qd, v, mass, grav, cor, work):  # noqa: ANN001, ANN201, PLR0913
     """``Mbar(q)``, ``G(q)`` and ``C(q, qd) v``: :func:`terms`' mass, :func:`gravity` and
     :func:`coriolis_times` in one call (:attr:`CompiledRobot.model_terms`)."""
     _MODEL_TERMS(kind, (p, q, qd, v, mass, grav, cor, work))
 
 
-@njit(cache=True)
+@njit(**ALLOCATION_FREE)
 def damping(kind, p, i):  # noqa: ANN001, ANN201
     """Motor damping ``B_i``."""
     return _DAMPING(kind, (p, i))
 
 
-@njit(cache=True)
+@njit(**ALLOCATION_FREE)
 def motor_inertia(kind, p, i):  # noqa: ANN001, ANN201
     """Motor inertia ``J_i``."""
     return _MOTOR_INERTIA(kind, (p, i))
 
 
-@njit(cache=True)
+@njit(**ALLOCATION_FREE)
 def outputs(kind, p, q, qd, out, work):  # noqa: ANN001, ANN201
     """What the plant reports besides ``q``, ``qd``, into ``out`` (``OUTPUTS_SIZE`` floats).
 
@@ -279,7 +280,7 @@ def outputs(kind, p, q, qd, out, work):  # noqa: ANN001, ANN201
     _OUTPUTS(kind, (p, q, qd, out, work))
 
 
-@njit(cache=True)
+@njit(**ALLOCATION_FREE)
 def forward_dynamics(kind, p, q, qd, tau, out, work):  # noqa: ANN001, ANN201
     """Eq. (4.1): ``qdd = Mbar^{-1} (tau - C qd - B qd - G)`` into ``out``."""
     _ACCELERATIONS(kind, (p, q, qd, tau, out, work))

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from numba import njit
 
+from ..kernel_options import ALLOCATION_FREE
 from .kernel_math import rotation_vector, solve_spd
 from .spatial_kernels import ee_jacobian, ee_pose
 from .spatial_layout import POSE_SIZE, WORK_STRIDE, workspace_size
@@ -24,7 +25,7 @@ def scratch_size(n: int) -> int:
     return workspace_size(n) + 6 * n + 12 + 6 + 6 * n + 36 + 6 + 2 * n + 36
 
 
-@njit(cache=True)
+@njit(**ALLOCATION_FREE)
 def _damped_gram(x, rows, cols, d2, a):  # noqa: ANN001, ANN202
     """``a[:cols, :cols] = X^T X + d2 I`` with ``X`` the first ``rows`` rows and ``cols`` columns
     of ``x``: the damped normal matrix of a least-squares step (``x`` the task rows of the
@@ -37,7 +38,7 @@ def _damped_gram(x, rows, cols, d2, a):  # noqa: ANN001, ANN202
             a[i, j] = s
 
 
-@njit(cache=True)
+@njit(**ALLOCATION_FREE)
 def solve_points(p, x_d, r_d, seeds, chained, rows, basis, lower, upper, tol, max_iter, damping,  # noqa: ANN001, ANN201, PLR0913
                  undamped_below, max_step, out, ok, work):
     """Solve each target ``(x_d[k], r_d[k])`` into ``out[k]``; ``ok[k]``: converged within limits.

@@ -12,8 +12,10 @@ import math
 
 from numba import njit
 
+from ..kernel_options import ALLOCATION_FREE
 
-@njit(cache=True)
+
+@njit(**ALLOCATION_FREE)
 def solve_spd(a, b, out, size):  # noqa: ANN001, ANN201
     """Solve ``a x = b`` into ``out`` for the leading ``size`` x ``size`` block of a symmetric
     positive definite ``a`` (Cholesky, ``L`` written over ``a``'s lower triangle).
@@ -44,7 +46,7 @@ def solve_spd(a, b, out, size):  # noqa: ANN001, ANN201
     return True
 
 
-@njit(cache=True)
+@njit(**ALLOCATION_FREE)
 def rotation_vector(r, out):  # noqa: ANN001, ANN201
     """The rotation vector ``w`` with ``exp([w]x) = r`` (angle in [0, pi]) of a 3 x 3 rotation ``r``
     into ``out`` (:func:`.task.rotation_log` is this, from Python).

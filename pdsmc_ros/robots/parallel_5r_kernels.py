@@ -11,6 +11,7 @@ import math
 
 from numba import njit
 
+from ..kernel_options import ALLOCATION_FREE
 from .kernel_math import entry_at
 
 PARALLEL_5R = 1
@@ -239,7 +240,7 @@ def _solve(m00, m01, m11, r0, r1):  # noqa: ANN001, ANN202
     return x0, x1
 
 
-@njit(cache=True)
+@njit(**ALLOCATION_FREE)
 def terms(p, q, qd, mass, bias, work):  # noqa: ANN001, ANN202
     """Reduced ``Mbar`` and ``C qd + G`` of the five-bar."""
     geo = work[0:GEOMETRY_SIZE]
@@ -267,7 +268,7 @@ def accelerations(p, q, qd, tau, out, work):  # noqa: ANN001, ANN202
     out[0], out[1] = _solve(m00, m01, m11, tau[0] - b0 - p[_B] * qd[0], tau[1] - b1 - p[_B + 1] * qd[1])
 
 
-@njit(cache=True)
+@njit(**ALLOCATION_FREE)
 def coriolis_times(p, q, qd, v, out, work):  # noqa: ANN001, ANN202
     """``C(q, qd) v`` of the reduced model, ``C = rho^T C' rho + rho^T M' rhodot``."""
     geo = work[0:GEOMETRY_SIZE]
@@ -275,7 +276,7 @@ def coriolis_times(p, q, qd, v, out, work):  # noqa: ANN001, ANN202
     _coriolis_at(p, geo, v, out)
 
 
-@njit(cache=True)
+@njit(**ALLOCATION_FREE)
 def model_terms(p, q, qd, v, mass, grav, cor, work):  # noqa: ANN001, ANN202, PLR0913
     """``Mbar(q)``, ``G(q)`` and ``C(q, qd) v`` from one :func:`_geometry`: what a model-based law needs
     at every step (:func:`pdsmc_ros.control.laws.model_part`), the very floats of :func:`terms`,
@@ -334,7 +335,7 @@ def _coriolis_at(p, geo, v, out):  # noqa: ANN001, ANN202
     out[1] = geo[9] * fl1 + fr0 + geo[11] * fr1
 
 
-@njit(cache=True)
+@njit(**ALLOCATION_FREE)
 def gravity(p, q, out, work):  # noqa: ANN001, ANN202
     mass = work[0:4].reshape((2, 2))
     qd = work[4:6]
@@ -349,7 +350,7 @@ damping = entry_at(_B)
 """Motor viscous damping ``B_i``: ``(p, i) -> float``."""
 
 
-@njit(cache=True)
+@njit(**ALLOCATION_FREE)
 def outputs(p, q, qd, out, work):  # noqa: ANN001, ANN201
     """End-effector ``(x, y)`` (Appendix Eqs. 26-34) into ``out[0:2]``, the passive joints
     ``(q3, q4)`` wrapped to (-pi, pi] into ``out[2:4]`` and their rates (``rho qd``) into
@@ -367,14 +368,14 @@ def outputs(p, q, qd, out, work):  # noqa: ANN001, ANN201
 # --------------------------------------------------------------------------- #
 # Over a batch of states: what the numpy interface (Parallel5R) calls
 # --------------------------------------------------------------------------- #
-@njit(cache=True)
+@njit(**ALLOCATION_FREE)
 def batch_terms(p, q, qd, mass, bias, work):  # noqa: ANN001, ANN201
     """:func:`terms` at each row of ``q``, ``qd`` (shape ``(k, 2)``): ``mass`` ``(k, 2, 2)``, ``bias`` ``(k, 2)``."""
     for i in range(q.shape[0]):
         terms(p, q[i], qd[i], mass[i], bias[i], work)
 
 
-@njit(cache=True)
+@njit(**ALLOCATION_FREE)
 def batch_coriolis_matrix(p, q, qd, out, work):  # noqa: ANN001, ANN201
     """``C(q, qd)`` at each row (``out`` ``(k, 2, 2)``), column ``j`` from :func:`coriolis_times` of the unit vector."""
     v = work[-4:-2]

@@ -17,6 +17,7 @@ import weakref
 import numpy as np
 from numba import njit, objmode
 
+from ..kernel_options import WITH_RUNTIME
 from .base import FloatArray, Manipulator
 
 PYTHON = -1
@@ -77,42 +78,42 @@ def _motor_inertia(p: FloatArray, i: int) -> float:
 # The compiled interface (signatures of pdsmc_ros.robots.compiled.CompiledRobot). The copies
 # above: a robot's method may keep or change what it is given, and these arrays are the
 # caller's scratch.
-@njit(cache=True)
+@njit(**WITH_RUNTIME)
 def terms(p, q, qd, mass, bias, work):  # noqa: ANN001, ANN201, ARG001
     """``Mbar(q)`` and ``C(q, qd) qd + G(q)`` from the robot's ``_bias``."""
     with objmode():
         _terms(p, q, qd, mass, bias)
 
 
-@njit(cache=True)
+@njit(**WITH_RUNTIME)
 def accelerations(p, q, qd, tau, out, work):  # noqa: ANN001, ANN201, ARG001
     """Eq. (4.1) from the robot's ``_forward_dynamics``."""
     with objmode():
         _accelerations(p, q, qd, tau, out)
 
 
-@njit(cache=True)
+@njit(**WITH_RUNTIME)
 def coriolis_times(p, q, qd, v, out, work):  # noqa: ANN001, ANN201, ARG001
     """``C(q, qd) v`` from the robot's ``_coriolis_matrix``."""
     with objmode():
         _coriolis_times(p, q, qd, v, out)
 
 
-@njit(cache=True)
+@njit(**WITH_RUNTIME)
 def gravity(p, q, out, work):  # noqa: ANN001, ANN201, ARG001
     """``G(q)`` from the robot's ``_gravity``."""
     with objmode():
         _gravity(p, q, out)
 
 
-@njit(cache=True)
+@njit(**WITH_RUNTIME)
 def outputs(p, q, qd, out, work):  # noqa: ANN001, ANN201, ARG001
     """End effector and passive joints from the robot's ``position`` and ``passive_joints``."""
     with objmode():
         _outputs(p, q, qd, out)
 
 
-@njit(cache=True)
+@njit(**WITH_RUNTIME)
 def damping(p, i):  # noqa: ANN001, ANN201
     """``B_i``."""
     with objmode(value="float64"):
@@ -120,7 +121,7 @@ def damping(p, i):  # noqa: ANN001, ANN201
     return value  # noqa: RET504 - objmode hands its results out through assigned names
 
 
-@njit(cache=True)
+@njit(**WITH_RUNTIME)
 def motor_inertia(p, i):  # noqa: ANN001, ANN201
     """``J_i``."""
     with objmode(value="float64"):

@@ -13,6 +13,7 @@ from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
 from ..errors import InvalidInputError, UnreachableError
+from ..kernel_options import ALLOCATION_FREE
 from .base import FloatArray, Manipulator, RobotParams, as_vector, diag
 from .chain import PlanarChain, chain_coriolis_times
 from .kernel_math import entry_at
@@ -224,7 +225,7 @@ def _solve(k00, k01, k02, k11, k12, k22, r0, r1, r2):  # noqa: ANN001, ANN202, P
     return x0, x1, x2
 
 
-@njit(cache=True)
+@njit(**ALLOCATION_FREE)
 def terms(p, q, qd, mass, bias, work):  # noqa: ANN001, ANN201, ARG001
     """``Mbar = M + J`` and ``C qd + G``."""
     k00, k01, k02, k11, k12, k22, b0, b1, b2 = _terms(p, q[0], q[1], q[2], qd[0], qd[1], qd[2])
@@ -247,13 +248,13 @@ def accelerations(p, q, qd, tau, out, work):  # noqa: ANN001, ANN201, ARG001
                                     tau[1] - b1 - p[_B + 1] * qd[1], tau[2] - b2 - p[_B + 2] * qd[2])
 
 
-@njit(cache=True)
+@njit(**ALLOCATION_FREE)
 def coriolis_times(p, q, qd, v, out, work):  # noqa: ANN001, ANN201
     """``C(q, qd) v``."""
     chain_coriolis_times(p[_W:_W + 9], q, qd, v, out, work, N)
 
 
-@njit(cache=True)
+@njit(**ALLOCATION_FREE)
 def gravity(p, q, out, work):  # noqa: ANN001, ANN201, ARG001
     """``G(q)``."""
     acc = 0.0
@@ -272,7 +273,7 @@ damping = entry_at(_B)
 """Motor viscous damping ``B_i``: ``(p, i) -> float``."""
 
 
-@njit(cache=True)
+@njit(**ALLOCATION_FREE)
 def outputs(p, q, qd, out, work):  # noqa: ANN001, ANN201, ARG001
     """End-effector ``(x, y)`` into ``out[0:2]`` (``PlanarChain.tip``, base at the origin)."""
     acc = 0.0

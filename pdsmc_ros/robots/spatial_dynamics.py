@@ -19,12 +19,13 @@ from __future__ import annotations
 
 from numba import njit
 
+from ..kernel_options import ALLOCATION_FREE
 from . import spatial_layout as lay
 from .kernel_math import solve_spd
 from .spatial_kernels import kinematics_pass
 
 
-@njit(cache=True)
+@njit(**ALLOCATION_FREE)
 def _bias_forces(p, x, gscale, work):  # noqa: ANN001, ANN202
     """RNEA's forward pass with ``qdd = 0``: each body's force ``I a + v x* I v`` into ``work``.
 
@@ -54,7 +55,7 @@ def _bias_forces(p, x, gscale, work):  # noqa: ANN001, ANN202
         work[f + 3], work[f + 4], work[f + 5] = f3 + g3, f4 + g4, f5 + g5
 
 
-@njit(cache=True)
+@njit(**ALLOCATION_FREE)
 def _add6(work, i, a0, a1, a2, a3, a4, a5):  # noqa: ANN001, ANN202, PLR0913
     """``(a0 + work[i], ..., a5 + work[i + 5])``: one step of a backward pass's running sum of
     six consecutive entries (a spatial force, or a rotational inertia)."""
@@ -62,7 +63,7 @@ def _add6(work, i, a0, a1, a2, a3, a4, a5):  # noqa: ANN001, ANN202, PLR0913
             a3 + work[i + 3], a4 + work[i + 4], a5 + work[i + 5])
 
 
-@njit(cache=True)
+@njit(**ALLOCATION_FREE)
 def _project_forces(p, out, work):  # noqa: ANN001, ANN202
     """RNEA's backward pass: ``out_k = S_k . (sum of the forces of bodies k..n-1)``."""
     n = int(p[lay.N_JOINTS])
@@ -75,7 +76,7 @@ def _project_forces(p, out, work):  # noqa: ANN001, ANN202
 # --------------------------------------------------------------------------- #
 # The compiled form
 # --------------------------------------------------------------------------- #
-@njit(cache=True)
+@njit(**ALLOCATION_FREE)
 def terms(p, q, qd, mass, bias, work):  # noqa: ANN001, ANN201
     """``mass = M(q) + diag(J)`` (both triangles) and ``bias = C(q, qd) qd + G(q)``.
 
@@ -112,7 +113,7 @@ def terms(p, q, qd, mass, bias, work):  # noqa: ANN001, ANN201
         mass[k, k] = lay.dot_s(work, k, g0, g1, g2, g3, g4, g5) + p[b + lay.J_ARMATURE]
 
 
-@njit(cache=True)
+@njit(**ALLOCATION_FREE)
 def gravity(p, q, out, work):  # noqa: ANN001, ANN201
     """``G(q)``: the composite mass ``M_k`` and first moment ``H_k`` of bodies ``k..n-1`` hold
     ``(-M_k g, g x H_k)``, and ``G_k = S_k`` . that."""
@@ -131,7 +132,7 @@ def gravity(p, q, out, work):  # noqa: ANN001, ANN201
         out[k] = lay.dot_s(work, k, -cm * gx, -cm * gy, -cm * gz, nx, ny, nz)
 
 
-@njit(cache=True)
+@njit(**ALLOCATION_FREE)
 def coriolis_times(p, q, qd, v, out, work):  # noqa: ANN001, ANN201
     """``C(q, qd) v`` with the Christoffel-symbol ``C``.
 
@@ -180,7 +181,7 @@ def coriolis_times(p, q, qd, v, out, work):  # noqa: ANN001, ANN201
     _project_forces(p, out, work)
 
 
-@njit(cache=True)
+@njit(**ALLOCATION_FREE)
 def accelerations(p, q, qd, tau, out, work):  # noqa: ANN001, ANN201
     """Eq. (4.1): ``qdd = Mbar^{-1} (tau - C qd - B qd - G)`` into ``out`` (:func:`terms`, then a
     Cholesky solve)."""
@@ -194,13 +195,13 @@ def accelerations(p, q, qd, tau, out, work):  # noqa: ANN001, ANN201
     solve_spd(mass, rhs, out, n)
 
 
-@njit(cache=True)
+@njit(**ALLOCATION_FREE)
 def motor_inertia(p, i):  # noqa: ANN001, ANN201
     """Motor inertia ``J_i``."""
     return p[lay.HEADER_SIZE + i * lay.JOINT_SIZE + lay.J_ARMATURE]
 
 
-@njit(cache=True)
+@njit(**ALLOCATION_FREE)
 def damping(p, i):  # noqa: ANN001, ANN201
     """Motor viscous damping ``B_i``."""
     return p[lay.HEADER_SIZE + i * lay.JOINT_SIZE + lay.J_DAMPING]

@@ -12,6 +12,7 @@ import math
 
 from numba import njit
 
+from ..kernel_options import ALLOCATION_FREE
 from .spatial_layout import (
     EE_JOINT,
     EE_ROTATION,
@@ -41,7 +42,7 @@ from .spatial_layout import (
 # --------------------------------------------------------------------------- #
 # Passes
 # --------------------------------------------------------------------------- #
-@njit(cache=True)
+@njit(**ALLOCATION_FREE)
 def kinematics_pass(p, q, work, level):  # noqa: ANN001, ANN202
     """Kinematics in base coordinates into ``work``.
 
@@ -161,7 +162,7 @@ def kinematics_pass(p, q, work, level):  # noqa: ANN001, ANN202
             work[pose + 9], work[pose + 10], work[pose + 11] = px, py, pz
 
 
-@njit(cache=True)
+@njit(**ALLOCATION_FREE)
 def _ee_origin(p, work):  # noqa: ANN001, ANN202
     """The end-effector's origin in the base from its parent joint's pose (after :func:`kinematics_pass`)."""
     o = int(p[N_JOINTS]) * WORK_STRIDE
@@ -171,14 +172,14 @@ def _ee_origin(p, work):  # noqa: ANN001, ANN202
             work[o + 11] + work[o + 6] * tx + work[o + 7] * ty + work[o + 8] * tz)
 
 
-@njit(cache=True)
+@njit(**ALLOCATION_FREE)
 def ee_position(p, q, out, work):  # noqa: ANN001, ANN201
     """End-effector position in the base frame into ``out[0:3]``."""
     kinematics_pass(p, q, work, 0)
     out[0], out[1], out[2] = _ee_origin(p, work)
 
 
-@njit(cache=True)
+@njit(**ALLOCATION_FREE)
 def ee_pose(p, q, pos, rot, work):  # noqa: ANN001, ANN201
     """End-effector position ``pos`` (3) and rotation ``rot`` (3 x 3) in the base frame."""
     kinematics_pass(p, q, work, 0)
@@ -191,7 +192,7 @@ def ee_pose(p, q, pos, rot, work):  # noqa: ANN001, ANN201
                          + work[o + 3 * i + 2] * p[EE_ROTATION + 6 + j])
 
 
-@njit(cache=True)
+@njit(**ALLOCATION_FREE)
 def outputs(p, q, qd, out, work):  # noqa: ANN001, ANN201, ARG001
     """End-effector position in the task plane into ``out[0:2]``: ``((x - o) . u, (x - o) . v)``."""
     kinematics_pass(p, q, work, 0)
@@ -203,7 +204,7 @@ def outputs(p, q, qd, out, work):  # noqa: ANN001, ANN201, ARG001
     out[1] = x * p[PLANE_V] + y * p[PLANE_V + 1] + z * p[PLANE_V + 2]
 
 
-@njit(cache=True)
+@njit(**ALLOCATION_FREE)
 def ee_jacobian(p, q, out, work):  # noqa: ANN001, ANN201
     """The end-effector's 6 x n Jacobian, LOCAL_WORLD_ALIGNED, into ``out``.
 

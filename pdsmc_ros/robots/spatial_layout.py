@@ -61,6 +61,7 @@ from numba import njit
 from numpy.typing import ArrayLike
 
 from ..errors import InvalidInputError
+from ..kernel_options import ALLOCATION_FREE
 from .base import FloatArray
 
 SERIAL_CHAIN = 2
@@ -240,12 +241,12 @@ def pack(
 # --------------------------------------------------------------------------- #
 # Small spatial algebra on scalars (numba inlines these; tuples cost nothing)
 # --------------------------------------------------------------------------- #
-@njit(cache=True)
+@njit(**ALLOCATION_FREE)
 def cross(ax, ay, az, bx, by, bz):  # noqa: ANN001, ANN202
     return ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
 
 
-@njit(cache=True)
+@njit(**ALLOCATION_FREE)
 def motion_cross(vx, vy, vz, wx, wy, wz, sx, sy, sz, tx, ty, tz):  # noqa: ANN001, ANN202
     """``(v, w) x (s, t)`` of two motions: ``(w x s + v x t, w x t)``."""
     ax, ay, az = cross(wx, wy, wz, sx, sy, sz)
@@ -254,7 +255,7 @@ def motion_cross(vx, vy, vz, wx, wy, wz, sx, sy, sz, tx, ty, tz):  # noqa: ANN00
     return ax + bx, ay + by, az + bz, cx, cy, cz
 
 
-@njit(cache=True)
+@njit(**ALLOCATION_FREE)
 def force_cross(vx, vy, vz, wx, wy, wz, fx, fy, fz, nx, ny, nz):  # noqa: ANN001, ANN202
     """``(v, w) x* (f, n)``, motion on force: ``(w x f, w x n + v x f)``."""
     ax, ay, az = cross(wx, wy, wz, fx, fy, fz)
@@ -263,7 +264,7 @@ def force_cross(vx, vy, vz, wx, wy, wz, fx, fy, fz, nx, ny, nz):  # noqa: ANN001
     return ax, ay, az, bx + cx, by + cy, bz + cz
 
 
-@njit(cache=True)
+@njit(**ALLOCATION_FREE)
 def inertia_times(m, hx, hy, hz, ixx, iyy, izz, ixy, ixz, iyz, vx, vy, vz, wx, wy, wz):  # noqa: ANN001, ANN202
     """Spatial inertia (mass ``m``, first moment ``h``, inertia ``I`` about the origin) times ``(v, w)``.
 
@@ -281,7 +282,7 @@ def inertia_times(m, hx, hy, hz, ixx, iyy, izz, ixy, ixz, iyz, vx, vy, vz, wx, w
     )
 
 
-@njit(cache=True)
+@njit(**ALLOCATION_FREE)
 def body_times(p, work, k, vx, vy, vz, wx, wy, wz):  # noqa: ANN001, ANN202
     """Body ``k``'s spatial inertia (base frame, from :func:`kinematics_pass`) times ``(v, w)``."""
     o = k * WORK_STRIDE
@@ -294,7 +295,7 @@ def body_times(p, work, k, vx, vy, vz, wx, wy, wz):  # noqa: ANN001, ANN202
     )
 
 
-@njit(cache=True)
+@njit(**ALLOCATION_FREE)
 def dot_s(work, k, fx, fy, fz, nx, ny, nz):  # noqa: ANN001, ANN202
     """``S_k . (f, n)``: joint ``k``'s share of a spatial force (its torque or force)."""
     s = k * WORK_STRIDE + W_S

@@ -18,6 +18,7 @@ from numba import njit
 from ..control.dispatch import law_torque
 from ..control.law import ControlLaw
 from ..control.safety import DivergenceCheck, watch
+from ..kernel_options import ALLOCATION_FREE
 from ..robots import compiled as robot_compiled
 from ..robots.base import FloatArray, Manipulator
 from .rk4 import carve, rk4_advance
@@ -26,30 +27,30 @@ from .rk4 import carve, rk4_advance
 def _closed_loop_for(kind: int) -> Any:
     """The closed loop compiled for robot code ``kind`` (a constant of the closure: its dynamics inlined)."""
 
-    def closed_loop(p, code, gains, smc_model, model_kind, model_p, q0, qd0, refs, h, sample_every,  # noqa: ANN001, ANN202, PLR0913
+    def closed_loop(p, code, gains, smc_model, model_kind, model_p, q, qd, tau, refs, h, sample_every,  # noqa: ANN001, ANN202, PLR0913
                     limit, bounds, first, at, counts, out_q, out_qd, out_tau, step_error, step_tau, work, state,
                     start_step, advance_last):
-        _loop(kind, p, code, gains, smc_model, model_kind, model_p, q0, qd0, refs, h, sample_every,
+        _loop(kind, p, code, gains, smc_model, model_kind, model_p, q, qd, tau, refs, h, sample_every,
               limit, bounds, first, at, counts, out_q, out_qd, out_tau, step_error, step_tau, work, state, start_step,
               advance_last)
 
-    return njit(cache=True)(closed_loop)
+    return njit(**ALLOCATION_FREE)(closed_loop)
 
 
 @njit(cache=True, inline="always")
 def _loop(  # noqa: ANN202, PLR0913
-    kind, p, code, gains, smc_model, model_kind, model_p, q0, qd0, refs, h, sample_every,
+    kind, p, code, gains, smc_model, model_kind, model_p, q, qd, tau, refs, h, sample_every,
     limit, bounds, first, at, counts, out_q, out_qd, out_tau, step_error, step_tau, work, state, start_step,
     advance_last,
 ):  # noqa: ANN001
-    n = robot_compiled.size(kind, q0.shape[0])
+    # ``q`` and ``qd`` start the run and are stepped in place: the loop ends with the state a
+    # following stretch of the run starts from; ``tau`` is the step's torque (scratch). The loop
+    # allocates nothing (:data:`~pdsmc_ros.kernel_options.ALLOCATION_FREE`)
+    n = robot_compiled.size(kind, q.shape[0])
     steps = refs.shape[0] - 1
     every_step = step_error.shape[0] > 0  # the error and torque of every step too (the scores')
     applied = steps + advance_last  # the periods whose torque the plant is stepped with
     stages, rest = carve(work, n)
-    q = q0.copy()
-    qd = qd0.copy()
-    tau = np.empty(n)
     for k in range(steps + 1):
         # the state's check at the statistics instants (every step cost the serial arm's loop 8 %): a
         # diverged run stops at the first instant after it diverged, a limit crossing is seen there
@@ -84,9 +85,6 @@ def _loop(  # noqa: ANN202, PLR0913
                 step_tau[k, i] = tau[i]
         if k < applied:
             rk4_advance(kind, p, q, qd, tau, h, stages, rest)
-    for i in range(n):  # the state the loop ends in: where a following stretch of the run starts
-        q0[i] = q[i]
-        qd0[i] = qd[i]
 
 
 # one compiled loop per robot of the table, made from it: a process compiles (or loads) only the robots
@@ -109,7 +107,8 @@ class LoopOutcome:
     warnings : list of str
         The first crossing of each joint's position and velocity limit.
     end_q, end_qd : ndarray, shape (n,)
-        The state the loop ended in (after the last period when it advanced the plant over it).
+        The state the loop ended in (after the last period when it advanced the plant over it; the
+        diverged state when it stopped early).
     step_error, step_tau : ndarray, shape (N + 1, n)
         ``q_d - q`` and the applied torque at every control instant (``run_loop(...,
         every_step=True)``; NaN from a diverged step on), else empty.
@@ -201,9 +200,9 @@ def run_loop(
     step_error = np.empty((rows, n))
     step_tau = np.empty((rows, n))
     _CLOSED_LOOPS[kind](p, law.code, law.gains, law.smc_model, law.model_kind, law.model_params,
-                        end_q, end_qd, refs, h, sample_every, limit, check.bounds, check.first, check.at, counts,
-                        out_q, out_qd, out_tau, step_error, step_tau, robot_compiled.workspace(n), law.state,
-                        int(start_step), int(advance_last))
+                        end_q, end_qd, np.empty(n), refs, h, sample_every, limit, check.bounds, check.first,
+                        check.at, counts, out_q, out_qd, out_tau, step_error, step_tau,
+                        robot_compiled.workspace(n), law.state, int(start_step), int(advance_last))
     outcome = LoopOutcome(counts[:n].tolist(), warnings=check.new_warnings(1.0 / h), end_q=end_q, end_qd=end_qd,
                           step_error=step_error, step_tau=step_tau)
     if counts[n] >= 0:

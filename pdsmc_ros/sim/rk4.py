@@ -12,6 +12,7 @@ from collections.abc import Callable
 
 from numba import njit
 
+from ..kernel_options import ALLOCATION_FREE
 from ..robots import compiled as robot
 from ..robots.base import FloatArray
 
@@ -19,7 +20,7 @@ from ..robots.base import FloatArray
 A1, A2, A3, A4, V2, V3, V4, X, Q_OUT, QD_OUT = range(10)
 
 
-@njit(cache=True)
+@njit(**ALLOCATION_FREE)
 def rk4_advance(kind, p, q, qd, tau, h, stages, work):  # noqa: ANN001, ANN201, PLR0913
     """One classical RK4 step of Eq. (4.1) of length ``h`` with ``tau`` held, on ``q``, ``qd`` in place.
 
@@ -75,7 +76,7 @@ def _step_for(kind: int) -> Callable[[FloatArray, FloatArray, FloatArray, float,
         stages, rest = carve(work, n)
         rk4_advance(kind, p, state[0:n], state[n : 2 * n], tau, h, stages, rest)
 
-    return njit(cache=True)(step)
+    return njit(**ALLOCATION_FREE)(step)
 
 
 # one compiled step per robot of the table, made from it: a process compiles (or loads) only the
