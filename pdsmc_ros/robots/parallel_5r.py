@@ -143,10 +143,18 @@ class Parallel5R(Manipulator):
         return a1, a2
 
     def _end_effector(self, q: FloatArray, *, check: bool = False) -> FloatArray:
-        """Forward position (Appendix Eqs. 26-34) as a circle intersection."""
-        a1, a2 = self._elbows(q)
-        u = a2 - a1
-        d2 = np.sum(u * u, axis=-1)
+        """Forward position (Appendix Eqs. 26-34) as a circle intersection.
+
+        Written per coordinate (the elbows ``a1``, ``a2`` of :meth:`_elbows`, ``u = a2 - a1``, its
+        unit vector and normal): the same floats as in vectors of two, without the stacking and
+        the reductions over an axis of two, which cost a Monte Carlo run's samples more than the
+        arithmetic.
+        """
+        a1x = self.L1 * np.cos(q[..., 0])
+        a1y = self.L1 * np.sin(q[..., 0])
+        ux = self.L5 + self.L2 * np.cos(q[..., 1]) - a1x
+        uy = self.L2 * np.sin(q[..., 1]) - a1y
+        d2 = ux * ux + uy * uy
         d = np.sqrt(d2)
         along = (d2 + self.L3**2 - self.L4**2) / (2.0 * d)
         h2 = self.L3**2 - along * along
@@ -155,10 +163,12 @@ class Parallel5R(Manipulator):
                 f"q = {np.array2string(np.asarray(q), precision=6)}: the five-bar cannot "
                 "assemble there or is at a forward singularity (links 3 and 4 aligned)"
             )
-        h = np.sqrt(np.maximum(h2, 0.0))
-        unit = u / d[..., None]
-        normal = np.stack([-unit[..., 1], unit[..., 0]], axis=-1)
-        return a1 + along[..., None] * unit + (self.assembly_mode * h)[..., None] * normal
+        normal_scale = self.assembly_mode * np.sqrt(np.maximum(h2, 0.0))
+        unit_x = ux / d
+        unit_y = uy / d
+        # a1 + along unit + (mode h) normal, with the normal (-unit_y, unit_x)
+        return np.stack([a1x + along * unit_x + normal_scale * -unit_y,
+                         a1y + along * unit_y + normal_scale * unit_x], axis=-1)
 
     def open_tree(self, q: FloatArray, *, check: bool = False) -> tuple[FloatArray, FloatArray]:
         """Joint angles of both chains: ``(q1, q3)`` and ``(q2, q4)``, q3/q4 in (-pi, pi]."""
