@@ -12,8 +12,6 @@ engine or the number of workers.
 from __future__ import annotations
 
 import contextlib
-import ctypes
-import ctypes.util
 import logging
 import os
 import re
@@ -24,6 +22,7 @@ from collections.abc import Callable, Iterator, Sequence
 from typing import Any, TextIO
 
 from .errors import ConfigError
+from .glibc import M_MMAP_THRESHOLD, M_TRIM_THRESHOLD, mallopt
 
 SCHEDULER_ADDRESS = re.compile(r"^(tcp|tls|inproc|ws|wss)://[^\s/]+(:\d+)?/?$")
 CONNECT_TIMEOUT_S = 10
@@ -107,9 +106,6 @@ def _task(fn: Callable[..., Any], *args: Any) -> Any:
     return fn(*args)
 
 
-# glibc's mallopt parameters (<malloc.h>)
-M_TRIM_THRESHOLD = -1
-M_MMAP_THRESHOLD = -3
 HEAP_ARRAYS_BYTES = 64 << 20
 _allocator_set = False
 
@@ -128,10 +124,6 @@ def keep_freed_memory() -> None:
     if _allocator_set:
         return
     _allocator_set = True
-    try:
-        mallopt = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6").mallopt
-    except (OSError, AttributeError):  # another C library: its own policy
-        return
     mallopt(M_MMAP_THRESHOLD, HEAP_ARRAYS_BYTES)
     mallopt(M_TRIM_THRESHOLD, 4 * HEAP_ARRAYS_BYTES)
 

@@ -32,6 +32,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from ..errors import ConfigError
+from ..glibc import M_MMAP_MAX, M_TRIM_THRESHOLD, mallopt
 
 DEFAULT_PRIORITY = 50  # ros2_control's controller manager: SCHED_FIFO 50 (the controller's default)
 # the plant (the hardware's stand-in) and the trajectory (the controller's reference) tick at FIFO
@@ -116,12 +117,14 @@ class Applied:
     memory_locked: bool = False
     warning: str = ""
     helpers: list[int] = dataclasses.field(default_factory=list)  # threads raised by raise_helpers
+    reserved: int = 0  # bytes kept for the loop's later allocations (reserve_memory)
 
     def summary(self) -> str:
         """One line for the node's log."""
         parts = [f"SCHED_FIFO priority {os.sched_getparam(0).sched_priority}" if self.fifo else "normal scheduling",
                  f"cores {','.join(map(str, self.affinity))}" if self.affinity else "any core",
-                 "memory locked" if self.memory_locked else "memory not locked",
+                 (f"memory locked ({self.reserved >> 20} MiB reserved)" if self.memory_locked
+                  else "memory not locked"),
                  f"{len(self.helpers)} other threads at FIFO {HELPER_PRIORITY}" if self.helpers else ""]
         return "real time: " + ", ".join(p for p in parts if p)
 
@@ -139,6 +142,62 @@ def lock_memory() -> str:
     soft, _ = resource.getrlimit(resource.RLIMIT_MEMLOCK)
     limit = "unlimited" if soft == resource.RLIM_INFINITY else f"{soft // 1024} KiB"
     return f"{os.strerror(err)} (memlock limit {limit})"
+
+
+HEAP_RESERVE_BYTES = 32 << 20
+"""Freed C heap a memory-locked loop keeps for what it allocates later (numpy arrays, messages)."""
+OBJECT_RESERVE_BYTES = 16 << 20
+"""Free room in Python's small-object arenas a memory-locked loop keeps for its objects."""
+_RESERVE_BLOCK = 1 << 20
+_arena_keepers: list[object] = []  # one live object per reserved arena: an empty arena is given back
+
+
+def reserve_memory(heap_bytes: int = HEAP_RESERVE_BYTES, object_bytes: int = OBJECT_RESERVE_BYTES) -> int:
+    """Memory the calling thread can allocate from later without a page fault; the bytes reserved.
+
+    Called after :func:`lock_memory`, by the loop's thread. With ``MCL_FUTURE`` every page the
+    process maps from then on is faulted in when it is mapped: a loop that grows its heap, or
+    Python's objects that need a new arena (1 MiB), takes hundreds of faults in one tick (41 and
+    256 were seen after warm-up, docs/PERFORMANCE.md). So, as ROS 2's real-time demo does
+    before its loop, glibc keeps what is freed (no ``mmap``'d allocations, no trimming), the heap
+    is grown by ``heap_bytes`` and freed, and Python's allocator gets ``object_bytes`` of arenas,
+    kept with one live object each and otherwise free. Both stay locked and resident. Under a
+    finite ``memlock`` limit, at most half of the room left is reserved (past the limit, a locked
+    process's allocations fail).
+    """
+    soft, _ = resource.getrlimit(resource.RLIMIT_MEMLOCK)
+    if soft != resource.RLIM_INFINITY and not _may_lock_beyond_limit():
+        room = max(0, soft - locked_kib() * 1024) // 2
+        heap_bytes, object_bytes = min(heap_bytes, room // 2), min(object_bytes, room // 2)
+    reserved = 0
+    if heap_bytes > 0 and mallopt(M_MMAP_MAX, 0) and mallopt(M_TRIM_THRESHOLD, -1):
+        # blocks below a thread heap's size (64 MiB): from the calling thread's own malloc arena
+        blocks = [bytearray(_RESERVE_BLOCK) for _ in range(heap_bytes // _RESERVE_BLOCK)]
+        reserved += len(blocks) * _RESERVE_BLOCK
+        del blocks
+    if object_bytes > 0:
+        objects = [(i, -i) for i in range(object_bytes // 64)]  # a 2-tuple takes 56 of an arena's bytes
+        kept: dict[int, object] = {}
+        for obj in objects:
+            kept.setdefault(id(obj) >> 20, obj)
+        _arena_keepers.extend(kept.values())
+        reserved += len(objects) * 64
+        del objects
+    return reserved
+
+
+CAP_IPC_LOCK = 14  # <linux/capability.h>: lock memory beyond RLIMIT_MEMLOCK
+
+
+def _may_lock_beyond_limit(status: Path = Path("/proc/self/status")) -> bool:
+    """Whether the process holds CAP_IPC_LOCK (its effective set in ``/proc/self/status``)."""
+    try:
+        for line in status.read_text().splitlines():
+            if line.startswith("CapEff:"):
+                return bool(int(line.split()[1], 16) >> CAP_IPC_LOCK & 1)
+    except (OSError, ValueError, IndexError):
+        return False
+    return False
 
 
 def unlock_memory() -> None:
@@ -226,6 +285,8 @@ def apply(settings: RealtimeSettings) -> Applied:
     if settings.lock_memory:
         why = lock_memory()
         applied.memory_locked = not why
+        if applied.memory_locked:
+            applied.reserved = reserve_memory()
         if why:
             refused.append(f"lock_memory ({why}): {MEMLOCK_FIX}")
     if settings.thread_priority > 0:

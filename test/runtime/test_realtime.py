@@ -71,6 +71,41 @@ def test_settings_are_applied_and_read_back_from_the_kernel() -> None:
     assert read["after_policy"] == "SCHED_OTHER" and read["after_vmlck_kib"] == 0
 
 
+FAULTS_CHILD = """
+import json, sys
+import numpy as np
+from pdsmc_ros.runtime import realtime
+if sys.argv[1] == "none":
+    realtime.reserve_memory = lambda: 0  # what apply() did before it reserved
+applied = realtime.apply(realtime.RealtimeSettings(lock_memory=True))
+before = realtime.minor_faults()
+objects = [(float(i), i) for i in range(100_000)]  # about 10 MiB of small objects
+arrays = [np.ones(100_000) for _ in range(10)]  # 10 x 800 kB: above glibc's default mmap threshold
+del objects, arrays
+print(json.dumps({"faults": realtime.minor_faults() - before, "reserved": applied.reserved,
+                  "summary": applied.summary()}))
+"""
+
+
+def faults_after_locking(reserve: str) -> dict:
+    proc = subprocess.run([sys.executable, "-c", FAULTS_CHILD, reserve], cwd=ROOT, capture_output=True, text=True,
+                          timeout=60)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    return json.loads(proc.stdout.strip().splitlines()[-1])
+
+
+def test_a_memory_locked_loop_allocates_from_reserved_memory_without_page_faults() -> None:
+    """With MCL_FUTURE every new mapping is faulted in when made: the loop's later objects and arrays
+    come from memory reserved at start-up instead (issue 26: no page faults after warm-up)."""
+    if not privileged():
+        pytest.skip("this user may not lock its memory (the refusal test covers it)")
+    reserved = faults_after_locking("default")
+    assert reserved["reserved"] >= 40 << 20 and "MiB reserved" in reserved["summary"]
+    assert reserved["faults"] == 0
+    unreserved = faults_after_locking("none")
+    assert unreserved["faults"] > 1000  # the same allocations, each new arena and array faulted in
+
+
 def test_refused_settings_warn_once_with_the_fix_and_run_on() -> None:
     setpriv = shutil.which("setpriv")
     if setpriv is None or not privileged():
