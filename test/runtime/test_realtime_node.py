@@ -127,8 +127,8 @@ def test_settings_hold_and_statistics_count_a_stalled_period(listener_env: tuple
     finally:
         out = stop(proc)
     # at FIFO the default busy-wait is 50 us (a FIFO thread wakes on time), not the normal 200 us
-    assert re.search(r"real time: SCHED_FIFO priority 5, cores 0, memory locked, \d+ other threads at FIFO 1, "
-                     r"busy-wait 50 us before each tick", out), out[-3000:]
+    assert re.search(r"real time: SCHED_FIFO priority 5, cores 0, memory locked \(\d+ MiB reserved\), "
+                     r"\d+ other threads at FIFO 1, busy-wait 50 us before each tick", out), out[-3000:]
     assert "running on without" not in out, out[-3000:]
 
 
