@@ -48,6 +48,7 @@ class LockstepPairing:
         self.state: tuple[int, FloatArray, FloatArray] | None = None  # waiting for its reference
         self.refs: dict[int, Reference] = {}
         self.oldest = 0  # no reference of an earlier step is kept
+        self.paired = -1  # the last step paired: a reference at or before it comes too late
         self.trajectory: TrajectorySource | None = None
         self.source: str | None = None  # "reference" or "trajectory"
         self.next_step = 0  # the step a command would be for now
@@ -72,9 +73,12 @@ class LockstepPairing:
         """The reference of ``step``; what :meth:`take` gives now (usually nothing: references
         come ahead of their states)."""
         self.source = "reference"
-        if step < self.oldest:
+        if step <= self.paired:
             return None  # a step already paired or skipped
-        if not self.refs:
+        # the smallest step kept: a reference sent again for a step before the first one received
+        # (a reader that matched the trajectory in the middle of its first window gets that
+        # window again when the plant offers its first state again) is kept too
+        if not self.refs or step < self.oldest:
             self.oldest = step
         self.refs[step] = ref
         state = self.state
@@ -105,6 +109,7 @@ class LockstepPairing:
             for skipped in range(self.oldest, step):
                 self.refs.pop(skipped, None)
             self.oldest = step + 1
+        self.paired = step
         self.state = None
         self.next_step = step + 1
         if step >= self.last_step:

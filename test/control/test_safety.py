@@ -101,6 +101,25 @@ def test_lockstep_pairing_pairs_by_step_and_drops_skipped_references() -> None:
     assert pairing.step_of(0, 50_000_000) == 5 and pairing.step_of(-1, 0) is None
 
 
+def test_lockstep_pairing_takes_a_window_sent_again_from_before_the_first_reference_it_received() -> None:
+    """A controller whose reference reader matched the trajectory in the middle of its first window
+    (steps 3.. arrived, 0-2 were sent before): the window sent again when the plant offers its
+    first state again pairs step 0 (before, the references before the first received were dropped
+    as too late, and the run waited for step 0's effort until it timed out)."""
+    from pdsmc_ros.runtime.commanding import LockstepPairing
+
+    pairing = LockstepPairing(rate=100.0, last_step=10)
+    for step in range(3, 6):
+        assert pairing.add_reference(step, (step,)) is None  # type: ignore[arg-type]
+    assert pairing.add_state(0, "q0", "qd0") is None  # type: ignore[arg-type]  # its reference never came
+    assert pairing.add_reference(0, (0,)) == (0, "q0", "qd0", (0,))  # type: ignore[arg-type]  # sent again
+    for step in (1, 2, 3):  # the rest of the window sent again: kept once, in step order
+        assert pairing.add_reference(step, (step,)) is None  # type: ignore[arg-type]
+    assert pairing.add_state(1, "q1", "qd1") == (1, "q1", "qd1", (1,))  # type: ignore[arg-type]
+    assert pairing.add_reference(0, (0,)) is None  # type: ignore[arg-type]  # paired already: too late
+    assert sorted(pairing.refs) == [2, 3, 4, 5]
+
+
 def test_tick_timing_periods_are_between_tick_starts_and_misses_count() -> None:
     from pdsmc_ros.runtime.commanding import TickTiming
 
