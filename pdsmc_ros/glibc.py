@@ -1,4 +1,5 @@
-"""glibc's allocator settings (``mallopt``, <malloc.h>), for the processes that tune it.
+"""The C library from Python: its handle (``mlockall``, :mod:`pdsmc_ros.runtime.realtime`) and glibc's
+allocator settings (``mallopt``, <malloc.h>), for the processes that tune it.
 
 The Monte Carlo workers (:func:`pdsmc_ros.engine.keep_freed_memory`) and a real-time loop with
 its memory locked (:func:`pdsmc_ros.runtime.realtime.reserve_memory`) ask glibc to keep freed
@@ -18,10 +19,15 @@ M_MMAP_MAX = -4
 """At most this many allocations served by ``mmap`` at once (0: none, all from the heap)."""
 
 
+def libc() -> ctypes.CDLL:
+    """The process's C library, with ``errno`` kept for :func:`ctypes.get_errno`."""
+    return ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6", use_errno=True)
+
+
 def mallopt(param: int, value: int) -> bool:
     """``mallopt(param, value)``; False when the C library is not glibc or refuses."""
     try:
-        call = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6").mallopt
+        call = libc().mallopt
     except (OSError, AttributeError):  # another C library: its own policy
         return False
     return bool(call(param, value))

@@ -29,6 +29,8 @@ from .errors import InvalidInputError
 from .runtime.realtime import (
     AFFINITY_FIX,
     AUTO_BUSY_WAIT,
+    CAP_IPC_LOCK,
+    CAP_SYS_NICE,
     DEFAULT_PRIORITY,
     FIFO_FIX,
     MAX_PRIORITY,
@@ -37,11 +39,11 @@ from .runtime.realtime import (
     RealtimeSettings,
     apply,
     busy_wait_for,
+    capability,
     minor_faults,
     restore,
 )
 
-CAP_IPC_LOCK, CAP_SYS_NICE = 14, 23  # bits of CapEff (linux/capability.h)
 BUCKETS_US = (10, 20, 50, 100, 200, 500, 1000)
 WARM_UP_S = 1.0
 MAX_DURATION_S = 3600.0
@@ -95,13 +97,6 @@ def _read(path: str) -> str:
         return ""
 
 
-def _capability(bit: int) -> bool:
-    for line in _read("/proc/self/status").splitlines():
-        if line.startswith("CapEff:"):
-            return bool(int(line.split()[1], 16) >> bit & 1)
-    return False
-
-
 def _limit(which: int) -> str:
     soft, _ = resource.getrlimit(which)
     return "unlimited" if soft == resource.RLIM_INFINITY else str(soft)
@@ -119,13 +114,13 @@ def system_checks() -> list[Check]:
     fifo_ok = _can_fifo()
     checks.append(("SCHED_FIFO", fifo_ok,
                    (f"{'allowed' if fifo_ok else 'refused'} (rtprio limit {_limit(resource.RLIMIT_RTPRIO)}, "
-                   f"CAP_SYS_NICE {'yes' if _capability(CAP_SYS_NICE) else 'no'}, sched_rt_runtime_us "
+                   f"CAP_SYS_NICE {'yes' if capability(CAP_SYS_NICE) else 'no'}, sched_rt_runtime_us "
                    f"{rt_runtime or 'unknown'})"), FIFO_FIX))
     memlock = resource.getrlimit(resource.RLIMIT_MEMLOCK)[0]
-    lock_ok = memlock == resource.RLIM_INFINITY or _capability(CAP_IPC_LOCK)
+    lock_ok = memlock == resource.RLIM_INFINITY or capability(CAP_IPC_LOCK)
     checks.append(("memory locking", lock_ok,
                    (f"memlock limit {_limit(resource.RLIMIT_MEMLOCK)}, CAP_IPC_LOCK "
-                   f"{'yes' if _capability(CAP_IPC_LOCK) else 'no'}"), MEMLOCK_FIX))
+                   f"{'yes' if capability(CAP_IPC_LOCK) else 'no'}"), MEMLOCK_FIX))
     cpus = Path("/sys/devices/system/cpu")
     governors = sorted({_read(str(p)) for p in cpus.glob("cpu[0-9]*/cpufreq/scaling_governor")})
     if not governors:

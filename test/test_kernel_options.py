@@ -27,7 +27,7 @@ def _dispatchers(value: object) -> list[CPUDispatcher]:
     if isinstance(value, CPUDispatcher):
         return [value]
     if isinstance(value, dict):
-        return [d for v in value.values() if isinstance(v, CPUDispatcher) for d in [v]]
+        return [v for v in value.values() if isinstance(v, CPUDispatcher)]
     return []
 
 

@@ -22,7 +22,6 @@ and the young generation is collected only where the loop says it has time to sp
 from __future__ import annotations
 
 import ctypes
-import ctypes.util
 import dataclasses
 import gc
 import os
@@ -32,7 +31,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from ..errors import ConfigError
-from ..glibc import M_MMAP_MAX, M_TRIM_THRESHOLD, mallopt
+from ..glibc import M_MMAP_MAX, M_TRIM_THRESHOLD, libc, mallopt
 
 DEFAULT_PRIORITY = 50  # ros2_control's controller manager: SCHED_FIFO 50 (the controller's default)
 # the plant (the hardware's stand-in) and the trajectory (the controller's reference) tick at FIFO
@@ -129,14 +128,9 @@ class Applied:
         return "real time: " + ", ".join(p for p in parts if p)
 
 
-def _libc() -> ctypes.CDLL:
-    return ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6", use_errno=True)
-
-
 def lock_memory() -> str:
     """``mlockall(MCL_CURRENT | MCL_FUTURE)``; "" on success, else the reason it was refused."""
-    libc = _libc()
-    if libc.mlockall(MCL_CURRENT | MCL_FUTURE) == 0:
+    if libc().mlockall(MCL_CURRENT | MCL_FUTURE) == 0:
         return ""
     err = ctypes.get_errno()
     soft, _ = resource.getrlimit(resource.RLIMIT_MEMLOCK)
@@ -166,9 +160,9 @@ def reserve_memory(heap_bytes: int = HEAP_RESERVE_BYTES, object_bytes: int = OBJ
     process's allocations fail).
     """
     soft, _ = resource.getrlimit(resource.RLIMIT_MEMLOCK)
-    if soft != resource.RLIM_INFINITY and not _may_lock_beyond_limit():
-        room = max(0, soft - locked_kib() * 1024) // 2
-        heap_bytes, object_bytes = min(heap_bytes, room // 2), min(object_bytes, room // 2)
+    if soft != resource.RLIM_INFINITY and not capability(CAP_IPC_LOCK):
+        quarter = max(0, soft - locked_kib() * 1024) // 4  # each reserve a quarter of the room: half in all
+        heap_bytes, object_bytes = min(heap_bytes, quarter), min(object_bytes, quarter)
     reserved = 0
     if heap_bytes > 0 and mallopt(M_MMAP_MAX, 0) and mallopt(M_TRIM_THRESHOLD, -1):
         # blocks below a thread heap's size (64 MiB): from the calling thread's own malloc arena
@@ -186,23 +180,9 @@ def reserve_memory(heap_bytes: int = HEAP_RESERVE_BYTES, object_bytes: int = OBJ
     return reserved
 
 
-CAP_IPC_LOCK = 14  # <linux/capability.h>: lock memory beyond RLIMIT_MEMLOCK
-
-
-def _may_lock_beyond_limit(status: Path = Path("/proc/self/status")) -> bool:
-    """Whether the process holds CAP_IPC_LOCK (its effective set in ``/proc/self/status``)."""
-    try:
-        for line in status.read_text().splitlines():
-            if line.startswith("CapEff:"):
-                return bool(int(line.split()[1], 16) >> CAP_IPC_LOCK & 1)
-    except (OSError, ValueError, IndexError):
-        return False
-    return False
-
-
 def unlock_memory() -> None:
     """``munlockall()``: the loop is over (tear-down need not stay resident)."""
-    _libc().munlockall()
+    libc().munlockall()
 
 
 def set_fifo(priority: int) -> str:
@@ -319,15 +299,35 @@ def scheduler_of_thread() -> tuple[str, int]:
     return names.get(policy, str(policy)), os.sched_getparam(0).sched_priority
 
 
-def locked_kib(status: Path = Path("/proc/self/status")) -> int:
-    """``VmLck`` of ``/proc/self/status`` in KiB: the process's locked memory (0 if unknown)."""
+SELF_STATUS = Path("/proc/self/status")
+CAP_IPC_LOCK, CAP_SYS_NICE = 14, 23  # bits of CapEff (linux/capability.h)
+
+
+def _status_field(name: str, status: Path) -> str:
+    """The first word of field ``name`` in a ``/proc/<pid>/status`` file ("" if it cannot be read)."""
     try:
         for line in status.read_text().splitlines():
-            if line.startswith("VmLck:"):
-                return int(line.split()[1])
-    except (OSError, ValueError, IndexError):
-        return 0
-    return 0
+            if line.startswith(f"{name}:"):
+                return line.split()[1]
+    except (OSError, IndexError):
+        return ""
+    return ""
+
+
+def locked_kib(status: Path = SELF_STATUS) -> int:
+    """``VmLck`` of ``/proc/self/status`` in KiB: the process's locked memory (0 if unknown)."""
+    value = _status_field("VmLck", status)
+    return int(value) if value.isdigit() else 0
+
+
+def capability(bit: int, status: Path = SELF_STATUS) -> bool:
+    """Whether the process holds capability ``bit`` (``CapEff`` of ``/proc/self/status``): with
+    :data:`CAP_IPC_LOCK` it may lock memory beyond ``RLIMIT_MEMLOCK``, with :data:`CAP_SYS_NICE` set
+    ``SCHED_FIFO`` beyond ``RLIMIT_RTPRIO``."""
+    try:
+        return bool(int(_status_field("CapEff", status) or "0", 16) >> bit & 1)
+    except ValueError:
+        return False
 
 
 def minor_faults() -> int:
