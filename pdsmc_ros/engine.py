@@ -118,7 +118,10 @@ def keep_freed_memory() -> None:
     arrays thousands of times takes a page fault on every 4 kB of them. 150 five-bar runs x 3 laws:
     3.0 M minor faults and 8.5-9.4 s of system time by default; with arrays up to
     ``HEAP_ARRAYS_BYTES`` from the heap and freed memory kept up to four times that, 0.1 M and
-    1.0-1.2 s, the wall time -10 %, the same table (docs/PERFORMANCE.md). Not glibc: nothing done.
+    1.0-1.2 s, the wall time -10 %, the same table (docs/PERFORMANCE.md). Since the five-bar's
+    forward position makes no (N, 2) temporaries, a five-bar run's arrays hardly fault by default
+    either; what still does is an array above glibc's adaptive ceiling (a long run's samples).
+    Not glibc: nothing done.
     """
     global _allocator_set  # noqa: PLW0603 - once per process
     if _allocator_set:
