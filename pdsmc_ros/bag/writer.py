@@ -106,6 +106,39 @@ class MessageAppender:
         if timestamp > writer.max_timestamp:
             writer.max_timestamp = timestamp
 
+    def append_received(self, messages: Sequence[tuple[bytes, int, int]]) -> None:
+        """Write several serialized messages ``(data, received ns, sent ns)``, in order.
+
+        As rosbag2 records since Jazzy: the MCAP log time is when the message was received,
+        the publish time when it was sent (0: the middleware gave none, the receive time stands
+        in). For a recorder that takes foreign topics, each message with its own times.
+        """
+        if not messages:
+            return
+        writer = self.writer
+        if not self.fast:
+            for data, received, _sent in messages:
+                writer.write(self.connection, received, data)
+            return
+        storage = cast(McapWriter, writer.storage)
+        cid = self.connection.id
+        pack = _MESSAGE.pack
+        for data, received, sent in messages:
+            chunk = storage.chunk
+            storage.message_start_time = min(storage.message_start_time, received)
+            storage.message_end_time = max(storage.message_end_time, received)
+            chunk.message_start_time = min(chunk.message_start_time, received)
+            chunk.message_end_time = max(chunk.message_end_time, received)
+            chunk.msgs[cid].append((received, chunk.bio.tell()))
+            chunk.bio.write(pack(_OPCODE_MESSAGE, _MESSAGE_FIELDS + len(data), cid, 0, received, sent or received))
+            chunk.bio.write(data)
+            if chunk.bio.tell() > _CHUNK_LIMIT:
+                close_chunk(storage)
+            writer.min_timestamp = min(writer.min_timestamp, received)
+            writer.max_timestamp = max(writer.max_timestamp, received)
+        storage.channel_stats[cid] += len(messages)
+        writer.counts[cid] += len(messages)
+
 
 def close_chunk(storage: McapWriter) -> None:
     """``storage.close_chunk()`` with each message index packed at once, and the chunk's CRC.
