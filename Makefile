@@ -4,6 +4,7 @@
 #   make demo    serial circle with PD, SMC and PD-SMC over DDS, and their comparison
 #   make test    the test suite (installs first if needed)
 #   make figures the thesis-style comparison figures in docs/figures (the demo's runs, analysed)
+#   make docs    the documentation site from docs/ into site/ (warnings are errors)
 SHELL := /bin/bash
 PYTHON ?= python3
 VENV ?= .venv
@@ -16,7 +17,7 @@ EXECUTABLES := plant trajectory controller recorder composed viewer analyze mujo
 export AMENT_PREFIX_PATH := $(abspath $(VENV))
 export NUMBA_CACHE_DIR := $(abspath $(VENV))/numba-cache
 
-.PHONY: setup demo test reproduce bench figures clean
+.PHONY: setup demo test reproduce bench figures docs clean
 
 setup: $(STAMP) $(INTERFACES_STAMP)
 
@@ -24,10 +25,10 @@ SOURCES := setup.py setup.cfg package.xml $(wildcard config/*.yaml config/*.xml 
 	$(wildcard pdsmc_ros/*.py pdsmc_ros/*/*.py)
 DEPS_STAMP := $(VENV)/.pdsmc-deps
 
-$(DEPS_STAMP): requirements.txt requirements-test.txt requirements-build.txt constraints.txt
+$(DEPS_STAMP): requirements.txt requirements-test.txt requirements-build.txt requirements-docs.txt constraints.txt
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --disable-pip-version-check -r requirements.txt -r requirements-test.txt \
-	  -r requirements-build.txt -c constraints.txt
+	  -r requirements-build.txt -r requirements-docs.txt -c constraints.txt
 	@touch $(DEPS_STAMP)
 
 # control_msgs has no wheel: its Python type support is generated from the definitions under
@@ -75,6 +76,12 @@ figures: setup
 	mkdir -p docs/figures
 	cp bags/figures-analysis/serial_3r_circle_*.png docs/figures/
 
+# the documentation site (mkdocs.yml): the pdsmc and node references are generated from the
+# code at build time (docs/hooks/), MathJax is copied in from its pinned wheel; strict: a broken
+# link, anchor or missing page fails. test/test_docs.py runs the same build under make test.
+docs: setup
+	$(VENV)/bin/mkdocs build --strict --clean --site-dir site
+
 reproduce: setup
 	$(PY) -m pdsmc_ros.cli reproduce --out docs
 
@@ -85,4 +92,4 @@ bench: setup
 	PATH="$(abspath $(VENV))/bin:$$PATH" $(PY) bench/realtime.py
 
 clean:
-	rm -rf $(VENV) build *.egg-info .pytest_cache
+	rm -rf $(VENV) build *.egg-info .pytest_cache site

@@ -80,11 +80,11 @@ def cli_reference() -> str:
     lines = [
         "# `pdsmc` command reference",
         "",
-        "Generated at build time from the command's argument parser "
+        ("Generated at build time from the command's argument parser "
         "(`pdsmc_ros.cli.build_parser`): what is here is what `pdsmc COMMAND --help` accepts. "
         "Every error is one line on stderr naming the input and what is allowed, exit status 2 "
         "for bad input and 1 for a failure while running. How the options combine in practice: "
-        "[common options](cli-options.md).",
+        "[common options](cli-options.md)."),
         "",
         "| command | what it does |",
         "| --- | --- |",
@@ -156,14 +156,14 @@ def nodes_reference(found: dict[str, dict[str, Any]]) -> str:
     lines = [
         "# Node reference",
         "",
-        "Generated at build time from the nodes themselves: each executable's nodes are built as "
+        ("Generated at build time from the nodes themselves: each executable's nodes are built as "
         "`ros2 run pdsmc_ros EXECUTABLE` builds them, once in `mode:=lockstep` (the serial arm) and "
         "once in `mode:=realtime` (the five-bar), and every parameter declaration (name, default, "
         "range, allowed values, description), publisher, subscription, service and action server "
         "they make is listed. A topic or service one mode alone opens is marked. rclpy's own "
         "parameters (`use_sim_time`, `start_type_description_service`) and services (parameter "
         "services, type description) are on every node and left out. How the topics are used: "
-        "[nodes and topics](nodes-topics.md).",
+        "[nodes and topics](nodes-topics.md)."),
         "",
         "| executable | nodes |",
         "| --- | --- |",
