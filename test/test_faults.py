@@ -20,7 +20,14 @@ from hypothesis import strategies as st
 from pdsmc_ros.bag.mcapscan import scan
 from pdsmc_ros.bag.reader import read_run
 from pdsmc_ros.control import ControlLaw, Gains
-from pdsmc_ros.control.safety import DivergenceCheck, SafetyConfig, check_effort, limit_torque, safe_torque
+from pdsmc_ros.control.safety import (
+    DivergenceCheck,
+    SafetyConfig,
+    check_effort,
+    effort_only_table,
+    safe_torque,
+    soft_limit,
+)
 from pdsmc_ros.errors import InvalidInputError
 from pdsmc_ros.sim import PlantStepper, simulate
 
@@ -77,9 +84,12 @@ def test_safety_config_validation(mode, damping, stiffness, on_loss) -> None:  #
 
 
 def test_torque_limit() -> None:
-    tau, clamped = limit_torque(np.array([3.0, -9.0]), np.array([5.0, 5.0]))
-    assert clamped and tau.tolist() == [3.0, -5.0]
-    assert limit_torque(np.array([1.0]), None) == (pytest.approx(np.array([1.0])), False)
+    counts = np.zeros(2, dtype=np.int64)
+    tau = np.array([3.0, -9.0])
+    assert soft_limit(tau, np.zeros(2), np.zeros(2), effort_only_table(np.array([5.0, 5.0]), 2), counts, 1) == 1
+    assert tau.tolist() == [3.0, -5.0] and counts.tolist() == [0, 1]
+    tau = np.array([1.0])
+    assert soft_limit(tau, np.zeros(1), np.zeros(1), effort_only_table(None, 1), counts, 1) == 0 and tau[0] == 1.0
 
 
 # --------------------------------------------------------------------------- #

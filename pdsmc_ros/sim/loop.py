@@ -17,7 +17,7 @@ from numba import njit
 
 from ..control.dispatch import law_torque
 from ..control.law import ControlLaw
-from ..control.safety import DivergenceCheck, watch
+from ..control.safety import DivergenceCheck, effort_only_table, soft_limit, watch
 from ..kernel_options import ALLOCATION_FREE
 from ..robots import compiled as robot_compiled
 from ..robots.base import FloatArray, Manipulator
@@ -65,14 +65,9 @@ def _loop(  # noqa: ANN202, PLR0913
                 return
         law_torque(code, gains, smc_model, model_kind, model_p, q, qd, refs[k, 0], refs[k, 1], refs[k, 2], tau,
                    work, n, state, h)
-        # np.clip(tau, -limit, limit) written out; a period counts as saturated when it is applied
-        for i in range(n):
-            if tau[i] > limit[i]:
-                tau[i] = limit[i]
-                counts[i] += k < applied
-            elif tau[i] < -limit[i]:
-                tau[i] = -limit[i]
-                counts[i] += k < applied
+        # the controller's output limits (np.clip where a joint's limits are unknown); a period
+        # counts as saturated when it is applied
+        soft_limit(tau, q, qd, limit, counts, 1 if k < applied else 0)
         if k % sample_every == 0:
             j = k // sample_every
             for i in range(n):
@@ -158,9 +153,10 @@ def run_loop(
         Control period (s).
     sample_every : int
         Sampling of the outputs, in control steps.
-    torque_limit : ndarray, shape (n,), optional
-        The law's torque is clamped to ``np.clip(tau, -limit, limit)`` at every step (the
-        controller node's clamp); None: not clamped.
+    torque_limit : ndarray, shape (6, n), optional
+        The controller's output limits applied to the law's torque at every step
+        (:func:`~pdsmc_ros.control.safety.soft_limit`, the controller node's; a table of
+        :func:`~pdsmc_ros.control.safety.soft_limit_table`); None: not limited.
     check : DivergenceCheck, optional
         Checks the state at every statistics instant (every ``sample_every``-th step: at every
         step it cost the serial arm's loop about 8 %): the run stops at the first instant whose
@@ -189,7 +185,7 @@ def run_loop(
     out_q = np.empty((count, n))
     out_qd = np.empty((count, n))
     out_tau = np.empty((count, n))
-    limit = np.full(n, np.inf) if torque_limit is None else np.asarray(torque_limit, dtype=float)
+    limit = effort_only_table(None, n) if torque_limit is None else np.ascontiguousarray(torque_limit, dtype=float)
     check = check or DivergenceCheck.for_robot(plant)
     counts = np.zeros(n + 2, dtype=np.int64)
     counts[n] = -1
