@@ -25,7 +25,12 @@ RCLPY_TOPICS = ("/parameter_events", "/rosout")
 
 
 def _plain(value: Any) -> Any:
-    """A JSON-able copy of a parameter default (numpy scalars, tuples, inf)."""
+    """A JSON-able copy of a parameter default (numpy scalars, tuples, inf; a ``Parameter.Type``
+    declared without a value: ``None``)."""
+    from rclpy.parameter import Parameter
+
+    if isinstance(value, Parameter.Type):
+        return None
     if isinstance(value, (list, tuple)):
         return [_plain(v) for v in value]
     if isinstance(value, float) and not math.isfinite(value):
@@ -57,6 +62,7 @@ def record(factories: dict[str, Callable[[], Any]], mode: str) -> dict[str, Any]
     import rclpy
     from rclpy.action import ActionServer
     from rclpy.node import Node
+    from rclpy.parameter import Parameter
 
     from pdsmc_ros.nodes.realtime_params import loop_reports
 
@@ -79,6 +85,8 @@ def record(factories: dict[str, Callable[[], Any]], mode: str) -> dict[str, Any]
                           **kwargs: Any) -> Any:
         result = declare(self, name, value, descriptor, *args, **kwargs)
         info: dict[str, Any] = {"default": _plain(value)}
+        if isinstance(value, Parameter.Type):
+            info["type"] = value.name.lower()
         if descriptor is not None:
             info["description"] = descriptor.description
             info["constraints"] = descriptor.additional_constraints

@@ -127,7 +127,7 @@ def node_interfaces() -> dict[str, dict[str, Any]]:
 
 
 def _allowed(info: dict[str, Any]) -> str:
-    parts = []
+    parts = [f"a {info['type'].replace('_', ' ')}"] if "type" in info else []
     if "range" in info:
         lo, hi = info["range"]
         parts.append(f"[{lo:g}, {hi:g}]" if isinstance(lo, (int, float)) else f"[{lo}, {hi}]")
