@@ -2,6 +2,8 @@
 
 Every statistic comes from :mod:`pdsmc_ros.metrics` through
 :func:`pdsmc_ros.bag.reader.run_metrics`, the same code as the in-process simulator.
+A bag of a graph the recorder did not start (a real arm's run: :mod:`pdsmc_ros.bag.graph`)
+is analysed per action goal (:mod:`.goals`, :func:`analyze_graph_bag`).
 """
 
 from __future__ import annotations
@@ -16,13 +18,15 @@ from typing import Any
 
 import numpy as np
 
+from ..bag.graph import GraphRun, read_graph_run
 from ..bag.reader import RecordedRun, read_run, run_metrics
 from ..control import LAWS
 from ..control.safety import DivergenceCheck
-from ..errors import BagError, InvalidInputError
+from ..errors import BagError, ConfigError, InvalidInputError
 from ..metrics import Metrics
-from ..runtime.statistics import loop_report_lines
+from ..runtime.statistics import format_loop_statistics, loop_report_lines
 from ..scores import DEFAULT_CUTOFF_HZ
+from .goals import DEFAULT_SETTLE_BAND, GoalFigures, late_periods, nominal_period, run_goal_figures
 
 
 def is_bag(path: Path) -> bool:
@@ -252,4 +256,179 @@ def write_outputs(bags: Sequence[AnalyzedBag], out: Path) -> list[Path]:
                     writer.writerow(
                         [str(b.path), d["robot"], d["contour"], d["controller"], d["scenario"], name, repr(v)]
                     )
+    return [json_path, csv_path]
+
+
+# --------------------------------------------------------------------------- #
+# A graph the recorder did not start: a real arm's run, analysed per goal
+# --------------------------------------------------------------------------- #
+@dataclass
+class AnalyzedGraphBag:
+    """A graph recording's run (:mod:`pdsmc_ros.bag.graph`) and its goals' figures."""
+
+    path: Path
+    run: GraphRun
+    arm: str  # where the limits came from
+    rate: float  # the joint states' rate, Hz
+    late_periods: int
+    goals: list[GoalFigures]
+    diverged: str = ""
+    loop_statistics: dict[str, dict[str, float]] = dataclasses.field(default_factory=dict)
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"bag": str(self.path), "kind": "graph", "arm": self.arm, "joints": self.run.names,
+                "joint_states": {"topic": self.run.state_topic, "count": len(self.run.t), "rate_hz": self.rate,
+                                 "late_periods": self.late_periods},
+                "counts": self.run.counts, "diverged": self.diverged, "loop_statistics": self.loop_statistics,
+                "goals": [g.as_dict() for g in self.goals]}
+
+
+def _arm(run: GraphRun, robot: str | None) -> tuple[Any, str]:
+    """The arm whose limits apply: ``robot`` if given, else the bag's ``/robot_description``; (None, why) if neither."""
+    from ..robots.catalog import ROBOT_DESCRIPTION, register_description, resolve_robot
+    from ..robots.registry import make_robot
+
+    if robot is not None:
+        try:
+            return make_robot(resolve_robot(robot)), f"{robot} (--robot)"
+        except ConfigError as exc:
+            raise InvalidInputError(f"--robot: {exc}") from None
+    if run.urdf is None:
+        return None, "unknown: the bag holds no /robot_description (give --robot)"
+    try:
+        register_description(run.urdf)
+        return make_robot(ROBOT_DESCRIPTION), "the bag's /robot_description"
+    except (ConfigError, InvalidInputError) as exc:
+        return None, f"unknown: the bag's /robot_description cannot be read ({exc})"
+
+
+def _in_order(run: GraphRun, names: Sequence[str]) -> GraphRun:
+    """``run`` with its joint columns in the order of ``names`` (BagError if the states lack one)."""
+    missing = [name for name in names if name not in run.names]
+    if missing:
+        raise BagError(f"bag {str(run.path)!r}: the arm's joints {missing} are not in {run.state_topic} "
+                       f"(it has {run.names})")
+    index = [run.names.index(name) for name in names]
+
+    def pick(values: np.ndarray) -> np.ndarray:
+        return values[:, index]
+
+    reference = dataclasses.replace(run.reference, q=pick(run.reference.q), qd=pick(run.reference.qd))
+    goals = [dataclasses.replace(g, desired=None if g.desired is None else dataclasses.replace(
+        g.desired, q=pick(g.desired.q), qd=pick(g.desired.qd))) for g in run.goals]
+    return dataclasses.replace(run, names=list(names), q=pick(run.q), qd=pick(run.qd), effort=pick(run.effort),
+                               reference=reference, goals=goals)
+
+
+def analyze_graph_bag(path: str | Path, *, robot: str | None = None,
+                      settle_band: float = DEFAULT_SETTLE_BAND) -> AnalyzedGraphBag:
+    """Per-goal figures of a graph recording (a real arm's run, or the MuJoCo stand-in's).
+
+    Raises
+    ------
+    BagError
+        If the bag cannot be read, holds no joint states or lacks the arm's joints.
+    InvalidInputError
+        If ``robot`` names no arm or ``settle_band`` is not positive.
+    """
+    from ..runtime.statistics import bag_loop_statistics
+
+    path = Path(path)
+    run = read_graph_run(path)
+    arm, source = _arm(run, robot)
+    if arm is not None:
+        run = _in_order(run, arm.joint_names)
+    n = len(run.names)
+    try:
+        period = nominal_period(run.t)
+    except InvalidInputError as exc:
+        raise BagError(f"bag {str(path)!r}: {exc}") from None
+    velocity = arm.velocity_limits if arm is not None else np.full(n, np.inf)
+    effort = arm.effort_limits if arm is not None else np.full(n, np.inf)
+    goals = run_goal_figures(run, velocity_limits=velocity, effort_limits=effort, settle_band=settle_band)
+    diverged = ""
+    if arm is not None:
+        diverged = DivergenceCheck.for_robot(arm).recorded(run.q, run.qd, run.effort, effort, 1.0 / period)
+    return AnalyzedGraphBag(path, run, source, 1.0 / period, late_periods(run.t, period), goals, diverged,
+                            bag_loop_statistics(path))
+
+
+def _fmt(value: float | None, fmt: str) -> str:
+    return "-" if value is None or (isinstance(value, float) and np.isnan(value)) else fmt.format(value)
+
+
+def goal_table(bag: AnalyzedGraphBag) -> str:
+    """One column per goal: its result, errors, settling, velocities, torques, scores and periods."""
+    run, goals = bag.run, bag.goals
+    lines = [(f"{bag.path}: a recorded graph, {len(run.t)} joint states on {run.state_topic} at {bag.rate:.1f} Hz "
+              f"({bag.late_periods} late periods), {len(goals)} goal{'s' if len(goals) != 1 else ''}; limits of "
+              f"{bag.arm}")]
+    if not goals:
+        lines.append("no action goal recorded (none was sent, or the action's status was not: recorder actions:=[...])")
+        return "\n".join(lines)
+    width = max(26, *(len(g.result) + len(g.status) + 5 for g in goals))
+    header = f"{'statistic':30s}" + "".join(f"{g.label:>{width}s}" for g in goals)
+    lines += [header, "-" * len(header)]
+
+    def row(name: str, values: Sequence[str]) -> None:
+        lines.append(f"{name:30s}" + "".join(f"{v:>{width}s}" for v in values))
+
+    row("result", [f"{g.status} ({g.result})" for g in goals])
+    row("start (s)", [_fmt(g.start, "{:.3f}") for g in goals])
+    row("duration (s)", [_fmt(None if g.end is None else g.end - g.start, "{:.3f}") for g in goals])
+    row("desired state from", [g.reference.split(" (")[0] for g in goals])
+    for i in range(len(run.names)):
+        row(f"axis {i + 1} mean |e| (rad)", [_fmt(g.metrics.axial_mean[i] if g.metrics else None, "{:.4e}")
+                                           for g in goals])
+        row(f"axis {i + 1} S.D. (rad)", [_fmt(g.metrics.axial_sd[i] if g.metrics else None, "{:.4e}") for g in goals])
+        row(f"axis {i + 1} max |e| (rad)", [_fmt(g.error_max[i], "{:.4e}") for g in goals])
+    row("desired motion ends (s)", [_fmt(g.reference_end, "{:.3f}") for g in goals])
+    row("settle time (s)", [_fmt(g.settle_time, "{:.3f}") if g.settle_time is not None else "not settled"
+                            for g in goals])
+    for i in range(len(run.names)):
+        row(f"max |qd_{i + 1}| (rad/s)", [f"{g.velocity_max[i]:.4g} ({100 * g.velocity_share[i]:.0f} %)"
+                                          if np.isfinite(g.velocity_share[i]) else _fmt(g.velocity_max[i], "{:.4g}")
+                                          for g in goals])
+    for i in range(len(run.names)):
+        row(f"max |tau_{i + 1}| (N m)", [_fmt(g.metrics.max_torque[i] if g.metrics else None, "{:.4g}")
+                                         for g in goals])
+    for i in range(len(run.names)):
+        row(f"saturated periods {i + 1}", [_fmt(g.metrics.saturated_periods[i] if g.metrics else None, "{:.0f}")
+                                           for g in goals])
+    for key, name, fmt in SCORE_ROWS:
+        for i in range(len(run.names)):
+            row(f"{name} {i + 1}", [_fmt(_score(g.metrics, key, i) if g.metrics else None, fmt) for g in goals])
+        row(f"{name} run", [_fmt(g.metrics.run_scores.get(key) if g.metrics else None, fmt) for g in goals])
+    row("late periods", [str(g.late_periods) for g in goals])
+    lines.append(f"joints: {', '.join(f'{i + 1} {name}' for i, name in enumerate(run.names))}; velocities in % "
+                 "of the limit; settle time from the end of the desired motion")
+    for g in goals:
+        if g.error_string:
+            lines.append(f"{g.label}: {g.error_string}")
+    if bag.diverged:
+        lines.append(f"{bag.path}: the run {bag.diverged}")
+    lines += format_loop_statistics(str(bag.path), bag.loop_statistics)
+    return "\n".join(lines)
+
+
+def write_graph_outputs(bags: Sequence[AnalyzedGraphBag], out: Path) -> list[Path]:
+    """``goals.json`` (every figure) and ``goals.csv`` (bag, goal, statistic, value) in ``out``."""
+    out.mkdir(parents=True, exist_ok=True)
+    json_path = out / "goals.json"
+    json_path.write_text(json.dumps([b.as_dict() for b in bags], indent=1), encoding="utf-8")
+    csv_path = out / "goals.csv"
+    with csv_path.open("w", newline="", encoding="utf-8") as handle:
+        writer = csv.writer(handle)
+        writer.writerow(["bag", "goal", "status", "result", "statistic", "value"])
+        for b in bags:
+            for g in b.goals:
+                flat = {k: v for k, v in g.as_dict().items() if k != "metrics"}
+                if g.metrics is not None:
+                    flat.update(g.metrics.as_dict())
+                for key, value in flat.items():
+                    values = value.items() if isinstance(value, dict) else (
+                        [(f"{i + 1}", v) for i, v in enumerate(value)] if isinstance(value, list) else [("", value)])
+                    for sub, v in values:
+                        writer.writerow([str(b.path), g.index, g.status, g.result, f"{key}.{sub}" if sub else key,
+                                         repr(v)])
     return [json_path, csv_path]

@@ -122,7 +122,11 @@ def type_definition(typestore: Typestore, type_name: str) -> tuple[str, str]:
         pending += needed
     missing: dict[str, Any] = {}
     for name, text in texts.items():
-        if name not in typestore.fielddefs:
+        if name in typestore.fielddefs and "/msg/" in name:
+            # a message type the store knows: its own text (with its constants), so the hash a reader
+            # computes from this definition is the store's (rosbags writes texts of /msg/ types only)
+            texts[name] = typestore.generate_msgdef(name, ros_version=2)[0].split("\n" + "=" * 80)[0]
+        elif name not in typestore.fielddefs:
             missing.update(get_types_from_msg(text, name))
     if missing:
         typestore.register(missing)

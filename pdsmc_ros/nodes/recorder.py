@@ -47,7 +47,7 @@ from std_msgs.msg import Float64MultiArray, String
 from trajectory_msgs.msg import JointTrajectory
 
 from ..bag.cdr import decode_string
-from ..bag.graph import RECORDING_KEY
+from ..bag.graph import RECORDING_KEY, deserialize
 from ..bag.reader import DESCRIPTION_KEY, RECORDER_DESCRIPTION_TOPIC
 from ..bag.tf import TF_TYPE, TfRecorder
 from ..bag.writer import MessageAppender, RunProgress, flush_chunk, open_new_bag
@@ -314,6 +314,7 @@ class ActionResults:
     client: Any
     event_type: Any  # the GetResult service's Event class
     append: Any
+    event_name: str = ""
     asked: set[bytes] = field(default_factory=set)
     pending: list[bytes] = field(default_factory=list)
     answered: int = 0
@@ -497,7 +498,7 @@ class GraphRecorder:
             connection = self.writer.add_connection(topic, event_name, msgdef=msgdef, rihs01=rihs01)
         client = self.node.create_client(action_class.Impl.GetResultService, f"{action}/_action/get_result")
         self.results[action] = ActionResults(action, client, action_class.Impl.GetResultService.Event,
-                                             MessageAppender(self.writer, connection).append_received)
+                                             MessageAppender(self.writer, connection).append_received, event_name)
         self.node.get_logger().info(f"recording {action}'s goal results on {topic} (asked of its server)")
 
     def _statuses(self, action: str, data: bytes) -> None:
@@ -540,10 +541,15 @@ class GraphRecorder:
         event.info.sequence_number = watch.answered
         watch.answered += 1
         now = time.time_ns()
+        data = serialize_message(event)
+        try:  # without the stray bytes rclpy's serializer leaves after some messages (bag.graph.deserialize)
+            data = data[: deserialize(self.typestore, data, watch.event_name)[1]]
+        except Exception as exc:  # noqa: BLE001 - not one of ours: recorded as rclpy gave it
+            self.node.get_logger().warn(f"{watch.name}: a result event left as serialized ({exc})")
         try:
             with self.lock:
                 if self.writer is not None:
-                    watch.append([(serialize_message(event), now, now)])
+                    watch.append([(data, now, now)])
         except OSError as exc:
             self.node.get_logger().error(f"write to {self.path} failed: {exc}")
             self.exit_code = EXIT_FAILURE

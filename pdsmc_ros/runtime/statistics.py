@@ -117,7 +117,10 @@ def bag_loop_statistics(path: str | Path) -> dict[str, dict[str, float]]:
 
     last: dict[str, dict[str, float]] = {}
     with AnyReader([Path(path)], default_typestore=get_typestore(Stores.ROS2_JAZZY)) as reader:
-        conns = [c for c in reader.connections if c.topic == "/diagnostics"]
+        conns = [c for c in reader.connections
+                 if c.topic == "/diagnostics" and c.msgtype == "diagnostic_msgs/msg/DiagnosticArray"]
+        if not conns:  # (no connections would read every message of the bag)
+            return last
         for conn, _, raw in reader.messages(connections=conns):
             msg: Any = reader.deserialize(raw, conn.msgtype)
             for status in msg.status:
