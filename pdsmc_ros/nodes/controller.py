@@ -24,6 +24,7 @@ from collections.abc import Sequence
 
 from rclpy.duration import Duration
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
+from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 from trajectory_msgs.msg import JointTrajectory
@@ -67,7 +68,8 @@ class ControllerNode(CommandingEntity):
             spec, JointSelector(robot.joint_names), self.joint_map,  # the law's vectors stay in robot order
             JointLimits.of(robot, robot.joint_names) if params.enforce_limits else None, self.guard,
             params.stale_periods / spec.rate, self.lockstep,
-            lambda why: node.get_logger().info(f"holding the measured position ({why})"))
+            lambda why: node.get_logger().info(f"holding the measured position ({why})"),
+            goal_settings=params.goal_settings)
         check_rate(spec, core.reference, **run.stability)  # refuse gains that fail in this mode (and delay)
         # gains: the on-set callback checks a change is stable at the running rate, the post-set one applies it
         self.gain_updates = OrderedGainUpdates(node, spec, lambda new: check_rate(new, core.reference, **run.stability),
@@ -84,8 +86,9 @@ class ControllerNode(CommandingEntity):
         self.inputs.subscribe(JointTrajectory, topics.TOPIC_REFERENCE, self.on_reference)
         # off the loop's path: a goal is rare, and an input taken at every pass of the loop costs a take per pass
         goals = self.observed_inputs = Inputs(node, self.mode, batch_s=GOAL_BATCH_S, suffix="_goals")
-        goals.subscribe(JointTrajectory, topics.TOPIC_JOINT_TRAJECTORY, self.on_goals, topics.TRAJECTORY_QOS,
-                        with_receipt=True)
+        if self.lockstep:  # real time: taken and validated by the action server's thread, never the loop's
+            goals.subscribe(JointTrajectory, topics.TOPIC_JOINT_TRAJECTORY, self.on_goals, topics.TRAJECTORY_QOS,
+                            with_receipt=True)
         description = String(data=description_json(spec, self.mode))
         node.create_publisher(String, topics.TOPIC_DESCRIPTION, topics.LATCHED_QOS).publish(description)
         if not self.lockstep:
@@ -139,9 +142,14 @@ class ControllerNode(CommandingEntity):
         return self.core.sim_time() if self.lockstep else self.node.get_clock().now().nanoseconds * 1e-9
 
     def on_goals(self, batch: list[tuple[bytes, Times]]) -> None:
-        """Trajectory goals taken in a batch: each replaces the previous one, in order."""
+        """Lockstep: trajectory goals taken in a batch, each replacing the previous one, in order."""
         for data, times in batch:
-            if topic_trajectory(self, data, times) and self.lockstep:
+            try:
+                msg = deserialize_message(data, JointTrajectory)
+            except Exception as exc:  # noqa: BLE001 - any malformed message: refused, never fatal
+                self.action.report.report("error", f"{topics.TOPIC_JOINT_TRAJECTORY}: malformed message ({exc})")
+                continue
+            if topic_trajectory(self, msg, times):
                 self.compute(self.core.pairing.take())
 
     def compute(self, paired: Paired | None) -> None:

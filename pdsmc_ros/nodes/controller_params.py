@@ -23,13 +23,17 @@ from ..control import GAINS, Gains
 from ..errors import ConfigError
 from ..presets import RunSpec, scenario_gain_factors
 from ..robots import Manipulator
-from ..runtime.goal import STOPPED_VELOCITY_TOLERANCE, Tolerances
+from ..runtime.goal import STOPPED_VELOCITY_TOLERANCE, GoalSettings, Tolerances
 from ..runtime.joint_map import JointMap
+from ..runtime.joint_trajectory import TrajectoryRules
+from ..runtime.limits import START_TOLERANCE
 from .descriptors import declare_int_parameter
 from .gain_updates import GainUpdates
 
 FIXED = ("torque_limit", "enforce_limits", "stale_periods", "constraints.goal_time",
-         "constraints.stopped_velocity_tolerance")
+         "constraints.stopped_velocity_tolerance", "allow_partial_joints_goal",
+         "allow_nonzero_velocity_at_trajectory_end", "cmd_timeout", "reject_beyond_limits",
+         "allowed_start_tolerance")
 """The controller's own parameters that a running controller does not re-read."""
 
 
@@ -55,7 +59,7 @@ class ControllerParameters:
     torque_limit: np.ndarray | None  # the clamp (joints order): torque_limit, else the arm's; None: opt-out
     enforce_limits: bool
     stale_periods: int
-    tolerances: Tolerances  # the action's defaults (robot order)
+    goal_settings: GoalSettings  # trajectories and goals: JTC's parameters, the default tolerances (robot order)
 
     @property
     def joints(self) -> tuple[str, ...]:
@@ -91,11 +95,25 @@ def declare_controller_parameters(node: Node, robot: Manipulator) -> ControllerP
                         "action goals: default goal_time_tolerance in s (0: wait for the goal tolerances)")
     stopped = _number(node, "constraints.stopped_velocity_tolerance", STOPPED_VELOCITY_TOLERANCE,
                       "action goals: default goal velocity tolerance in rad/s (0: not checked)")
+    cmd_timeout = _number(node, "cmd_timeout", 0.0, "hold the measured position this long (s) after a trajectory's "
+                          "last point (0: never; ignored unless above constraints.goal_time)")
+    start_tolerance = _number(node, "allowed_start_tolerance", START_TOLERANCE, "beyond JTC: a trajectory whose "
+                              "reference at receipt is more than this (rad) from the current position is a step")
+    for name, default, description in (
+            ("allow_partial_joints_goal", False, "accept trajectories naming some of the joints (the others hold)"),
+            ("allow_nonzero_velocity_at_trajectory_end", False, "accept trajectories whose last point moves"),
+            ("reject_beyond_limits", True, "beyond JTC: reject trajectories beyond the arm's limits or with a step")):
+        node.declare_parameter(name, default, ParameterDescriptor(description=description))
     autostart, enforce = node.get_parameter("autostart").value, node.get_parameter("enforce_limits").value
-    for name, value in (("autostart", autostart), ("enforce_limits", enforce)):
+    flags = {name: node.get_parameter(name).value for name in (
+        "allow_partial_joints_goal", "allow_nonzero_velocity_at_trajectory_end", "reject_beyond_limits")}
+    for name, value in (("autostart", autostart), ("enforce_limits", enforce), *flags.items()):
         if not isinstance(value, bool):
             raise ConfigError(f"parameter {name} must be true or false, got {value!r}")
     joint_map = JointMap(robot.joint_names, node.get_parameter("joints").value)
+    per_joint = {kind: joint_map.to_robot([
+        _number(node, f"constraints.{joint}.{kind}", 0.0, f"default {kind} position tolerance of {joint} in rad")
+        for joint in joint_map.joints]) for kind in ("trajectory", "goal")}
     limit = torque_limit_from_parameters(node, robot.n)
     if not enforce:
         if limit is not None:
@@ -104,8 +122,14 @@ def declare_controller_parameters(node: Node, robot: Manipulator) -> ControllerP
     elif limit is None:
         effort = getattr(robot, "effort_limits", None)
         limit = None if effort is None else joint_map.to_user(np.asarray(effort, dtype=float))
-    return ControllerParameters(joint_map, autostart, limit, enforce, stale_periods,
-                                Tolerances.defaults(robot.n, stopped_velocity=stopped, goal_time=goal_time))
+    defaults = Tolerances.defaults(robot.n, stopped_velocity=stopped, goal_time=goal_time,
+                                   trajectory=per_joint["trajectory"], goal=per_joint["goal"])
+    rules = TrajectoryRules(flags["allow_partial_joints_goal"], flags["allow_nonzero_velocity_at_trajectory_end"])
+    try:
+        settings = GoalSettings(rules, defaults, cmd_timeout, start_tolerance, flags["reject_beyond_limits"])
+    except ValueError as exc:
+        raise ConfigError(f"parameter {exc}") from None
+    return ControllerParameters(joint_map, autostart, limit, enforce, stale_periods, settings)
 
 
 def gains_in_robot_order(node: Node, spec: RunSpec, joint_map: JointMap) -> RunSpec:

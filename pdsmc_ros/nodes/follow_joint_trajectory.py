@@ -1,30 +1,49 @@
-"""The controller's FollowJointTrajectory action server and ``~/joint_trajectory``, off the loop.
+"""The controller's FollowJointTrajectory action server, ``~/joint_trajectory`` and ``~/query_state``, off the loop.
 
 ``control_msgs/action/FollowJointTrajectory`` on ``/<controller>/follow_joint_trajectory``
 with joint_trajectory_controller's semantics (:mod:`pdsmc_ros.runtime.goal`; the decisions:
-:class:`~pdsmc_ros.runtime.controller.ControllerCore`). The server
-lives on a node of its own (``<controller>_action``, no parameter services or rosout) spun
-by a thread of its own with a small multi-threaded executor: a controller with its action
-server in the control loop's executor answered 142 of 2,000 states at 1 kHz; with the
-server's waiting in another thread it answered every one. The control loop checks the
-active goal every period; this thread only validates goals and waits for their outcome. The
-feedback and the controller state (:mod:`.controller_state`) go out in the control loop's
-spare time in real time (``idle``), by a timer of this thread in lockstep.
+:class:`~pdsmc_ros.runtime.controller.ControllerCore`). As JTC, a goal is validated when it
+arrives (``goal_callback``) and an invalid one is rejected -- the client's ``accepted`` is
+False, no result -- with the reason in one log line and on ``/diagnostics``; an accepted goal
+preempts the active one (``handle_accepted_callback``) and is then watched until it ends
+(``execute_callback``). ``~/joint_trajectory`` messages go through the same checks; a refused
+one is logged and dropped, the running motion untouched. ``~/query_state``
+(``control_msgs/srv/QueryTrajectoryState``) answers the reference at a given time of the
+running trajectory.
+
+The server lives on a node of its own (``<controller>_action``, no parameter services or
+rosout) spun by a thread of its own with a small multi-threaded executor: a controller with
+its action server in the control loop's executor answered 142 of 2,000 states at 1 kHz; with
+the server's waiting in another thread it answered every one. Validation runs in that thread,
+never in the loop's: the loop only checks the active goal every period, and the lock they share
+is held for a few stores. A trajectory longer than
+:data:`~pdsmc_ros.runtime.joint_trajectory.MAX_POINTS` is refused before it is looked at.
+Real time: ``~/joint_trajectory`` is taken in this thread too; lockstep (no deadlines): in the
+loop, which computes the waiting step at once. The feedback and the controller state
+(:mod:`.controller_state`) go out in the control loop's spare time in real time (``idle``), by
+a timer of this thread in lockstep.
 """
 
 from __future__ import annotations
 
 import time
+from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
 from control_msgs.action import FollowJointTrajectory
+from control_msgs.srv import QueryTrajectoryState
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
+from trajectory_msgs.msg import JointTrajectory
 
 from ..runtime.goal import INVALID_GOAL, GoalExecution, Outcome
+from ..runtime.joint_trajectory import JointTrajectoryReference, RawPoint
+from . import topics
 from .controller_state import FEEDBACK_HZ, StatePublisher
+from .diagnostics import Diagnostics
 from .executor_thread import ExecutorThread
 from .inputs import Times
 
@@ -32,6 +51,7 @@ if TYPE_CHECKING:
     from .controller import ControllerNode
 
 CANCEL_STATE_WAIT_S = 1.0  # longest wait for rclpy to mark a canceled goal's handle canceling
+PENDING_KEPT = 64  # validated goals waiting for their acceptance (more: clients that vanished)
 
 
 def _seconds(duration: Any) -> float:
@@ -39,24 +59,65 @@ def _seconds(duration: Any) -> float:
     return duration.sec + duration.nanosec * 1e-9
 
 
-def topic_trajectory(controller: ControllerNode, data: bytes, times: Times) -> bool:
-    """A ``~/joint_trajectory`` message: refused (logged) or driving from now on (whether it
-    drives; where it starts: :meth:`~pdsmc_ros.runtime.controller.ControllerCore.topic_trajectory`)."""
-    log = controller.node.get_logger()
-    topic = controller.node.resolve_topic_name("~/joint_trajectory")
-    reference, problem, preempted = controller.core.topic_trajectory(
-        data, times, controller.now(), f"Current goal preempted by a trajectory on {topic}.")
-    if reference is None:
-        log.error(f"{topic}: trajectory refused: {problem}")
+class _Points(Sequence):  # type: ignore[type-arg]
+    """A message's points as :data:`RawPoint` tuples, converted when read (its size is checked first)."""
+
+    def __init__(self, points: Sequence[Any]) -> None:
+        self.points = points
+
+    def __len__(self) -> int:
+        return len(self.points)
+
+    def __getitem__(self, k: Any) -> Any:
+        p = self.points[k]
+        return (p.positions, p.velocities, p.accelerations, p.time_from_start.sec, p.time_from_start.nanosec)
+
+
+class _EffortSizes(Sequence):  # type: ignore[type-arg]
+    def __init__(self, points: Sequence[Any]) -> None:
+        self.points = points
+
+    def __len__(self) -> int:
+        return len(self.points)
+
+    def __getitem__(self, k: Any) -> Any:
+        return len(self.points[k].effort)
+
+
+def trajectory_fields(msg: JointTrajectory) -> tuple[float, tuple[str, ...], Sequence[RawPoint], Sequence[int]]:
+    """A ``JointTrajectory``'s stamp (s), joint names, points and effort sizes, as the core takes them."""
+    return _seconds(msg.header.stamp), tuple(msg.joint_names), _Points(msg.points), _EffortSizes(msg.points)
+
+
+def topic_trajectory(controller: ControllerNode, msg: JointTrajectory, times: Times,
+                     report: Diagnostics | None = None) -> bool:
+    """A ``~/joint_trajectory`` message: refused (one log line and ``/diagnostics`` by ``report``,
+    default the action server's) or driving from now on (whether it drives; where it starts:
+    :meth:`~pdsmc_ros.runtime.controller.ControllerCore.topic_trajectory`)."""
+    topic = controller.node.resolve_topic_name(topics.TOPIC_JOINT_TRAJECTORY)
+    report = report or controller.action.report
+    if not controller.active:
+        report.report("warn", f"{topic}: trajectory refused: the controller is not active")
         return False
-    if preempted:
-        log.warn(f"{topic}: the active action goal was preempted by this trajectory")
-    log.info(f"{topic}: {len(reference.times)} points until t = {reference.end_time:.3f} s; driving from it")
+    reference, problem, followed = controller.core.topic_trajectory(*trajectory_fields(msg), times, controller.now())
+    if reference is None:
+        report.report("error", f"{topic}: trajectory refused: {problem}")
+        return False
+    goes_on = "; the active action goal goes on against it" if followed else ""
+    controller.node.get_logger().info(f"{topic}: {len(reference.times)} points until t = {reference.end_time:.3f} s; "
+                                      f"driving from it{goes_on}")
     return True
 
 
+def _times(info: Any) -> Times:
+    """A subscription's MessageInfo as ``(sent, received)`` seconds (None where the middleware gives none)."""
+    sent, received = info.get("source_timestamp") or 0, info.get("received_timestamp") or 0
+    return (sent * 1e-9 or None, received * 1e-9 or None)
+
+
 class FollowJointTrajectoryServer:
-    """The action server of ``controller`` and its state publisher, in a thread of their own."""
+    """The action server of ``controller``, its topic trajectories, ``~/query_state`` and its
+    state publisher, in a thread of their own."""
 
     def __init__(self, controller: ControllerNode) -> None:
         self.controller = controller
@@ -64,11 +125,20 @@ class FollowJointTrajectoryServer:
         self.node = Node(f"{controller.node.get_name()}_action", namespace=controller.node.get_namespace(),
                          context=controller.node.context, use_global_arguments=False,
                          start_parameter_services=False, enable_rosout=False)
+        self.report = Diagnostics(controller.node, "controller: trajectories", controller.core.spec.robot)
         group = ReentrantCallbackGroup()
         self.server = ActionServer(self.node, FollowJointTrajectory, f"{base}/follow_joint_trajectory",
                                    execute_callback=self.execute, goal_callback=self.on_goal,
+                                   handle_accepted_callback=self.on_accepted,
                                    cancel_callback=self.on_cancel, callback_group=group)
+        self.node.create_service(QueryTrajectoryState, f"{base}/query_state", self.query_state, callback_group=group)
+        if not controller.lockstep:  # lockstep: the loop takes them (it computes the waiting step at once)
+            self.node.create_subscription(
+                JointTrajectory, controller.node.resolve_topic_name(topics.TOPIC_JOINT_TRAJECTORY),
+                lambda msg, info: topic_trajectory(controller, msg, _times(info), self.report), topics.TRAJECTORY_QOS,
+                callback_group=group)
         self.state = StatePublisher(self.node, controller)
+        self.pending: dict[int, tuple[Any, GoalExecution]] = {}  # validated, not yet accepted: by id(request)
         self.goals: dict[bytes, tuple[Any, GoalExecution]] = {}  # active goals: (handle, execution)
         if controller.lockstep:  # no deadlines: a timer here; real time: the loop's spare time (idle)
             self.node.create_timer(1.0 / FEEDBACK_HZ, lambda: self.publish(float("inf")), callback_group=group)
@@ -88,11 +158,43 @@ class FollowJointTrajectoryServer:
         self.node.destroy_node()
 
     # -- goals ---------------------------------------------------------------- #
-    def on_goal(self, request: Any) -> GoalResponse:  # noqa: ARG002
-        if not self.controller.active:  # joint_trajectory_controller: only a running controller accepts
-            self.node.get_logger().error("goal rejected: the controller is not active")
+    def on_goal(self, request: Any) -> GoalResponse:
+        """Validate a goal as it arrives (JTC's ``goal_received_callback``): accepted or rejected."""
+        ctl = self.controller
+        if not ctl.active:  # joint_trajectory_controller: only a running controller accepts
+            self.report.report("error", "action goal rejected: the controller is not active")
             return GoalResponse.REJECT
-        return GoalResponse.ACCEPT  # validated in execute: its result says why it is refused
+        trajectory = request.trajectory
+        checked = ctl.core.check_goal(
+            *trajectory_fields(trajectory), ctl.now(),
+            [(t.name, t.position, t.velocity, t.acceleration) for t in request.path_tolerance],
+            [(t.name, t.position, t.velocity, t.acceleration) for t in request.goal_tolerance],
+            _seconds(request.goal_time_tolerance))
+        if not isinstance(checked.goal, GoalExecution):
+            self.report.report("error", f"action goal rejected: {checked.goal.error_string}")
+            return GoalResponse.REJECT
+        if checked.warning:
+            ctl.node.get_logger().warn(checked.warning)
+        if len(self.pending) >= PENDING_KEPT:
+            self.pending.clear()
+        self.pending[id(request)] = (request, checked.goal)  # rclpy hands this very object to the handle
+        return GoalResponse.ACCEPT
+
+    def on_accepted(self, goal_handle: Any) -> None:
+        """An accepted goal drives from now on (JTC's ``goal_accepted_callback``: the active goal is
+        preempted), then its execute callback watches it."""
+        _, execution = self.pending.pop(id(goal_handle.request), (None, None))
+        ctl, log = self.controller, self.controller.node.get_logger()
+        if execution is not None:
+            self.goals[bytes(goal_handle.goal_id.uuid)] = (goal_handle, execution)  # its feedback: publish()
+            if not ctl.active:
+                execution.finish(Outcome("aborted", INVALID_GOAL, "the controller is not active"))
+            elif ctl.core.start_goal(execution):
+                log.info("the active action goal was preempted by a new one")
+            if execution.outcome is None:
+                log.info(f"action goal accepted: {len(execution.reference.times)} points until "
+                         f"t = {execution.reference.end_time:.3f} s")
+        goal_handle.execute()
 
     def on_cancel(self, goal_handle: Any) -> CancelResponse:
         found = self.goals.get(bytes(goal_handle.goal_id.uuid))
@@ -100,36 +202,13 @@ class FollowJointTrajectoryServer:
             self.controller.node.get_logger().info("action goal canceled: holding")
         return CancelResponse.ACCEPT
 
-    def start(self, goal: Any) -> tuple[GoalExecution | None, FollowJointTrajectory.Result | None]:
-        """Validate ``goal`` and drive it; ``(execution, None)`` or ``(None, the refusal's result)``."""
-        ctl, log = self.controller, self.controller.node.get_logger()
-        trajectory = goal.trajectory
-        points = [(p.positions, p.velocities, p.accelerations, p.time_from_start.sec, p.time_from_start.nanosec)
-                  for p in trajectory.points]
-        execution, warning, preempted = ctl.core.start_goal(
-            _seconds(trajectory.header.stamp), trajectory.joint_names, points, ctl.now(),
-            [(t.name, t.position, t.velocity) for t in goal.path_tolerance],
-            [(t.name, t.position, t.velocity) for t in goal.goal_tolerance],
-            _seconds(goal.goal_time_tolerance), ctl.params.tolerances)
-        if isinstance(execution, Outcome):
-            log.error(f"action goal refused ({execution.error_code}): {execution.error_string}")
-            return None, FollowJointTrajectory.Result(error_code=execution.error_code,
-                                                       error_string=execution.error_string)
-        if warning:
-            log.warn(warning)
-        if preempted:
-            log.info("the active action goal was preempted by a new one")
-        log.info(f"action goal accepted: {len(execution.reference.times)} points until "
-                 f"t = {execution.reference.end_time:.3f} s")
-        return execution, None
-
     def execute(self, goal_handle: Any) -> FollowJointTrajectory.Result:
-        execution, refusal = self.start(goal_handle.request)
-        if execution is None:
-            goal_handle.abort()
-            return refusal
         key = bytes(goal_handle.goal_id.uuid)
-        self.goals[key] = (goal_handle, execution)  # its feedback: publish()
+        found = self.goals.get(key)
+        if found is None:  # not validated here (cannot happen: every accepted goal is)
+            goal_handle.abort()
+            return FollowJointTrajectory.Result(error_code=INVALID_GOAL, error_string="goal not validated")
+        execution = found[1]
         try:
             while not execution.done.wait(0.1) and not self.spinner.stopping.is_set():
                 pass
@@ -151,6 +230,33 @@ class FollowJointTrajectoryServer:
         else:
             goal_handle.abort()
         return FollowJointTrajectory.Result(error_code=outcome.error_code, error_string=outcome.error_string)
+
+    # -- ~/query_state -------------------------------------------------------- #
+    def query_state(self, request: Any, response: Any) -> Any:
+        """The running trajectory's reference at ``request.time`` (JTC's ``query_state_service``):
+        ``success`` False when the controller is not active, holds a position, or the time lies
+        before the trajectory's start or at or after its last point."""
+        ctl = self.controller
+        response.name = list(ctl.params.joints)
+        if not ctl.active:
+            response.success, response.message = False, "Can't sample trajectory. Controller is not active."
+            return response
+        driving = ctl.core.pairing if ctl.lockstep else ctl.core.latest
+        trajectory = driving.trajectory if driving.source == "trajectory" else None
+        t = _seconds(request.time)
+        if not isinstance(trajectory, JointTrajectoryReference):
+            response.success, response.message = False, "Currently there is no valid trajectory instance."
+        elif t < trajectory.start_time:
+            response.success, response.message = False, ("Requested sample time is earlier than the current "
+                                                         "trajectory start time.")
+        elif not trajectory.covers(t):
+            response.success, response.message = False, ("Requested sample time is at or after the current "
+                                                         "trajectory's end time.")
+        else:
+            to_user = ctl.joint_map.to_user
+            q, qd, qdd = (to_user(np.asarray(v, dtype=float)).tolist() for v in trajectory.sample(t))
+            response.success, response.position, response.velocity, response.acceleration = True, q, qd, qdd
+        return response
 
     def publish(self, until: float) -> None:
         """The controller state and the active goals' feedback (:meth:`StatePublisher.publish`)."""

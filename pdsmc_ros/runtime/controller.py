@@ -19,7 +19,15 @@ from ..control.law import ControlLaw
 from ..presets import RunSpec, control_steps
 from ..robots.base import FloatArray
 from .commanding import LatestInputs, LockstepPairing, Paired, Reference, TorqueGuard
-from .goal import INVALID_GOAL, GoalExecution, GoalSlot, Outcome, Tolerances, resolve_tolerances, validate_goal
+from .goal import (
+    INVALID_GOAL,
+    GoalExecution,
+    GoalSettings,
+    GoalSlot,
+    Outcome,
+    prepare_trajectory,
+    resolve_tolerances,
+)
 from .hold import Hold
 from .joint_map import JointMap
 from .joint_trajectory import JointTrajectoryReference, RawPoint
@@ -29,16 +37,15 @@ from .warm import warm_up
 
 SOURCE_SKEW_S = 5.0  # a zero-stamped trajectory starts at its source time if that is at most this old
 
-Tolerance = tuple[str, float, float]
-"""A goal's ``(joint name, position, velocity)`` tolerance entry."""
+Tolerance = tuple[str, float, float, float]
+"""A goal's ``(joint name, position, velocity, acceleration)`` tolerance entry."""
 
 
 class GoalStart(NamedTuple):
-    """An action goal, driving (its execution) or refused (the refusal's outcome), and what to log."""
+    """An action goal as validated on arrival: its execution (to start) or its refusal, and what to log."""
 
     goal: GoalExecution | Outcome
     warning: str  # "" for none (an unknown joint or illegal value in the goal's tolerances)
-    preempted: bool  # it ended the goal active before it
 
 
 class ControllerCore:
@@ -62,14 +69,18 @@ class ControllerCore:
         Lockstep (states paired with references by step) or real time (the latest inputs).
     on_hold : callable
         ``on_hold(why)``: told of every hold that took effect (the node logs it).
+    goal_settings : GoalSettings, optional
+        How trajectories and goals are taken (JTC's parameters and the project's checks).
     """
 
     def __init__(self, spec: RunSpec, selector: JointSelector, joint_map: JointMap, limits: JointLimits | None,
-                 guard: TorqueGuard, stale_s: float, lockstep: bool, on_hold: Callable[[str], None]) -> None:
+                 guard: TorqueGuard, stale_s: float, lockstep: bool, on_hold: Callable[[str], None], *,
+                 goal_settings: GoalSettings | None = None) -> None:
         self.spec = spec
         self.selector, self.joint_map, self.limits, self.guard = selector, joint_map, limits, guard
         self.lockstep = lockstep
         self.on_hold = on_hold
+        self.goal_settings = goal_settings or GoalSettings()
         self.reference = spec.reference()
         self.pairing = LockstepPairing(spec.rate, control_steps(spec.contour_model().duration, spec.rate))
         self.latest = LatestInputs(stale_s)
@@ -149,11 +160,13 @@ class ControllerCore:
             return self.pairing.add_reference(step, ref), ""  # type: ignore[arg-type]
         return None, ""
 
-    def topic_trajectory(self, data: bytes, times: tuple[float | None, float | None], now: float,
-                         why: str) -> tuple[JointTrajectoryReference | None, str, bool]:
-        """A serialized ``~/joint_trajectory`` at controller time ``now``: ``(reference, "",
-        whether it preempted the active goal, which ends with why)`` once it drives, or
-        ``(None, problem, False)``.
+    def topic_trajectory(self, stamp: float, names: Sequence[str], points: Sequence[RawPoint],
+                         effort_sizes: Sequence[int], times: tuple[float | None, float | None], now: float
+                         ) -> tuple[JointTrajectoryReference | None, str, bool]:
+        """A ``~/joint_trajectory`` (its stamp, joint names, points and the sizes of their effort
+        fields) at controller time ``now``: ``(reference, "", whether an action goal goes on
+        against it)`` once it drives, or ``(None, problem, False)`` (the running motion untouched).
+        Validated as an action goal (:func:`~.goal.prepare_trajectory`), in the caller's thread.
 
         Real time: a zero ``header.stamp`` starts when the message was sent (``times``: the
         middleware's source and reception times; the reception time if the source time is
@@ -166,27 +179,45 @@ class ControllerCore:
                 now = sent
             elif received is not None and received <= now:
                 now = received
-        state = self.last_state[1:] if self.last_state is not None else None
-        reference, problem = JointTrajectoryReference.from_serialized(self.selector, data, now, state)
-        if reference is not None and self.limits is not None:
-            problem = self.limits.trajectory_problem(reference)
-        if reference is None or problem:
+        settings, joints = self.goal_settings, self.selector.joints
+        if latched := self.runaway_latched():
+            return None, latched, False
+        state = (self.last_state[1:] if self.last_state is not None else None)
+        reference, problem = prepare_trajectory(settings, self.limits, joints, stamp, names, points, now, state,
+                                                effort_sizes)
+        if reference is None:
             return None, problem, False
-        return reference, "", self.goals.replace(reference, why) is not None
+        followed = self.goals.follow(reference, settings.tolerances(len(joints)), joints, settings.timeout(),
+                                     settings.wrap)
+        return reference, "", followed
 
-    def start_goal(self, stamp: float, names: Sequence[str], points: Sequence[RawPoint], now: float,
-                   path: Sequence[Tolerance], goal: Sequence[Tolerance], goal_time: float,
-                   defaults: Tolerances) -> GoalStart:
-        """An action goal (its trajectory's stamp, joint names and points; its path and goal
-        tolerances and goal time tolerance) received at controller time ``now``: validated
-        and, if valid, driving from now on with its tolerances over ``defaults``."""
-        state = self.last_state[1:] if self.last_state is not None else None
-        reference, refusal = validate_goal(self.selector, stamp, names, points, now, state, self.limits)
-        if reference is None or refusal is not None:
-            return GoalStart(refusal or Outcome("aborted", INVALID_GOAL, "refused"), "", False)
-        tolerances, warning = resolve_tolerances(defaults, self.selector.joints, path, goal, goal_time)
-        execution = GoalExecution(reference, tolerances, self.selector.joints)
-        return GoalStart(execution, warning, self.goals.start(execution) is not None)
+    def check_goal(self, stamp: float, names: Sequence[str], points: Sequence[RawPoint], effort_sizes: Sequence[int],
+                   now: float, path: Sequence[Tolerance], goal: Sequence[Tolerance], goal_time: float) -> GoalStart:
+        """An action goal (its trajectory's stamp, joint names, points and effort sizes; its path and
+        goal tolerances and goal time tolerance) arriving at controller time ``now``, validated in
+        the caller's thread (the action server's): its execution, with its tolerances over the
+        defaults, to :meth:`start_goal` once accepted, or the refusal (INVALID_GOAL and the reason)."""
+        settings, joints = self.goal_settings, self.selector.joints
+        if latched := self.runaway_latched():
+            return GoalStart(Outcome("aborted", INVALID_GOAL, latched), "")
+        state = (self.last_state[1:] if self.last_state is not None else None)
+        reference, problem = prepare_trajectory(settings, self.limits, joints, stamp, names, points, now, state,
+                                                effort_sizes)
+        if reference is None:
+            return GoalStart(Outcome("aborted", INVALID_GOAL, problem), "")
+        tolerances, warning = resolve_tolerances(settings.tolerances(len(joints)), joints, path, goal, goal_time)
+        return GoalStart(GoalExecution(reference, tolerances, joints, cmd_timeout=settings.timeout(),
+                                       wrap=settings.wrap), warning)
+
+    def runaway_latched(self) -> str:
+        """Why no trajectory may start (the runaway stop is latched), or ""."""
+        if self.runaway is None or not self.runaway.reason:
+            return ""
+        return f"the runaway stop is latched ({self.runaway.reason}): deactivate and activate the controller first"
+
+    def start_goal(self, execution: GoalExecution) -> bool:
+        """Drive an accepted goal from now on; whether it preempted another action goal."""
+        return self.goals.start(execution) is not None
 
     # -- torque --------------------------------------------------------------- #
     def command(self, t: float, q: FloatArray, qd: FloatArray, ref: Reference) -> FloatArray | None:

@@ -96,10 +96,11 @@ def test_an_aborted_goal_holds_the_measured_position_from_that_period_on() -> No
     qd0 = np.zeros(len(NAMES))
     ctl.add_state(state(0, q0, qd0), "joint_states")
     points = [((q0 + 0.1).tolist(), [], [], 2, 0)]
-    path = [(name, 0.01, 0.0) for name in NAMES]  # path tolerance 0.01 rad on every joint
-    started = ctl.start_goal(0.0, NAMES, points, 100.0, path, [], 0.0, g.Tolerances.defaults(len(NAMES)))
-    assert isinstance(started.goal, g.GoalExecution) and started.warning == "" and not started.preempted
-    assert ctl.goals.active is started.goal
+    path = [(name, 0.01, 0.0, 0.0) for name in NAMES]  # path tolerance 0.01 rad on every joint
+    started = ctl.check_goal(0.0, NAMES, points, (), 100.0, path, [], 0.0)
+    assert isinstance(started.goal, g.GoalExecution) and started.warning == ""
+    assert ctl.goals.active is None  # validated on arrival, driving once accepted
+    assert not ctl.start_goal(started.goal) and ctl.goals.active is started.goal
     far = q0 + 0.5  # far off the path: aborted in this period
     ref = started.goal.reference.sample(100.5)
     tau = ctl.command(100.5, far, qd0, ref)
@@ -113,8 +114,8 @@ def test_an_invalid_goal_is_refused_with_its_code_and_drives_nothing() -> None:
     ctl = core(lockstep=False)
     q0 = ctl.reference.sample([0.0]).q[0]
     points = [(q0.tolist(), [], [], 1, 0)]
-    started = ctl.start_goal(0.0, NAMES, points, 100.0, [], [], 0.0, g.Tolerances.defaults(len(NAMES)))
-    assert isinstance(started.goal, g.Outcome) and started.goal.error_code == g.INVALID_GOAL  # no state yet
+    started = ctl.check_goal(0.0, NAMES, points, (), 100.0, [], [], 0.0)
+    assert isinstance(started.goal, g.Outcome) and "no complete joint state" in started.goal.error_string
     assert ctl.goals.active is None and ctl.latest.source is None
 
 
@@ -128,9 +129,9 @@ def test_a_zero_stamped_topic_trajectory_starts_when_it_was_sent(sent: float | N
     ctl = core(lockstep=False)
     q0 = ctl.reference.sample([0.0]).q[0]
     ctl.add_state(state(0, q0, np.zeros(len(NAMES))), "joint_states")
-    data = encode_joint_trajectory(0, 0, list(NAMES), (q0 + 0.01).tolist(), [], [])
-    trajectory, problem, preempted = ctl.topic_trajectory(data, (sent, received), 100.0, "preempted")
-    assert problem == "" and trajectory is not None and not preempted
+    points = [((q0 + 0.01).tolist(), [], [], 0, 0)]  # at receipt, within allowed_start_tolerance: no step
+    trajectory, problem, followed = ctl.topic_trajectory(0.0, NAMES, points, (), (sent, received), 100.0)
+    assert problem == "" and trajectory is not None and not followed
     assert trajectory.start_time == start and ctl.latest.trajectory is trajectory
 
 

@@ -94,21 +94,23 @@ def test_tolerances_resolve_as_joint_trajectory_controller() -> None:
         assert kept is defaults and warning
 
 
-def test_goal_validation_codes() -> None:
-    state = (Q0, ZERO)
+def prepare(points: list[tuple], *, stamp: float = 0.0, names: tuple = NAMES, state: tuple | None = (Q0, ZERO),
+            limits: JointLimits | None = None, settings: g.GoalSettings | None = None) -> tuple:
+    return g.prepare_trajectory(settings or g.GoalSettings(), limits, NAMES, stamp, names, points, 100.0, state)
+
+
+def test_goal_validation_reasons() -> None:
     ok = [point([0.2, 0.2, 0.3], 1.0)]
-    ref, outcome = g.validate_goal(SELECTOR, 0.0, NAMES, ok, 100.0, state, None)
-    assert ref is not None and outcome is None
-    for names, code in ((("joint1", "joint2"), g.INVALID_JOINTS), ((*NAMES, "gripper"), g.INVALID_JOINTS)):
-        points = [point([0.2] * len(names), 1.0)]
-        assert g.validate_goal(SELECTOR, 0.0, names, points, 100.0, state, None)[1].error_code == code
-    old = g.validate_goal(SELECTOR, 50.0, NAMES, ok, 100.0, state, None)[1]
-    assert old.error_code == g.OLD_HEADER_TIMESTAMP
+    ref, problem = prepare(ok)
+    assert ref is not None and problem == ""
+    for names, needle in ((("joint1", "joint2"), "'joint3' missing"), ((*NAMES, "gripper"), "don't match")):
+        assert needle in prepare([point([0.2] * len(names), 1.0)], names=names)[1]
+    assert "ends 49.000 s before it was received" in prepare(ok, stamp=50.0)[1]
     backwards = [point([0.2, 0.2, 0.3], 1.0), point([0.3, 0.2, 0.3], 0.5)]
-    assert g.validate_goal(SELECTOR, 0.0, NAMES, backwards, 100.0, state, None)[1].error_code == g.INVALID_GOAL
+    assert "not after point 0's" in prepare(backwards)[1]
     moving = [point([0.2, 0.2, 0.3], 1.0, [0.1, 0.0, 0.0])]
-    assert g.validate_goal(SELECTOR, 0.0, NAMES, moving, 100.0, state, None)[1].error_code == g.INVALID_GOAL
-    assert g.validate_goal(SELECTOR, 0.0, NAMES, ok, 100.0, None, None)[1].error_code == g.INVALID_GOAL
+    assert "velocity of the last trajectory point of joint 'joint1' is not zero" in prepare(moving)[1]
+    assert "no complete joint state" in prepare(ok, state=None)[1]
 
 
 class FakeRobot:
@@ -118,16 +120,17 @@ class FakeRobot:
 
 def test_limits_refuse_a_goal_naming_joint_point_and_time() -> None:
     limits = JointLimits.of(FakeRobot(), NAMES)
-    state = (Q0, ZERO)
     beyond = [point([0.2, 0.2, 0.3], 1.0), point([0.2, 0.7, 0.3], 3.0)]
-    _, outcome = g.validate_goal(SELECTOR, 0.0, NAMES, beyond, 100.0, state, limits)
-    assert outcome is not None and outcome.error_code == g.INVALID_GOAL
-    assert "'joint2'" in outcome.error_string and "point 1" in outcome.error_string and "t = " in outcome.error_string
+    ref, problem = prepare(beyond, limits=limits)
+    assert ref is None and "'joint2'" in problem and "point 1" in problem and "t = " in problem
+    assert problem.startswith("beyond the arm's limits (reject_beyond_limits)")
     fast = [point([0.9, 0.2, 0.3], 0.5)]  # 1.6 rad/s on joint1
-    assert "velocity" in g.validate_goal(SELECTOR, 0.0, NAMES, fast, 100.0, state, limits)[1].error_string
+    assert "velocity" in prepare(fast, limits=limits)[1]
+    # reject_beyond_limits false: accepted as joint_trajectory_controller accepts it
+    assert prepare(fast, limits=limits, settings=g.GoalSettings(reject_beyond_limits=False))[0] is not None
     outside = (np.array([0.1, 0.6, 0.3]), ZERO)  # the arm itself is outside joint2's limits
-    problem = g.validate_goal(SELECTOR, 0.0, NAMES, [point([0.1, 0.2, 0.3], 1.0)], 100.0, outside, limits)[1]
-    assert "starts from a state outside" in problem.error_string
+    problem = prepare([point([0.1, 0.2, 0.3], 1.0)], state=outside, limits=limits)[1]
+    assert "starts from a state outside" in problem
     # a cubic segment that overshoots between two points inside the limits is caught too
     overshoot = [point([0.4, 0.2, 0.3], 1.0, [0.9, 0.0, 0.0]), point([0.45, 0.2, 0.3], 2.0, [0.0, 0.0, 0.0])]
     ref = reference(overshoot)
@@ -157,8 +160,10 @@ def test_goal_slot_preempts_cancels_and_holds() -> None:
     outcome, held = slot.check(101.0, end[0], ZERO, end)
     assert outcome.status == "succeeded" and not held  # the trajectory holds its last point itself
     slot.start(fifth := execution(tolerances()))
-    assert slot.replace("topic trajectory", "preempted by a topic") is fifth and driven[-1] == "topic trajectory"
-    assert fifth.outcome.error_code == g.INVALID_GOAL
+    topic = reference([point([0.3, 0.2, 0.3], 2.0)])
+    # a topic trajectory replaces the running one; the goal goes on, judged against it (JTC)
+    assert slot.follow(topic, tolerances(), NAMES, 0.0) and driven[-1] is topic
+    assert fifth.outcome is None and fifth.reference is topic and slot.active is fifth
 
 
 def test_realtime_inputs_hold_the_first_state_after_activation() -> None:
