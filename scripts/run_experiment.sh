@@ -7,6 +7,8 @@
 #                          [--param NAME:=VALUE ...] [--params-file FILE] [--composed | --compose NODES] [--keep-going]
 #                          [--respawn controller] [--nice N] [--intra-process] [--from-description]
 #                          [--viewer [--viewer-port PORT]]
+#        run_experiment.sh --stand-in ROBOT --controller K --out bags/NAME [--seconds S] [--rate HZ]
+#                          [--param NAME:=VALUE ...] [--params-file FILE] [--timeout SECONDS]
 #
 # Starts the four nodes (each with `ros2 run pdsmc_ros ...`; with --composed, all four in one
 # process; with --compose plant,controller, those in one process and the others apart), waits
@@ -25,6 +27,13 @@
 # plant's /robot_description (robot:=/robot_description; separate processes only).
 # --intra-process (with --composed or --compose) hands messages between the composed nodes
 # without DDS, like rclcpp's intra-process comms; nodes in other processes still get them.
+# --stand-in ROBOT: a real arm's graph instead of the pipeline: the MuJoCo stand-in for the arm
+# (mujoco_driver), the controller in real time (--controller; --param, --params-file: its gains,
+# joints...) and the recorder in graph mode beside them (/joint_states, the commands,
+# /controller/controller_state, the /controller/follow_joint_trajectory action's status, feedback
+# and results, /diagnostics, /robot_description: docs/recording.md). It runs for --seconds (default:
+# until Ctrl-C or --timeout) while any FollowJointTrajectory client sends goals, then stops the
+# nodes, recorder last; `pdsmc analyze OUT` gives the figures of each goal.
 set -uo pipefail
 
 usage() { awk 'NR > 1 && /^#/ { sub(/^# ?/, ""); print; next } NR > 1 { exit }' "$0"; }
@@ -32,7 +41,7 @@ die() { echo "run_experiment.sh: error: $*" >&2; exit 2; }
 
 ROBOT="" CONTOUR="" CONTROLLER="" OUT="" SCENARIO="nominal" MODE="lockstep" RATE=""
 FACTOR="" SMC_READING="" TIMEOUT="600" COMPOSE="" KEEP_GOING=0 NICE="" INTRA=0 FROM_DESCRIPTION=0
-VIEWER=0 VIEWER_PORT=8765
+VIEWER=0 VIEWER_PORT=8765 STAND_IN="" RUN_SECONDS=""
 EXTRA=()
 FILES=()  # ROS 2 params files: each node reads its own section (e.g. `pdsmc tune`'s controller gains)
 declare -A RESPAWN=()
@@ -61,6 +70,10 @@ while [[ $# -gt 0 ]]; do
     --intra-process) INTRA=1; shift ;;
     --from-description) FROM_DESCRIPTION=1; shift ;;
     --viewer) VIEWER=1; shift ;;
+    --stand-in) STAND_IN="${2:-}"; [[ -n "$STAND_IN" ]] || die "--stand-in needs a robot (e.g. serial_3r, ur5)"; shift 2 ;;
+    --seconds)
+      [[ "${2:-}" =~ ^[0-9]+$ && "${2:-}" -gt 0 ]] || die "--seconds must be a whole number of seconds > 0, got '${2:-}'"
+      RUN_SECONDS="$2"; shift 2 ;;
     --viewer-port)
       [[ "${2:-}" =~ ^[0-9]+$ && "${2:-}" -le 65535 ]] || die "--viewer-port must be a port number 0-65535, got '${2:-}'"
       VIEWER_PORT="$2"; shift 2 ;;
@@ -74,8 +87,14 @@ while [[ $# -gt 0 ]]; do
     *) die "unknown argument '$1' (see --help)" ;;
   esac
 done
-[[ -n "$ROBOT" ]] || die "--robot is required (serial_3r or parallel_5r)"
-[[ -n "$CONTOUR" ]] || die "--contour is required"
+if [[ -z "$STAND_IN" ]]; then
+  [[ -n "$ROBOT" ]] || die "--robot is required (serial_3r or parallel_5r)"
+  [[ -n "$CONTOUR" ]] || die "--contour is required"
+  [[ -z "$RUN_SECONDS" ]] || die "--seconds goes with --stand-in (a pipeline run ends with its trajectory)"
+else
+  [[ -z "$ROBOT" && -z "$CONTOUR" && -z "$COMPOSE" && "$FROM_DESCRIPTION" == 0 && "$VIEWER" == 0 ]] \
+    || die "--stand-in runs the driver, the controller and the recorder apart; it takes no --robot, --contour, --composed, --compose, --from-description or --viewer"
+fi
 [[ -n "$CONTROLLER" ]] || die "--controller is required (pd, smc or pdsmc)"
 [[ -n "$OUT" ]] || die "--out is required (a new bag directory, e.g. bags/run1)"
 [[ "$MODE" == lockstep || "$MODE" == realtime ]] || die "--mode must be lockstep or realtime, got '$MODE'"
@@ -159,7 +178,7 @@ declare -A KILLED=()
 stop_all() {
   # stop what we started, by PID: the plant first, the recorder last so it loses nothing
   local name pid
-  for name in plant trajectory controller composed viewer recorder; do
+  for name in mujoco_driver plant trajectory controller composed viewer recorder; do
     pid="${PIDS[$name]:-}"
     [[ -n "$pid" ]] && kill -0 "$pid" 2>/dev/null || continue
     kill -INT "$pid" 2>/dev/null
@@ -208,6 +227,53 @@ wait_for_loops() {
     done
   done
 }
+
+# --stand-in: the driver, the controller and the recorder in graph mode, for --seconds or until stopped
+if [[ -n "$STAND_IN" ]]; then
+  RATE_PARAM=()
+  [[ -n "$RATE" ]] && RATE_PARAM=(-p "rate:=$RATE")
+  start_own() {
+    local name="$1"; shift
+    "${ROS2[@]}" run pdsmc_ros "$name" --ros-args "$@" >>"$LOGS/$name.log" 2>&1 &
+    PIDS[$name]=$!
+    ORDER+=("$name")
+  }
+  start_own recorder -p "output:=$OUT" \
+    -p "topics:=[/joint_states,/effort_controller/commands,/controller/controller_state,/diagnostics,/robot_description]" \
+    -p "actions:=[/controller/follow_joint_trajectory]"
+  start_own mujoco_driver -p "robot:=$STAND_IN" "${RATE_PARAM[@]}"
+  start_own controller "${FILES[@]}" -p "robot:=$STAND_IN" -p "type:=$CONTROLLER" -p mode:=realtime \
+    "${RATE_PARAM[@]}" "${EXTRA[@]}"
+  START=$SECONDS
+  FAILED=()
+  declare -A CODES=()
+  echo "run_experiment.sh: the MuJoCo $STAND_IN and the $CONTROLLER controller recorded to $OUT (domain $ROS_DOMAIN_ID); send goals to /controller/follow_joint_trajectory${RUN_SECONDS:+ for $RUN_SECONDS s}, Ctrl-C to stop"
+  while :; do
+    for name in "${ORDER[@]}"; do
+      if ! kill -0 "${PIDS[$name]}" 2>/dev/null; then
+        wait "${PIDS[$name]}"; code=$(outcome "$name" $?)
+        CODES[$name]=$code
+        [[ "$code" -ne 0 ]] && { FAILED+=("$name"); explain "$name" "$code"; }
+      fi
+    done
+    [[ ${#CODES[@]} -gt 0 ]] && break
+    [[ -n "$RUN_SECONDS" ]] && (( SECONDS - START >= RUN_SECONDS )) && break
+    if (( SECONDS - START > TIMEOUT )); then echo "run_experiment.sh: timeout after ${TIMEOUT} s; stopping nodes" >&2; break; fi
+    sleep 0.1
+  done
+  stop_all
+  for name in "${ORDER[@]}"; do
+    [[ -n "${CODES[$name]:-}" ]] && continue
+    wait "${PIDS[$name]}" 2>/dev/null; CODES[$name]=$(outcome "$name" $?)
+    [[ "${CODES[$name]}" -ne 0 ]] && { FAILED+=("$name"); explain "$name" "${CODES[$name]}"; }
+  done
+  if [[ ${#FAILED[@]} -gt 0 ]]; then
+    echo "run_experiment.sh: failed nodes: ${FAILED[*]} (logs in $LOGS/)" >&2
+    exit 1
+  fi
+  echo "run_experiment.sh: the stand-in run is recorded to $OUT in $((SECONDS - START)) s (pdsmc analyze $OUT)"
+  exit 0
+fi
 
 for name in "${NODE_NAMES[@]}"; do
   proc="$name"

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import os
+import signal
 import subprocess
 import sys
 import threading
@@ -38,6 +39,11 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint  # noqa: E
 
 from pdsmc_ros.bag.cdr import decode_float64_multi_array  # noqa: E402
 from pdsmc_ros.bag.mcapscan import scan  # noqa: E402
+from pdsmc_ros.nodes.lifecycle import EXIT_OK, EXIT_TEARDOWN_HUNG  # noqa: E402
+
+# a node whose work was done and saved may hang in Fast DDS's teardown and be ended by its watch's
+# SIGALRM (scripts/run_experiment.sh counts that a warning, not a failure; Popen sees -SIGALRM)
+DONE = (EXIT_OK, EXIT_TEARDOWN_HUNG, -signal.SIGALRM)
 
 NAMES = ["joint1", "joint2", "joint3"]
 COMMON = ["-p", "thread_priority:=0"]  # a shared 2-core test machine: no SCHED_FIFO spinning beside DDS
@@ -123,7 +129,7 @@ def test_the_recorder_keeps_every_message_of_a_fast_publisher_on_a_busy_machine(
         busy.kill()
         busy.wait()
         code, _ = stop_process(recorder)
-    assert code == 0, logs(tmp_path)
+    assert code in DONE, logs(tmp_path)
     data = scan(next(bag.glob("*.mcap")), ["/burst"]).messages["/burst"]
     values = [decode_float64_multi_array(d)[1][0] for d in data]
     print(f"published {count} at {rate:.0f}/s beside a busy core; recorded {len(values)}")
@@ -173,7 +179,7 @@ def test_a_stand_in_run_driven_through_the_action_is_recorded_and_analysed_per_g
         assert wait(lambda: len(commands) > 100, 120), logs(tmp_path)  # the controller holds the arm
         assert action.wait_for_server(timeout_sec=30)
         q0 = states[-1].copy()
-        goals = [quintic_goal(q0, q0 + [0.2, 0.1, 0.1], 1.0, goal=dict.fromkeys(NAMES, 0.03), goal_time=2.0)]
+        goals = [quintic_goal(q0, q0 + [0.2, 0.1, 0.1], 1.5, goal=dict.fromkeys(NAMES, 0.03), goal_time=2.0)]
         for goal in goals + [None]:
             if goal is None:  # the second goal starts where the first ended: joint 1 too fast for its path tolerance
                 q = states[-1].copy()
@@ -189,7 +195,7 @@ def test_a_stand_in_run_driven_through_the_action_is_recorded_and_analysed_per_g
         codes = [stop_process(proc)[0] for proc in reversed(procs)]  # the recorder last
     assert seen == [(GoalStatus.STATUS_SUCCEEDED, FollowJointTrajectory.Result.SUCCESSFUL),
                     (GoalStatus.STATUS_ABORTED, FollowJointTrajectory.Result.PATH_TOLERANCE_VIOLATED)], logs(tmp_path)
-    assert codes[-1] == 0, logs(tmp_path)
+    assert codes[-1] in DONE, logs(tmp_path)
 
     analyze = [sys.executable, "-m", "pdsmc_ros.cli", "analyze", str(bag), "--robot", "serial_3r"]
     table = subprocess.run(analyze, env=env, capture_output=True, text=True, timeout=120)
@@ -202,8 +208,10 @@ def test_a_stand_in_run_driven_through_the_action_is_recorded_and_analysed_per_g
     assert report["kind"] == "graph" and report["joints"] == NAMES
     assert report["joint_states"]["count"] > 1000 and 900 < report["joint_states"]["rate_hz"] < 1100
     first, second = report["goals"]
-    assert (first["status"], first["result"]) == ("SUCCEEDED", "SUCCESSFUL")
-    assert (second["status"], second["result"]) == ("ABORTED", "PATH_TOLERANCE_VIOLATED")
+    # what the client saw, as the bag shows it (the status topic, and the result the recorder asked for)
+    assert [(g["status"], g["result"]) for g in report["goals"]] == [("SUCCEEDED", "SUCCESSFUL"),
+                                                                     ("ABORTED", "PATH_TOLERANCE_VIOLATED")]
+    assert not report["diverged"] and report["counts"]["/controller/follow_joint_trajectory/_action/feedback"] > 0
     assert "joint1" in second["error_string"]
     # the first goal: tracked closely, settled within its goal time, moved, below the limits
     metrics = first["metrics"]
