@@ -1,10 +1,24 @@
 """ament_python package definition (colcon build or pip install)."""
 
+import ast
 from glob import glob
+from pathlib import Path
 
 from setuptools import find_packages, setup
 
 PACKAGE = "pdsmc_ros"
+
+
+def builtin_entry_points() -> dict[str, list[str]]:
+    """The built-in laws and robots as entry points (groups ``pdsmc_ros.laws``, ``pdsmc_ros.robots``),
+    read from their one declaration, pdsmc_ros/plugins.py's BUILTIN_ENTRY_POINTS (a literal: read
+    without importing the package)."""
+    tree = ast.parse((Path(__file__).parent / PACKAGE / "plugins.py").read_text())
+    for node in tree.body:
+        if isinstance(node, ast.Assign) and [getattr(t, "id", None) for t in node.targets] == ["BUILTIN_ENTRY_POINTS"]:
+            return ast.literal_eval(node.value)
+    raise SystemExit("setup.py: pdsmc_ros/plugins.py declares no BUILTIN_ENTRY_POINTS")
+
 
 setup(
     name=PACKAGE,
@@ -46,5 +60,6 @@ setup(
             "mujoco_driver = pdsmc_ros.nodes.mujoco_driver:main",
             "analyze = pdsmc_ros.cli:analyze_main",
         ],
+        **builtin_entry_points(),
     },
 )

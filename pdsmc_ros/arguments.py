@@ -23,6 +23,17 @@ class OneLineParser(argparse.ArgumentParser):
         self.exit(EXIT_USAGE, f"{self.prog}: error: {message} (see --help)\n")
 
 
+def positive_float(text: str) -> float:
+    """A positive finite number (``--rate``, ``--duration-factor``, ...)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}") from None
+    if not np.isfinite(value) or value <= 0.0:
+        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
+    return value
+
+
 def gain_value(text: str) -> tuple[str, list[float]]:
     """``--gain kp=100,200``: a gain's name and values (checked against the law's declaration when the
     run is built: names and bounds are the law's)."""

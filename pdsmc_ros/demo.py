@@ -17,8 +17,7 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 
-from .arguments import EXIT_USAGE, OneLineParser
-from .cli.options import positive_float
+from .arguments import EXIT_USAGE, OneLineParser, positive_float
 from .experiments.analysis import analyze_bag, comparison_table
 from .resources import ros_environment, script_path, scripts_dir
 

@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .arguments import EXIT_USAGE, OneLineParser
 from .errors import InvalidInputError
 from .runtime.realtime import (
     AFFINITY_FIX,
@@ -51,8 +52,13 @@ Check = tuple[str, bool, str, str]  # name, passed, what was found, the fix if n
 
 
 def add_parser(sub: argparse._SubParsersAction, commands: dict) -> None:  # type: ignore[type-arg]
-    """Register ``rt-check`` on ``pdsmc``'s subcommands (the one line in cli.py)."""
-    p = sub.add_parser("rt-check", help="check this machine for real time and measure a 1 kHz loop")
+    """Register ``rt-check`` on ``pdsmc``'s subcommands."""
+    add_arguments(sub.add_parser("rt-check", help="check this machine for real time and measure a 1 kHz loop"))
+    commands["rt-check"] = run
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    """The options of ``pdsmc rt-check`` and ``python -m pdsmc_ros.rt_check``."""
     p.add_argument("--duration", type=float, default=10.0, help="seconds of the measured loop (default 10)")
     p.add_argument("--rate", type=float, default=1000.0, help="loop rate in Hz (default 1000)")
     p.add_argument("--priority", type=int, default=DEFAULT_PRIORITY,
@@ -63,7 +69,6 @@ def add_parser(sub: argparse._SubParsersAction, commands: dict) -> None:  # type
     p.add_argument("--busy-wait", type=float, default=None,
                    help="seconds before each tick spent spinning instead of sleeping (the nodes' busy_wait; "
                         "default as the nodes: 0.00005 at SCHED_FIFO, 0.0002 at normal priority)")
-    commands["rt-check"] = run
 
 
 def settings_from(args: argparse.Namespace) -> tuple[RealtimeSettings, float, float, float]:
@@ -225,10 +230,16 @@ def run(args: argparse.Namespace) -> int:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """``python -m pdsmc_ros.rt_check`` (the same as ``pdsmc rt-check``)."""
-    from .cli import main as cli_main
-
-    return cli_main(["rt-check", *(sys.argv[1:] if argv is None else argv)])
+    """``python -m pdsmc_ros.rt_check``: the same as ``pdsmc rt-check`` (its own parser: nothing
+    imports the command line)."""
+    parser = OneLineParser(prog="pdsmc rt-check", description=__doc__.splitlines()[0])
+    add_arguments(parser)
+    args = parser.parse_args(argv)
+    try:
+        return run(args)
+    except InvalidInputError as exc:
+        print(f"pdsmc rt-check: error: {exc}", file=sys.stderr)
+        return EXIT_USAGE
 
 
 if __name__ == "__main__":

@@ -9,21 +9,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..arguments import gain_value
+from ..arguments import gain_value, positive_float
 from ..errors import ConfigError, PdsmcError
 
 if TYPE_CHECKING:
     from ..presets import RunSpec
-
-
-def positive_float(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}") from None
-    if not np.isfinite(value) or value <= 0.0:
-        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
-    return value
 
 
 def whole_number(text: str, lowest: int) -> int:

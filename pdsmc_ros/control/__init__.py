@@ -6,8 +6,9 @@ computed torque (:mod:`.baselines`) and the super-twisting and integral sliding 
 :class:`LawEntry` declaring its gains (:class:`GainSpec`), its torque (written in Python, or a
 compiled form: its code and one branch in :func:`.dispatch.law_torque`), its linear part and,
 optionally, its state (``state_size``) and whose presets it derives from (``presets_from``,
-``derive_presets``), registered with :func:`register_law`; preset gains in ``config/gains.yaml``
-are optional.
+``derive_presets``), declared as an entry point of ``pdsmc_ros.laws`` (:mod:`pdsmc_ros.plugins`:
+the built-in ones in this package, a user's in a package of its own) or registered in-process with
+:func:`register_law`; preset gains in ``config/gains.yaml`` are optional.
 """
 
 from .dispatch import compiled_torque
@@ -22,6 +23,7 @@ from .registry import (
     LawEntry,
     LawSetup,
     gain_names,
+    gain_specs,
     law,
     law_label,
     law_names,
@@ -44,6 +46,7 @@ __all__ = [
     "LawSetup",
     "compiled_torque",
     "gain_names",
+    "gain_specs",
     "law",
     "law_label",
     "law_names",

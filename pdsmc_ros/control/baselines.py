@@ -18,7 +18,7 @@ from ..kernel_options import ALLOCATION_FREE
 from ..robots import compiled as robot
 from ..robots.base import FloatArray, Manipulator
 from .laws import GAIN_KD, GAIN_KP, THESIS_ROWS, model_part, pd_linear_gains
-from .registry import AT_DESIRED, KD, KP, S_GRAVITY, S_MASS, GainSpec, LawEntry, register_law
+from .registry import AT_DESIRED, KD, KP, S_GRAVITY, S_MASS, GainSpec, LawEntry
 
 PDG = 3
 CTC = 4
@@ -95,7 +95,7 @@ def ctc_presets(source: Mapping[str, FloatArray], model: Manipulator, q0: FloatA
     return {"omega_n": omega, "zeta": np.ones_like(omega)}
 
 
-register_law(LawEntry("pdg", "PD+G", (GAIN_KP, GAIN_KD), equation="PD + gravity compensation (Takegaki & Arimoto 1981)",
-                      code=PDG, linear_gains=pd_linear_gains, rows=THESIS_ROWS, model_based=True, presets_from="pd"))
-register_law(LawEntry("ctc", "CTC", CTC_ROWS, equation="computed torque (Spong et al. 2006, Sec. 8.3)", code=CTC,
-                      linear_gains=ctc_linear_gains, model_based=True, presets_from="pd", derive_presets=ctc_presets))
+PDG_LAW = LawEntry("pdg", "PD+G", (GAIN_KP, GAIN_KD), equation="PD + gravity compensation (Takegaki & Arimoto 1981)",
+                   code=PDG, linear_gains=pd_linear_gains, rows=THESIS_ROWS, model_based=True, presets_from="pd")
+CTC_LAW = LawEntry("ctc", "CTC", CTC_ROWS, equation="computed torque (Spong et al. 2006, Sec. 8.3)", code=CTC,
+                   linear_gains=ctc_linear_gains, model_based=True, presets_from="pd", derive_presets=ctc_presets)

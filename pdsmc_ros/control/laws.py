@@ -34,7 +34,6 @@ from .registry import (
     WITH_MOTOR_INERTIA,
     GainSpec,
     LawEntry,
-    register_law,
 )
 
 PD = 0
@@ -168,9 +167,9 @@ def smc(g, m, kind, p, q, qd, q_ref, qd_ref, qdd_ref, e, ed, sat, tau, work):  #
         tau[i] += g[KS, i] * sat[i]
 
 
-register_law(LawEntry("pd", "PD", (GAIN_KP, GAIN_KD), equation="Eq. (3.4)", code=PD,
-                      linear_gains=pd_linear_gains, rows=THESIS_ROWS))
-register_law(LawEntry("smc", "SMC", (GAIN_KS, GAIN_LAM, GAIN_PHI), equation="Eq. (3.15)", code=SMC,
-                      linear_gains=smc_linear_gains, rows=THESIS_ROWS, model_based=True))
-register_law(LawEntry("pdsmc", "PD-SMC", THESIS_ROWS, equation="Eq. (3.44)", code=PDSMC,
-                      linear_gains=pdsmc_linear_gains, rows=THESIS_ROWS))
+PD_LAW = LawEntry("pd", "PD", (GAIN_KP, GAIN_KD), equation="Eq. (3.4)", code=PD,
+                  linear_gains=pd_linear_gains, rows=THESIS_ROWS)
+SMC_LAW = LawEntry("smc", "SMC", (GAIN_KS, GAIN_LAM, GAIN_PHI), equation="Eq. (3.15)", code=SMC,
+                   linear_gains=smc_linear_gains, rows=THESIS_ROWS, model_based=True)
+PDSMC_LAW = LawEntry("pdsmc", "PD-SMC", THESIS_ROWS, equation="Eq. (3.44)", code=PDSMC,
+                     linear_gains=pdsmc_linear_gains, rows=THESIS_ROWS)

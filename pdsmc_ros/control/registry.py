@@ -3,11 +3,13 @@
 A law module builds a :class:`LawEntry` -- its name, its gains (:class:`GainSpec`: name,
 shape, units, bounds, description, the scenario factor that scales it), its compiled form's
 code or its torque written in Python, optionally its linear part for the discrete stability check --
-and registers it with :func:`register_law`. Everything that handles gains reads these
-declarations: the CLI's gain flags, the nodes' gain parameters and their descriptors, the
-params files of ``pdsmc tune`` and the reports. A law's preset gains, if any, live in
-``config/gains.yaml``; a law written in Python runs behind :mod:`pdsmc_ros.control.python_form`,
-in the same loop as the compiled ones.
+and is an entry point of the group ``pdsmc_ros.laws`` (:mod:`pdsmc_ros.plugins`: the built-in
+laws' in this package, a user's in a package of its own), or registers it in-process with
+:func:`register_law`. Everything that handles gains reads these declarations, plugins' included:
+the CLI's gain flags, the nodes' gain parameters and their descriptors, the params files of
+``pdsmc tune`` and the reports (:func:`gain_specs`, :func:`law`). A law's preset gains, if any,
+live in ``config/gains.yaml``; a law written in Python runs behind
+:mod:`pdsmc_ros.control.python_form`, in the same loop as the compiled ones.
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ import numpy as np
 
 from ..config import choice
 from ..errors import ConfigError, InvalidInputError
+from ..plugins import LAW_GROUP, PluginGroup, Registered
 from ..robots.base import FloatArray, Manipulator
 
 KP, KD, KS, LAM, PHI = range(5)
@@ -139,9 +142,8 @@ presets derived from another law's (:attr:`LawEntry.presets_from`)."""
 LinearGains = Callable[[FloatArray, FloatArray, FloatArray], tuple[FloatArray, FloatArray]]
 """``(gains, smc_model, mass) -> (Kp_eff, Kd_eff)``: the law's linear part inside its boundary layer."""
 
-GAINS: dict[str, GainSpec] = {}
-"""Every gain a registered law declares, by name, in registration order (one spec per name:
-two laws with a ``kp`` share its meaning, its parameter and its flag)."""
+_GAINS: dict[str, GainSpec] = {}
+_LAWS: dict[str, LawEntry] = {}
 
 
 def _resolve(gains: Sequence[GainSpec | str], law_name: str) -> tuple[GainSpec, ...]:
@@ -149,11 +151,14 @@ def _resolve(gains: Sequence[GainSpec | str], law_name: str) -> tuple[GainSpec, 
     for g in gains:
         if isinstance(g, GainSpec):
             out.append(g)
-        elif g in GAINS:
-            out.append(GAINS[g])
-        else:
+            continue
+        PLUGINS.load_builtins()
+        if g not in _GAINS:
+            PLUGINS.load_all()  # a gain another installed law declares
+        if g not in _GAINS:
             raise InvalidInputError(f"control law {law_name!r}: gain {g!r} is declared by no registered law; "
-                                    f"declare it (a GainSpec) or use one of: {', '.join(GAINS)}")
+                                    f"declare it (a GainSpec) or use one of: {', '.join(_GAINS)}")
+        out.append(_GAINS[g])
     return tuple(out)
 
 
@@ -254,35 +259,58 @@ class LawEntry:
         return out
 
 
-LAWS: dict[str, LawEntry] = {}
-"""Registered control laws by name, in registration order."""
-
-
 def register_law(entry: LawEntry) -> LawEntry:
-    """Register a control law under its name, and its gains (one spec per gain name)."""
-    if entry.name in LAWS and LAWS[entry.name] is not entry:
+    """Register a control law under its name, and its gains (one spec per gain name), in-process
+    (a law of an installed package is an entry point instead: :mod:`pdsmc_ros.plugins`)."""
+    PLUGINS.load_builtins()
+    return _register(entry)
+
+
+def _register(entry: LawEntry) -> LawEntry:
+    if entry.name in _LAWS and _LAWS[entry.name] is not entry:
         raise InvalidInputError(f"a control law named {entry.name!r} is already registered")
     for spec in entry.row_specs:
-        known = GAINS.get(spec.name)
+        known = _GAINS.get(spec.name)
         if known is not None and known != spec:
             raise InvalidInputError(f"control law {entry.name!r}: gain {spec.name!r} is declared otherwise by "
                                     "another law; give it another name or use the declared one")
     for spec in entry.row_specs:
-        GAINS.setdefault(spec.name, spec)
-    LAWS[entry.name] = entry
+        _GAINS.setdefault(spec.name, spec)
+    _LAWS[entry.name] = entry
     return entry
+
+
+def _register_entry_point(name: str, loaded: object) -> None:
+    """What :data:`PLUGINS` registers: the :class:`LawEntry` an entry point names."""
+    if not isinstance(loaded, LawEntry):
+        raise TypeError(f"names a {type(loaded).__name__}, not a pdsmc_ros.control.LawEntry")
+    if loaded.name != name:
+        raise ValueError(f"names the law {loaded.name!r}: an entry point is named as its law")
+    _register(loaded)
+
+
+PLUGINS = PluginGroup(LAW_GROUP, _register_entry_point)
+"""The entry points of ``pdsmc_ros.laws``: the built-in laws, then installed packages' laws."""
+
+LAWS: Mapping[str, LawEntry] = Registered(_LAWS, PLUGINS.load_all)
+"""Registered control laws by name: the built-in ones in their order, then those registered
+in-process and installed packages' (read-only: :func:`register_law`, entry points)."""
+
+GAINS: Mapping[str, GainSpec] = Registered(_GAINS, PLUGINS.load_all)
+"""Every gain a registered law declares, by name, in registration order (one spec per name:
+two laws with a ``kp`` share its meaning, its parameter and its flag); installed laws' included."""
 
 
 def unregister_law(name: str) -> None:
     """Remove a registered law (a test's own law, for example), and the gains only it declared."""
-    LAWS.pop(name, None)
-    used = {g.name for entry in LAWS.values() for g in entry.row_specs}
-    for gain in [g for g in GAINS if g not in used]:
-        del GAINS[gain]
+    _LAWS.pop(name, None)
+    used = {g.name for entry in _LAWS.values() for g in entry.row_specs}
+    for gain in [g for g in _GAINS if g not in used]:
+        del _GAINS[gain]
 
 
 def law_names() -> tuple[str, ...]:
-    """Names of the registered laws."""
+    """Names of the registered laws, installed packages' included."""
     return tuple(LAWS)
 
 
@@ -291,9 +319,27 @@ def gain_names() -> tuple[str, ...]:
     return tuple(GAINS)
 
 
+def gain_specs() -> dict[str, GainSpec]:
+    """Every gain a registered law declares, by name, in order (installed packages' laws included):
+    what a node declares a parameter for, with its :meth:`GainSpec.help` and bounds."""
+    return dict(GAINS.items())
+
+
 def law(name: str) -> LawEntry:
-    """The registered law ``name`` (a ConfigError listing the others if there is none)."""
-    return LAWS[choice(name, law_names(), "controller")]
+    """The registered law ``name``; an installed package's is loaded on first use.
+
+    Raises
+    ------
+    ConfigError
+        One line: no law of that name (listing the others), or the installed plugin of that name
+        does not load (naming its distribution and entry point).
+    """
+    PLUGINS.load_builtins()
+    if isinstance(name, str) and name not in _LAWS:
+        PLUGINS.load(name)
+    if isinstance(name, str) and name in _LAWS:
+        return _LAWS[name]
+    return _LAWS[choice(name, law_names(), "controller")]  # unknown: the error lists every law
 
 
 def law_label(name: str) -> str:

@@ -20,7 +20,7 @@ from numba import njit
 from ..kernel_options import ALLOCATION_FREE
 from ..robots.base import FloatArray, Manipulator
 from .laws import GAIN_KS, GAIN_LAM, GAIN_PHI, model_part
-from .registry import S_MASS, GainSpec, LawEntry, register_law
+from .registry import S_MASS, GainSpec, LawEntry
 
 STA = 5
 ISMC = 6
@@ -158,8 +158,8 @@ def ismc_linear_gains(g: FloatArray, smc_model: FloatArray, mass: FloatArray) ->
     return s_m * mass @ lam @ lam + 2.0 * ks_phi @ lam, 2.0 * s_m * mass @ lam + ks_phi
 
 
-register_law(LawEntry("sta", "STA", STA_ROWS, equation="super-twisting (Levant 1993)", code=STA,
-                      model_based=True, state_size=1, presets_from="smc", derive_presets=sta_presets))
-register_law(LawEntry("ismc", "ISMC", ISMC_ROWS, equation="integral sliding mode (Utkin & Shi 1996)", code=ISMC,
-                      linear_gains=ismc_linear_gains, model_based=True,
-                      state_size=1, presets_from="smc", derive_presets=ismc_presets))
+STA_LAW = LawEntry("sta", "STA", STA_ROWS, equation="super-twisting (Levant 1993)", code=STA,
+                   model_based=True, state_size=1, presets_from="smc", derive_presets=sta_presets)
+ISMC_LAW = LawEntry("ismc", "ISMC", ISMC_ROWS, equation="integral sliding mode (Utkin & Shi 1996)", code=ISMC,
+                    linear_gains=ismc_linear_gains, model_based=True,
+                    state_size=1, presets_from="smc", derive_presets=ismc_presets)

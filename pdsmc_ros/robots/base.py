@@ -103,10 +103,11 @@ class Manipulator:
 
     @classmethod
     def create(cls, payload: float = 0.0, *, params: RobotParams | None = None) -> Manipulator:
-        """The robot with ``params`` (by default its entry of ``config/robots.yaml``)."""
-        from .registry import robot_params  # the registry imports this module
-
-        return cls(payload, params=params or robot_params(cls.name))
+        """The robot with ``params`` (:func:`~pdsmc_ros.robots.make_robot` gives its configured ones)."""
+        if params is None:
+            raise InvalidInputError(f"robot {cls.name!r} is built from its parameters: make_robot({cls.name!r}) "
+                                    "reads them from its configuration")
+        return cls(payload, params=params)
 
     def with_payload(self, payload: float) -> Manipulator:
         """The same robot carrying ``payload`` kg at the end-effector."""

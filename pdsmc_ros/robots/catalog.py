@@ -21,9 +21,9 @@ from typing import Any
 from ..config import load_config, read_yaml
 from ..errors import ConfigError, InvalidInputError
 from .options import OPTION_KEYS, SETTING_KEYS, check_entry
-from .registry import ROBOTS, register_robot, robot_names, unregister_robot
+from .registry import find_robot, register_robot, robot_names, unregister_robot
 from .task import TaskPlane
-from .urdf_arm import UrdfArm, urdf_arm
+from .urdf_robot import UrdfArm, urdf_arm
 
 ROBOTS_DIR = "cmeel.prefix/share/example-robot-data/robots"
 """Where the example-robot-data wheel keeps its robots (relative to site-packages)."""
@@ -62,7 +62,8 @@ def example_robot_data_dir() -> Path:
 
 def allowed_robots() -> str:
     """What ``--robot`` accepts, for error messages."""
-    return ", ".join([*robot_names(), *(n for n in catalog() if n not in ROBOTS)]) + ", or a path to a .urdf file"
+    names = robot_names()
+    return ", ".join([*names, *(n for n in catalog() if n not in names)]) + ", or a path to a .urdf file"
 
 
 def resolve_robot(name: str) -> str:
@@ -75,7 +76,7 @@ def resolve_robot(name: str) -> str:
     """
     if not isinstance(name, str) or not name:
         raise ConfigError(f"robot must be a name or a .urdf path, got {name!r}; allowed: {allowed_robots()}")
-    if name in ROBOTS:
+    if find_robot(name) is not None:  # built in, installed or registered already
         return name
     if name == ROBOT_DESCRIPTION:
         raise ConfigError(f"robot {name!r}: no URDF received on /robot_description yet (a node waits for it; "

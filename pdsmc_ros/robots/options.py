@@ -1,6 +1,6 @@
 """The options of a URDF arm (the YAML beside its URDF, a catalog entry, a ``<pdsmc_ros>`` element),
 checked: keys and types here (:func:`check_entry`), per-joint lengths once the joints are known
-(:func:`per_joint`, :func:`position_pairs`, called by :func:`.urdf_arm.urdf_arm`).
+(:func:`per_joint`, :func:`position_pairs`, called by :func:`.urdf_robot.urdf_arm`).
 Every problem is one line naming where the options came from and the key.
 """
 
@@ -21,7 +21,7 @@ SETTING_KEYS = ("control_rate", "sample_rate", "contour_bound", "contour_size", 
 
 
 def check_entry(entry: Mapping[str, Any], where: str) -> None:
-    """The keys and types of an arm's options (lengths against the joints: :func:`.urdf_arm.urdf_arm`).
+    """The keys and types of an arm's options (lengths against the joints: :func:`.urdf_robot.urdf_arm`).
 
     Raises
     ------

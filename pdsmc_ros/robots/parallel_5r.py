@@ -18,7 +18,7 @@ from ..errors import InvalidInputError, SingularConfigurationError, UnreachableE
 from .base import FloatArray, Manipulator, RobotParams, as_vector
 from .chain import PlanarChain
 from .parallel_5r_kernels import PARALLEL_5R, batch_coriolis_matrix, batch_terms
-from .registry import register_robot, robot_params
+from .registry import robot_params
 
 _SINGULAR_TOL = 1e-9
 _WORK = 64  # floats of the compiled form's scratch (its largest use: the geometry's 24, and the batch's 4 at the end)
@@ -39,7 +39,6 @@ class FiveBarState:
     constraint_passive: FloatArray = field(repr=False)
 
 
-@register_robot
 class Parallel5R(Manipulator):
     """Planar five-bar (parallel 5R) manipulator of Section 4.1.2 (Fig. 4.2, Table 4.2).
 

@@ -17,7 +17,7 @@ from ..kernel_options import ALLOCATION_FREE
 from .base import FloatArray, Manipulator, RobotParams, as_vector, diag
 from .chain import PlanarChain, chain_coriolis_times
 from .kernel_math import entry_at
-from .registry import register_robot, robot_params
+from .registry import robot_params
 
 SERIAL_3R = 0
 """Code of the compiled form (:mod:`pdsmc_ros.robots.compiled`)."""
@@ -34,7 +34,6 @@ _B = 21
 _G = 24
 
 
-@register_robot
 class Serial3R(Manipulator):
     """Planar 3R serial manipulator of Section 4.1.1 (Fig. 4.1, Table 4.1).
 
