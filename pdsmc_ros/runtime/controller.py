@@ -180,8 +180,6 @@ class ControllerCore:
             elif received is not None and received <= now:
                 now = received
         settings, joints = self.goal_settings, self.selector.joints
-        if latched := self.runaway_latched():
-            return None, latched, False
         state = (self.last_state[1:] if self.last_state is not None else None)
         reference, problem = prepare_trajectory(settings, self.limits, joints, stamp, names, points, now, state,
                                                 effort_sizes)
@@ -198,8 +196,6 @@ class ControllerCore:
         the caller's thread (the action server's): its execution, with its tolerances over the
         defaults, to :meth:`start_goal` once accepted, or the refusal (INVALID_GOAL and the reason)."""
         settings, joints = self.goal_settings, self.selector.joints
-        if latched := self.runaway_latched():
-            return GoalStart(Outcome("aborted", INVALID_GOAL, latched), "")
         state = (self.last_state[1:] if self.last_state is not None else None)
         reference, problem = prepare_trajectory(settings, self.limits, joints, stamp, names, points, now, state,
                                                 effort_sizes)
@@ -208,12 +204,6 @@ class ControllerCore:
         tolerances, warning = resolve_tolerances(settings.tolerances(len(joints)), joints, path, goal, goal_time)
         return GoalStart(GoalExecution(reference, tolerances, joints, cmd_timeout=settings.timeout(),
                                        wrap=settings.wrap), warning)
-
-    def runaway_latched(self) -> str:
-        """Why no trajectory may start (the runaway stop is latched), or ""."""
-        if self.runaway is None or not self.runaway.reason:
-            return ""
-        return f"the runaway stop is latched ({self.runaway.reason}): deactivate and activate the controller first"
 
     def start_goal(self, execution: GoalExecution) -> bool:
         """Drive an accepted goal from now on; whether it preempted another action goal."""
