@@ -189,7 +189,7 @@ def _read(path: Path, reader: Any, joints: Sequence[str] | None) -> GraphRun:
     except BagError as exc:
         raise BagError(f"bag {str(path)!r}: {exc}") from None
     counts = {c.topic: c.msgcount for c in reader.connections}
-    rows: list[tuple[int, int, tuple[str, ...], tuple, tuple, tuple]] = []
+    rows: list[tuple[int, int, tuple[str, ...], Sequence[float], Sequence[float], Sequence[float]]] = []
     urdf = None
     status_msgs: list[tuple[str, int, Any]] = []
     feedback: list[tuple[str, Any]] = []
@@ -202,8 +202,8 @@ def _read(path: Path, reader: Any, joints: Sequence[str] | None) -> GraphRun:
         data = bytes(raw)
         try:
             if conn.topic == state_topic:
-                names, sec, nanosec, position, velocity, effort = decode_joint_state_named(data)
-                rows.append((sec * 1_000_000_000 + nanosec, log_ns, tuple(names), position, velocity, effort))
+                names, sec, nanosec, position, velocity, torque = decode_joint_state_named(data)
+                rows.append((sec * 1_000_000_000 + nanosec, log_ns, tuple(names), position, velocity, torque))
                 continue
             if conn.topic == "/robot_description":
                 urdf = decode_string(data)

@@ -114,7 +114,7 @@ def _window(t: FloatArray, start: float, end: float) -> np.ndarray:
 
 
 def goal_figures(run: GraphRun, goal: GoalRecord, index: int, window_end: float, *,
-                 velocity_limits: Sequence[float], effort_limits: Sequence[float],
+                 velocity_limits: Sequence[float] | FloatArray, effort_limits: Sequence[float] | FloatArray,
                  settle_band: float = DEFAULT_SETTLE_BAND) -> GoalFigures:
     """The figures of ``goal`` (the ``index``-th), whose effects last until ``window_end`` (the
     next goal's acceptance or the bag's end).
@@ -149,7 +149,7 @@ def goal_figures(run: GraphRun, goal: GoalRecord, index: int, window_end: float,
         start = max(float(reference.t[0]), goal.accepted)
         steps = int(np.floor((end - start) / period))
         if steps >= 1:
-            grid = start + np.arange(steps + 1) * period
+            grid: FloatArray = start + np.arange(steps + 1, dtype=float) * period
             q = np.column_stack([np.interp(grid, run.t, run.q[:, j]) for j in range(n)])
             held = np.clip(np.searchsorted(run.t, grid, side="right") - 1, 0, len(run.t) - 1)
             tau = run.effort[held]
@@ -182,7 +182,8 @@ def goal_figures(run: GraphRun, goal: GoalRecord, index: int, window_end: float,
                        [float(v) for v in velocity_max], velocity_limit.tolist(), late)
 
 
-def run_goal_figures(run: GraphRun, *, velocity_limits: Sequence[float], effort_limits: Sequence[float],
+def run_goal_figures(run: GraphRun, *, velocity_limits: Sequence[float] | FloatArray,
+                     effort_limits: Sequence[float] | FloatArray,
                      settle_band: float = DEFAULT_SETTLE_BAND) -> list[GoalFigures]:
     """:func:`goal_figures` of every goal of ``run``, each until the next one's acceptance."""
     out = []
