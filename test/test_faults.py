@@ -87,7 +87,7 @@ def test_torque_limit() -> None:
     counts = np.zeros(2, dtype=np.int64)
     tau = np.array([3.0, -9.0])
     assert soft_limit(tau, np.zeros(2), np.zeros(2), effort_only_table(np.array([5.0, 5.0]), 2), counts, 1) == 1
-    assert tau.tolist() == [3.0, -5.0] and counts.tolist() == [0, 1]
+    assert tau.tolist() == [3.0, -5.0] and counts.tolist() == [0, 1]  # joint 2 at its limit
     tau = np.array([1.0])
     assert soft_limit(tau, np.zeros(1), np.zeros(1), effort_only_table(None, 1), counts, 1) == 0 and tau[0] == 1.0
 

@@ -259,8 +259,8 @@ def soft_limit(tau: FloatArray, q: FloatArray, qd: FloatArray, table: FloatArray
     table : ndarray, shape (6, n)
         :func:`soft_limit_table`.
     counts : ndarray of int64, shape (>= n,)
-        ``counts[i] += weight`` for each joint ``i`` whose torque was changed (the saturated
-        periods a run reports).
+        ``counts[i] += weight`` for each joint ``i`` whose torque ends at its effort limit (the
+        saturated periods a run reports, as ``pdsmc analyze`` counts them from a bag's torques).
     weight : int
         What a change adds to ``counts`` (0: a period that is not applied).
 
@@ -288,12 +288,12 @@ def soft_limit(tau: FloatArray, q: FloatArray, qd: FloatArray, table: FloatArray
             hi = min(max(-kv * (qd[i] - v_hi), -e_max), e_max)
         if tau[i] > hi:
             tau[i] = hi
+            changed += 1
         elif tau[i] < lo:
             tau[i] = lo
-        else:
-            continue
-        changed += 1
-        counts[i] += weight
+            changed += 1
+        if abs(tau[i]) >= e_max:  # saturated: the statistic a recorded run's torques give too
+            counts[i] += weight
     return changed
 
 

@@ -11,7 +11,8 @@ from typing import Protocol
 import numpy as np
 
 from ..bag.stamps import stamp_step
-from ..control.safety import Staleness, limit_torque
+from ..control.safety import SOFT_VELOCITY_BAND, DivergenceCheck, Staleness, soft_limit
+from ..errors import InvalidInputError
 from ..robots.base import FloatArray
 from .hold import Hold
 
@@ -118,30 +119,133 @@ class LockstepPairing:
 
 
 class TorqueGuard:
-    """The last check before a torque goes out: never a non-finite one; clamped to the limits if set.
+    """The last checks before a torque goes out: the arm's soft limits, then never a non-finite value.
 
-    Counts both; :meth:`check` says when to log (the first five, then every 1000th).
+    :meth:`limit` applies the output limits (:func:`~pdsmc_ros.control.safety.soft_limit`:
+    ros2_control's soft limits of an effort command, robot order) to the law's torque for the
+    state it was computed from, and counts the periods it changed (:attr:`clamped`) and, per
+    joint, the periods at the effort limit (:attr:`joint_saturated`); :meth:`check` refuses a
+    non-finite torque at publication.
+    Both say when to log (the first five, then every 1000th).
+
+    Parameters
+    ----------
+    table : ndarray, shape (6, n), or None
+        :func:`~pdsmc_ros.control.safety.soft_limit_table` in robot order; None: no limits
+        (``enforce_limits:=false``).
     """
 
-    def __init__(self, limit: FloatArray | None) -> None:
-        self.limit = limit
+    def __init__(self, table: FloatArray | None) -> None:
+        self.table = None if table is None else np.ascontiguousarray(table, dtype=float)
+        n = 0 if table is None else self.table.shape[1]  # type: ignore[union-attr]
         self.non_finite = 0
         self.clamped = 0
+        self.joint_saturated = np.zeros(max(n, 1), dtype=np.int64)
+
+    def limit(self, tau: FloatArray, q: FloatArray, qd: FloatArray) -> str:
+        """Limit ``tau`` (robot order, in place) for the state ``(q, qd)``; a line to log ("" for none)."""
+        if self.table is None or not soft_limit(tau, q, qd, self.table, self.joint_saturated, 1):
+            return ""
+        self.clamped += 1
+        return _every(self.clamped, f"torque limited by the soft limits ({self.clamped} periods so far)")
 
     def check(self, tau: FloatArray) -> tuple[list[float] | None, str]:
         """The values to publish (None: refused) and a line to log ("" for none)."""
         values = tau.tolist()
-        if not all(map(math.isfinite, values)):
-            self.non_finite += 1
-            note = _every(self.non_finite, f"non-finite torque {values} not published ({self.non_finite} so far)")
-            return None, note
-        if self.limit is None:
+        if all(map(math.isfinite, values)):
             return values, ""
-        limited, clamped = limit_torque(np.asarray(tau), self.limit)
-        if not clamped:
-            return values, ""
-        self.clamped += 1
-        return limited.tolist(), _every(self.clamped, f"torque limited ({self.clamped} so far)")
+        self.non_finite += 1
+        return None, _every(self.non_finite, f"non-finite torque {values} not published ({self.non_finite} so far)")
+
+
+RUNAWAY_STOPS = ("damp", "zero")
+DEFAULT_RUNAWAY_VELOCITY_FACTOR = 1.25
+"""A joint faster than this many times its velocity limit trips the runaway guard: the soft
+limits hold a well-behaved loop below the limit, so a quarter beyond it is a loop out of control
+(a real drive's own overspeed fault typically sits there too)."""
+DEFAULT_RUNAWAY_POSITION_MARGIN = 0.02
+"""rad: a joint this far beyond a position limit trips the runaway guard (about one degree: beyond
+encoder noise and the soft limits' small overshoot, well before a hard stop is reached)."""
+STOP_DAMPING_RATIO = 0.25
+"""The ``damp`` stop's gain per joint is at most ``0.25 M_ii(q) / h`` (``M_ii``: the joint's
+inertia where the stop begins, ``h``: the control period): a damping torque of a delayed,
+sampled loop stays stable only below ``M / h`` times a factor that shrinks with the delay
+(0.25 keeps a stop stable with three periods of delay)."""
+
+
+class RunawayGuard:
+    """The controller's runaway stop: a joint beyond ``velocity_factor`` times its velocity limit,
+    or beyond a position limit by ``position_margin``, (or a state not finite) stops the motion.
+
+    Once tripped the guard is latched until :meth:`reset` (the lifecycle's activation): the
+    active goal is aborted and the output is the stop torque (:meth:`torque`): ``damp``, a
+    damping torque ``-D qd`` (``D`` the smaller of ``effort / (0.1 v_max)`` and
+    :data:`STOP_DAMPING_RATIO` ``M_ii / h``, clamped to the effort limits) that brings the arm
+    to rest, or ``zero``, no torque at all.
+
+    Parameters
+    ----------
+    names : sequence of str
+        Actuated joints, robot order.
+    position_limits, velocity_limits, effort_limits : ndarray
+        The arm's limits (robot order; infinite where unknown).
+    inertia : callable
+        ``inertia(q)``: the diagonal of the arm's mass matrix at ``q`` (the damp stop's bound).
+    period : float
+        The control period ``h`` (s).
+    velocity_factor, position_margin : float
+        The trip bounds (:data:`DEFAULT_RUNAWAY_VELOCITY_FACTOR`, :data:`DEFAULT_RUNAWAY_POSITION_MARGIN`).
+    stop : {"damp", "zero"}
+        The output once tripped.
+    """
+
+    def __init__(self, names: tuple[str, ...] | list[str], position_limits: FloatArray, velocity_limits: FloatArray,
+                 effort_limits: FloatArray, *, inertia: Callable[[FloatArray], FloatArray], period: float,
+                 velocity_factor: float = DEFAULT_RUNAWAY_VELOCITY_FACTOR,
+                 position_margin: float = DEFAULT_RUNAWAY_POSITION_MARGIN, stop: str = "damp") -> None:
+        if stop not in RUNAWAY_STOPS:
+            raise InvalidInputError(f"runaway.stop must be one of {', '.join(RUNAWAY_STOPS)}, got {stop!r}")
+        self.check = DivergenceCheck(names, position_limits, velocity_limits, velocity_factor=velocity_factor,
+                                     position_margin=position_margin)
+        self.effort = np.asarray(effort_limits, dtype=float)
+        velocity = np.asarray(velocity_limits, dtype=float)
+        known = np.isfinite(self.effort) & np.isfinite(velocity) & (velocity > 0.0)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            self.most_damping = np.where(known, self.effort / (SOFT_VELOCITY_BAND * np.where(known, velocity, 1.0)),
+                                         np.inf)
+        self.inertia = inertia
+        self.period = period
+        self.stop = stop
+        self.reason = ""  # why it tripped ("" while it has not)
+        self.damping = np.zeros(len(self.effort))
+        self.trips = 0
+
+    def trip(self, q: FloatArray, qd: FloatArray, t: float) -> str:
+        """Check the state ``(q, qd)`` at time ``t``: the reason, the first time the guard trips
+        (it is latched from then on), else ""."""
+        if self.reason:
+            return ""
+        joint = self.check.check(q, qd, 0)
+        if joint < 0:
+            return ""
+        self.reason = self.check.diverged(joint, q, qd, t, what="runaway stop")
+        self.trips += 1
+        if self.stop == "damp":
+            with np.errstate(invalid="ignore"):
+                bound = STOP_DAMPING_RATIO * np.asarray(self.inertia(np.nan_to_num(q)), dtype=float) / self.period
+            self.damping = np.nan_to_num(np.minimum(self.most_damping, bound), nan=0.0, posinf=0.0)
+        return self.reason
+
+    def torque(self, qd: FloatArray) -> FloatArray:
+        """The stop torque for the rates ``qd``."""
+        if self.stop == "zero":
+            return np.zeros(len(self.effort))
+        tau = -self.damping * np.nan_to_num(qd)
+        return np.clip(tau, -self.effort, self.effort)
+
+    def reset(self) -> None:
+        """Unlatch (a new activation)."""
+        self.reason = ""
 
 
 def _every(count: int, text: str) -> str:
@@ -186,11 +290,14 @@ class LatestInputs:
         self.trajectory = trajectory
         self.source = "trajectory"
 
-    def hold(self, why: str) -> bool:
-        """Hold the latest complete state's position from now on (whether there is one)."""
-        if self.last_q is None:
+    def hold(self, why: str, q: FloatArray | None = None) -> bool:
+        """Hold ``q`` (default: the latest complete state's position) from now on (whether there
+        is a position to hold)."""
+        if q is None:
+            q = self.last_q
+        if q is None:
             return False
-        self.drive(Hold(self.last_q, why))
+        self.drive(Hold(q, why))
         return True
 
     def take(self, now: float, clock: Callable[[], float]

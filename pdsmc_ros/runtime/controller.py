@@ -15,12 +15,15 @@ import time
 from collections.abc import Callable, Sequence
 from typing import Any, NamedTuple, cast
 
+import numpy as np
+
 from ..control.law import ControlLaw
 from ..presets import RunSpec, control_steps
 from ..robots.base import FloatArray
-from .commanding import LatestInputs, LockstepPairing, Paired, Reference, TorqueGuard
+from .commanding import LatestInputs, LockstepPairing, Paired, Reference, RunawayGuard, TorqueGuard
 from .goal import (
     INVALID_GOAL,
+    PATH_TOLERANCE_VIOLATED,
     GoalExecution,
     GoalSettings,
     GoalSlot,
@@ -35,6 +38,10 @@ from .joints import JointSelector
 from .limits import JointLimits
 from .warm import warm_up
 
+CONTINUITY_TOLERANCE = 0.05
+"""rad: a hold or a new trajectory continues from the commanded position while every joint is
+this close to it (:meth:`ControllerCore.start_state`): above any steady-state error of a tuned
+law, below what an arm that could not follow is away from its reference."""
 SOURCE_SKEW_S = 5.0  # a zero-stamped trajectory starts at its source time if that is at most this old
 
 Tolerance = tuple[str, float, float, float]
@@ -62,25 +69,33 @@ class ControllerCore:
     limits : JointLimits or None
         The trajectory limit check; None: ``enforce_limits:=false``.
     guard : TorqueGuard
-        The last check of a torque (warmed up at :meth:`configure`).
+        The arm's soft limits and the last check of a torque (warmed up at :meth:`configure`).
     stale_s : float
         Real time: inputs older than this stop the output.
     lockstep : bool
         Lockstep (states paired with references by step) or real time (the latest inputs).
     on_hold : callable
         ``on_hold(why)``: told of every hold that took effect (the node logs it).
+    runaway : RunawayGuard, optional
+        The runaway stop (None: none, ``enforce_limits:=false``).
+    on_runaway : callable
+        ``on_runaway(why)``: told when the runaway guard trips (the node reports it).
     goal_settings : GoalSettings, optional
         How trajectories and goals are taken (JTC's parameters and the project's checks).
     """
 
     def __init__(self, spec: RunSpec, selector: JointSelector, joint_map: JointMap, limits: JointLimits | None,
                  guard: TorqueGuard, stale_s: float, lockstep: bool, on_hold: Callable[[str], None], *,
+                 runaway: RunawayGuard | None = None, on_runaway: Callable[[str], None] = lambda why: None,
                  goal_settings: GoalSettings | None = None) -> None:
         self.spec = spec
         self.selector, self.joint_map, self.limits, self.guard = selector, joint_map, limits, guard
         self.lockstep = lockstep
         self.on_hold = on_hold
+        self.runaway = runaway
+        self.on_runaway = on_runaway
         self.goal_settings = goal_settings or GoalSettings()
+        self.limit_note = ""  # the soft limits' latest line to log ("" for none)
         self.reference = spec.reference()
         self.pairing = LockstepPairing(spec.rate, control_steps(spec.contour_model().duration, spec.rate))
         self.latest = LatestInputs(stale_s)
@@ -90,6 +105,7 @@ class ControllerCore:
         self.states_received = 0
         self.last_state: tuple[int, FloatArray, FloatArray] | None = None  # where a trajectory goal starts
         self.snapshot: tuple[Any, ...] | None = None  # the latest period's (t, q, qd, reference, torque), robot order
+        self.commanded: tuple[FloatArray, FloatArray] | None = None  # the latest reference's position and velocity
 
     # -- lifecycle ------------------------------------------------------------ #
     def configure(self) -> None:
@@ -103,6 +119,8 @@ class ControllerCore:
         """Real time: hold the first state that comes from now on; a stateful law's integrator
         starts from zero."""
         self.latest.activate()
+        if self.runaway is not None:
+            self.runaway.reset()
         if self.law is not None:
             self.law.reset()
 
@@ -114,13 +132,33 @@ class ControllerCore:
             law.state[:] = self.law.state
             self.law = law  # one attribute store: a period uses the old or the new
 
-    def hold(self, why: str) -> None:
-        """Hold the latest measured position from now on (a cancel, an abort)."""
+    def start_state(self) -> tuple[FloatArray, FloatArray] | None:
+        """Where a hold or a new trajectory starts: the position and velocity the controller
+        commands now while every joint is within :data:`CONTINUITY_TOLERANCE` of it, else the
+        measured state (None before the first state).
+
+        joint_trajectory_controller starts from the measured state; an effort controller whose
+        law leaves a steady-state error (PD under gravity) would then sink by that error at every
+        cancel and every new goal (200 send-and-cancel pairs left a UR5's elbow 0.15 rad lower).
+        Continuing from the commanded reference keeps the error from accumulating; an arm that is
+        far from it (it could not follow, it was pushed) is taken where it is."""
+        if self.last_state is None:
+            return None
+        q, qd = self.last_state[1], self.last_state[2]
+        commanded = self.commanded
+        if commanded is not None and np.all(np.abs(commanded[0] - q) <= CONTINUITY_TOLERANCE):
+            return commanded
+        return q, qd
+
+    def hold(self, why: str, *, measured: bool = False) -> None:
+        """Hold from now on (a cancel, an abort): the commanded position while the arm is close to
+        it (:meth:`start_state`), else -- or with ``measured`` -- the measured position."""
+        start = None if measured else self.start_state()
         if self.lockstep:
             if self.last_state is None:
                 return
-            self.pairing.drive(Hold(self.last_state[1], why))
-        elif not self.latest.hold(why):
+            self.pairing.drive(Hold(self.last_state[1] if start is None else start[0], why))
+        elif not self.latest.hold(why, None if start is None else start[0]):
             return
         self.on_hold(why)
 
@@ -180,7 +218,9 @@ class ControllerCore:
             elif received is not None and received <= now:
                 now = received
         settings, joints = self.goal_settings, self.selector.joints
-        state = (self.last_state[1:] if self.last_state is not None else None)
+        if latched := self.runaway_latched():
+            return None, latched, False
+        state = self.start_state()
         reference, problem = prepare_trajectory(settings, self.limits, joints, stamp, names, points, now, state,
                                                 effort_sizes)
         if reference is None:
@@ -196,7 +236,9 @@ class ControllerCore:
         the caller's thread (the action server's): its execution, with its tolerances over the
         defaults, to :meth:`start_goal` once accepted, or the refusal (INVALID_GOAL and the reason)."""
         settings, joints = self.goal_settings, self.selector.joints
-        state = (self.last_state[1:] if self.last_state is not None else None)
+        if latched := self.runaway_latched():
+            return GoalStart(Outcome("aborted", INVALID_GOAL, latched), "")
+        state = self.start_state()
         reference, problem = prepare_trajectory(settings, self.limits, joints, stamp, names, points, now, state,
                                                 effort_sizes)
         if reference is None:
@@ -205,6 +247,12 @@ class ControllerCore:
         return GoalStart(GoalExecution(reference, tolerances, joints, cmd_timeout=settings.timeout(),
                                        wrap=settings.wrap), warning)
 
+    def runaway_latched(self) -> str:
+        """Why no trajectory may start (the runaway stop is latched), or ""."""
+        if self.runaway is None or not self.runaway.reason:
+            return ""
+        return f"the runaway stop is latched ({self.runaway.reason}): deactivate and activate the controller first"
+
     def start_goal(self, execution: GoalExecution) -> bool:
         """Drive an accepted goal from now on; whether it preempted another action goal."""
         return self.goals.start(execution) is not None
@@ -212,15 +260,30 @@ class ControllerCore:
     # -- torque --------------------------------------------------------------- #
     def command(self, t: float, q: FloatArray, qd: FloatArray, ref: Reference) -> FloatArray | None:
         """The law's torque for the state ``(q, qd)`` and the reference ``ref`` at time ``t``
-        (None before :meth:`configure`), kept with them as :attr:`snapshot`. The active goal is
-        checked first: violated, the arm is held where it is from this period on."""
+        (None before :meth:`configure`), within the arm's soft limits
+        (:meth:`TorqueGuard.limit`; a line to log in :attr:`limit_note`), kept with them as
+        :attr:`snapshot`. The active goal is checked first: violated, the arm is held where it
+        is from this period on. A runaway state (:class:`~.commanding.RunawayGuard`) aborts the
+        active goal and commands the guard's stop from then on, whatever drives."""
         law = self.law  # one read: a gain change swaps it from another thread
         if law is None:
             return None
+        self.limit_note = ""
         if self.goals.active is not None and self.goals.check(t, q, qd, ref)[1]:
             driving = self.pairing if self.lockstep else self.latest
             ref = driving.trajectory.sample(t)  # type: ignore[union-attr]  # aborted: the hold
+        runaway = self.runaway
+        if runaway is not None:
+            if why := runaway.trip(q, qd, t):
+                self.goals.end(why, PATH_TOLERANCE_VIOLATED)
+                self.on_runaway(why)
+            if runaway.reason:  # latched: the stop's torque, whatever drives
+                tau = runaway.torque(qd)
+                self.snapshot = (t, q, qd, ref, tau)
+                return tau
+        self.commanded = (ref[0], ref[1])
         tau = law.torque(q, qd, *ref)
+        self.limit_note = self.guard.limit(tau, q, qd)
         self.snapshot = (t, q, qd, ref, tau)
         return tau
 
@@ -231,6 +294,12 @@ class ControllerCore:
         if self.law is None:
             return None, ""
         inputs, change = self.latest.take(now, clock)
+        if change == "stale":  # the output stops: a goal cannot go on
+            self.goals.end("inputs stale: the controller stopped commanding")
+        elif change == "fresh":  # after an outage the arm is where it is now, not where the trajectory went
+            self.commanded = None
+            self.hold("inputs fresh again after an outage", measured=True)
+            inputs, _ = self.latest.take(now, clock)
         if inputs is None:
             return None, change
         q, qd, ref, t = inputs

@@ -43,4 +43,6 @@ def warm_up(law: ControlLaw, selector: JointSelector, limits: JointLimits | None
         tau = law.torque(q, np.zeros(n), *desired)
     tau = law.torque(q, np.zeros(n), *Hold(q, "warm-up").sample(0.0))
     # a torque inside the limits: the guard's counters stay at zero
-    guard.check(joint_map.to_user(np.zeros_like(tau)))
+    zero = np.zeros_like(tau)
+    guard.limit(zero, q, np.zeros(n))
+    guard.check(joint_map.to_user(zero))

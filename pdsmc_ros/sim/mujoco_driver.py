@@ -5,8 +5,9 @@ What it models is a ros2_control robot driver with an effort controller
 (``effort_controllers/JointGroupEffortController``): the command is one torque per joint,
 matched by name; a command of the wrong length or with a non-finite value is dropped (the
 forward command controller drops it too); the last command is applied until another arrives,
-forever unless a ``command_timeout`` is given, after which the brakes close again (a
-safety a real drive may have; ros2_control's controller has none). With the brakes closed
+until ``command_timeout`` passes without one, after which the brakes close again (a real
+driver's watchdog, :data:`DEFAULT_COMMAND_TIMEOUT_S` by default; ros2_control's forward command
+controller has none: 0 models it). With the brakes closed
 the arm is frozen where it is: MuJoCo does not step and the rates are zero. The physics
 runs on the wall clock: each :meth:`MujocoDriver.advance` steps MuJoCo until its time
 reaches the wall time (missed ticks are caught up, at most :data:`MAX_CATCH_UP_S` of them).
@@ -25,6 +26,11 @@ from ..errors import InvalidInputError
 from ..robots.base import FloatArray
 from .mujoco_model import MujocoArm, _mujoco, set_state
 
+DEFAULT_COMMAND_TIMEOUT_S = 0.1
+"""Seconds without a command after which the stand-in's brakes close: a real arm's driver stops
+the arm when its commands stop (a watchdog), where ros2_control's forward command controller
+would apply the last command forever. 0.1 s is 100 periods of a 1 kHz controller, far beyond its
+late ticks, and short enough that a dead controller's last torque moves the arm little."""
 MAX_CATCH_UP_S = 0.1
 """The longest stretch of wall time one :meth:`MujocoDriver.advance` integrates; beyond it
 (the process was stopped, say) the physics' clock jumps to the wall clock's."""
@@ -47,12 +53,14 @@ class MujocoDriver:
         The joint each entry of a command drives (``data[i]`` -> ``command_joints[i]``);
         by default the arm's actuated joints in its order.
     command_timeout : float
-        Seconds after the last command at which the brakes close again; 0: never (the last
-        command is held forever, as a forward command controller does).
+        Seconds after the last command at which the brakes close again (default
+        :data:`DEFAULT_COMMAND_TIMEOUT_S`); 0: never (the last command is held forever, as a
+        forward command controller does).
     """
 
     def __init__(self, arm: MujocoArm, q0: ArrayLike, *, passive0: ArrayLike | None = None,
-                 command_joints: Sequence[str] | None = None, command_timeout: float = 0.0) -> None:
+                 command_joints: Sequence[str] | None = None,
+                 command_timeout: float = DEFAULT_COMMAND_TIMEOUT_S) -> None:
         self._mujoco = _mujoco()
         self.arm = arm
         self.data = arm.data()

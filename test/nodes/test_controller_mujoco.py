@@ -187,10 +187,10 @@ def setup(ros_env: dict, tmp_path: Path):  # noqa: ANN201
     procs: list[subprocess.Popen] = []
     client: list[Client] = []
 
-    def make(*controller_params: str, joints: list[str] = NAMES) -> Client:
+    def make(*controller_params: str, joints: list[str] = NAMES, driver: tuple[str, ...] = ()) -> Client:
         # the driver's effort controller takes data[i] for joints[i]: configured with the same list
         procs.append(start(ros_env, domain, tmp_path / "driver.log", "mujoco_driver", "-p", "robot:=serial_3r",
-                           "-p", f"joints:={joints}"))
+                           "-p", f"joints:={joints}", *driver))
         procs.append(controller(ros_env, domain, tmp_path / "controller.log", joints, *controller_params))
         client.append(Client(domain))
         assert client[0].wait(lambda: len(client[0].states) > 100, 90), (tmp_path / "driver.log").read_text()
@@ -210,7 +210,8 @@ def logs(tmp_path: Path) -> str:
 @pytest.mark.timeout(240)
 def test_hold_on_activation_topic_trajectory_on_the_clock_and_sag_without_controller(setup) -> None:  # noqa: ANN001
     make, tmp_path = setup
-    client = make("-p", "autostart:=false")
+    # the driver without its command watchdog: it applies the last (zero) command as long as it is there
+    client = make("-p", "autostart:=false", driver=("-p", "command_timeout:=0.0"))
     braked = client.q()
     client.transition(Transition.TRANSITION_CONFIGURE)
     client.transition(Transition.TRANSITION_ACTIVATE)
@@ -370,3 +371,42 @@ def test_joints_in_another_order_than_the_urdf_track_as_well(setup) -> None:  # 
     # every per-joint output follows joints: the controller state's names and the command's order
     assert client.wait(lambda: bool(client.controller_states), 5)
     assert list(client.controller_states[-1].joint_names) == ["joint3", "joint1", "joint2"]
+
+
+@pytest.mark.timeout(240)
+def test_a_runaway_aborts_the_goal_stops_the_arm_and_fails_the_run(ros_env: dict, tmp_path: Path) -> None:
+    """The runaway guard (issue 37), made to trip by a factor of 2 % of the velocity limits: the
+    active goal aborted naming the joint, the error on the log and /diagnostics, the damping stop
+    slowing the arm, and the controller's exit status 1."""
+    from action_msgs.msg import GoalStatus
+    from diagnostic_msgs.msg import DiagnosticArray
+
+    domain = next_domain()
+    driver = start(ros_env, domain, tmp_path / "driver.log", "mujoco_driver", "-p", "robot:=serial_3r")
+    ctl = controller(ros_env, domain, tmp_path / "controller.log", NAMES, "-p", "runaway.velocity_factor:=0.02")
+    client = Client(domain)
+    errors: list[str] = []
+    client.node.create_subscription(
+        DiagnosticArray, "/diagnostics",
+        lambda m: errors.extend(s.message for s in m.status if s.level == s.ERROR and s.name == "controller: limits"),
+        10)
+    try:
+        assert client.wait(lambda: len(client.commands) > 100, 90), logs(tmp_path)
+        q0 = client.q()
+        handle = client.send_goal(goal_to(q0, q0 + [0.5, 0.0, 0.0], 1.0))  # 0.94 rad/s at its fastest
+        status, code, text = result_of(client, handle)
+        assert (status, code) == (GoalStatus.STATUS_ABORTED, FollowJointTrajectory.Result.PATH_TOLERANCE_VIOLATED)
+        assert text.startswith("runaway stop") and "'joint1'" in text, text
+        assert client.wait(lambda: bool(errors), 5) and errors[0].startswith("runaway stop"), errors
+        time.sleep(1.0)
+        settled = client.window(time.time() - 0.3, time.time())
+        # damped: joint 1 (no gravity about its axis) at rest; the others sink no faster than gravity
+        # against the damping allows
+        assert max(abs(s[2][0]) for s in settled) < 0.05, logs(tmp_path)
+    finally:
+        client.close()
+        code, _ = stop_process(ctl)
+        stop_process(driver)
+    log = (tmp_path / "controller.log").read_text()
+    assert "runaway stop" in log
+    assert code == 1, (code, log[-2000:])

@@ -1,0 +1,258 @@
+"""Benchmark: how fast the UR5 moves around the ends of FollowJointTrajectory goals (issue 37).
+
+The UR5 in the MuJoCo stand-in (``ros2 run pdsmc_ros mujoco_driver robot:=ur5``, 1 kHz) and the
+controller in real time (``mode:=realtime rate:=1000.0``, the shipped gains of each law), driven
+by a plain rclpy action client in this process. For every law, ``--goals`` goals of each ending:
+
+* ``success``: a 0.3 rad move of every joint over 1.5 s, MoveIt-style (first point at t = 0 at
+  the current position, empty tolerances);
+* ``goal_tolerance``: the same move with an impossible goal tolerance (1e-6 rad, 0.1 s of goal
+  time): GOAL_TOLERANCE_VIOLATED;
+* ``path_tolerance``: the same move with a 1e-4 rad path tolerance: PATH_TOLERANCE_VIOLATED;
+* ``cancel``: canceled 0.75 s into the move;
+* ``preemption``: a second goal sent 0.75 s into the first (the first ends preempted; the second
+  is the next goal's start);
+* ``step``: a first point at t = 0, 0.3 rad away from the current position (refused, or a step).
+
+Measured from the stand-in's ``/joint_states`` (its true rates): the largest ``|qd_i| / v_max_i``
+over the 2 s after each end (target: below 0.25) and over the whole run (target: below 1), and
+how each goal ended. ``--busy`` keeps one core busy with another process throughout.
+
+Last line: ``worst_after_end_ratio=A worst_ratio=B`` (the worst over every law and ending).
+
+Usage: python bench/goal_ends.py [--laws pd,smc,pdsmc] [--goals 10] [--busy]   (inside the venv,
+after make setup; the venv's bin first on PATH)
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+import rclpy  # noqa: E402
+import rclpy.executors  # noqa: E402
+from builtin_interfaces.msg import Duration  # noqa: E402
+from control_msgs.action import FollowJointTrajectory  # noqa: E402
+from control_msgs.msg import JointTolerance  # noqa: E402
+from rclpy.action import ActionClient  # noqa: E402
+from sensor_msgs.msg import JointState  # noqa: E402
+from trajectory_msgs.msg import JointTrajectoryPoint  # noqa: E402
+
+from pdsmc_ros.robots.catalog import resolve_robot  # noqa: E402
+from pdsmc_ros.robots.registry import make_robot  # noqa: E402
+
+ENDINGS = ("success", "goal_tolerance", "path_tolerance", "cancel", "preemption", "step")
+MOVE = 0.3  # rad, every joint
+MOVE_S = 1.5
+AFTER_S = 2.0
+CODES = {0: "SUCCESSFUL", -1: "INVALID_GOAL", -2: "INVALID_JOINTS", -3: "OLD_HEADER_TIMESTAMP",
+         -4: "PATH_TOLERANCE_VIOLATED", -5: "GOAL_TOLERANCE_VIOLATED"}
+
+
+def duration(seconds: float) -> Duration:
+    return Duration(sec=int(seconds), nanosec=int(round((seconds % 1.0) * 1e9)))
+
+
+class Client:
+    """An rclpy node spun by a thread of its own: the stand-in's states and an action client."""
+
+    def __init__(self, domain: int, names: list[str]) -> None:
+        self.names = names
+        self.context = rclpy.Context()
+        rclpy.init(context=self.context, domain_id=domain)
+        self.node = rclpy.create_node("goal_ends_bench", context=self.context)
+        self.lock = threading.Lock()
+        self.states: list[tuple[float, np.ndarray, np.ndarray]] = []  # (receipt, q, qd) in ``names`` order
+        self.node.create_subscription(JointState, "/joint_states", self.on_state, 100)
+        self.action = ActionClient(self.node, FollowJointTrajectory, "/controller/follow_joint_trajectory")
+        self.executor = rclpy.executors.SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        self.stop = threading.Event()
+        self.spinning = threading.Lock()
+        self.thread = threading.Thread(target=self.spin, daemon=True)
+        self.thread.start()
+
+    def spin(self) -> None:
+        while not self.stop.is_set():
+            with self.spinning:
+                self.executor.spin_once(timeout_sec=0.005)
+            time.sleep(0)
+
+    def on_state(self, msg: JointState) -> None:
+        index = [list(msg.name).index(n) for n in self.names]
+        with self.lock:
+            self.states.append((time.monotonic(), np.asarray(msg.position)[index], np.asarray(msg.velocity)[index]))
+
+    def q(self) -> np.ndarray:
+        with self.lock:
+            return self.states[-1][1].copy()
+
+    def between(self, start: float, end: float) -> np.ndarray:
+        with self.lock:
+            rows = [qd for t, _, qd in self.states if start <= t <= end]
+        return np.array(rows) if rows else np.zeros((0, len(self.names)))
+
+    def call(self, make: Callable[[], Any], seconds: float = 30.0) -> Any:  # noqa: ANN401
+        with self.spinning:  # rclpy files an action request's future only after sending it
+            future = make()
+        end = time.monotonic() + seconds
+        while not future.done() and time.monotonic() < end:
+            time.sleep(0.002)
+        return future.result() if future.done() else None
+
+    def close(self) -> None:
+        self.stop.set()
+        self.thread.join(timeout=2)
+        self.action.destroy()
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.context)
+
+
+def goal(names: list[str], start: np.ndarray, target: np.ndarray, *, step: bool = False,
+         path: float = 0.0, goal_tolerance: float = 0.0) -> FollowJointTrajectory.Goal:
+    g = FollowJointTrajectory.Goal()
+    g.trajectory.joint_names = names
+    first = target if step else start
+    zero = [0.0] * len(names)
+    g.trajectory.points = [
+        JointTrajectoryPoint(positions=first.tolist(), velocities=zero, time_from_start=duration(0.0)),
+        JointTrajectoryPoint(positions=target.tolist(), velocities=zero, time_from_start=duration(MOVE_S)),
+    ]
+    if path:
+        g.path_tolerance = [JointTolerance(name=n, position=path) for n in names]
+    if goal_tolerance:
+        g.goal_tolerance = [JointTolerance(name=n, position=goal_tolerance) for n in names]
+        g.goal_time_tolerance = duration(0.1)
+    return g
+
+
+def run_goal(client: Client, names: list[str], ending: str, sign: float) -> tuple[str, float]:
+    """One goal ended as ``ending``: ``(how it ended, the time it ended (monotonic))``."""
+    start = client.q()
+    target = start + sign * MOVE
+    g = goal(names, start, target, step=ending == "step", path=1e-4 if ending == "path_tolerance" else 0.0,
+             goal_tolerance=1e-6 if ending == "goal_tolerance" else 0.0)
+    handle = client.call(lambda: client.action.send_goal_async(g))
+    if handle is None:
+        return "no answer", time.monotonic()
+    if not handle.accepted:
+        return "rejected", time.monotonic()
+    if ending == "cancel":
+        time.sleep(0.75)
+        ended = time.monotonic()
+        client.call(lambda: handle.cancel_goal_async())
+        return _outcome(client.call(lambda: handle.get_result_async(), 10.0)), ended
+    if ending == "preemption":
+        time.sleep(0.75)
+        second = goal(names, client.q(), start)
+        ended = time.monotonic()
+        other = client.call(lambda: client.action.send_goal_async(second))
+        result = client.call(lambda: handle.get_result_async(), 10.0)
+        if other is not None and other.accepted:
+            client.call(lambda: other.get_result_async(), 10.0)  # back where it started
+        return _outcome(result), ended
+    result = client.call(lambda: handle.get_result_async(), 30.0)
+    return _outcome(result), time.monotonic()
+
+
+def _outcome(result: Any) -> str:  # noqa: ANN401
+    if result is None:
+        return "no result"
+    code = result.result.error_code
+    return CODES.get(code, str(code)) if code else ("SUCCESSFUL" if result.status == 4 else "CANCELED")
+
+
+def bench_law(law: str, names: list[str], limits: np.ndarray, goals: int, domain: int, env: dict[str, str],
+              logs: Path) -> dict[str, tuple[float, list[str]]]:
+    procs = []
+    try:
+        with open(logs / f"{law}-driver.log", "w") as out:
+            procs.append(subprocess.Popen(
+                ["ros2", "run", "pdsmc_ros", "mujoco_driver", "--ros-args", "-p", "robot:=ur5", "-p", "rate:=1000.0"],
+                env=env, stdout=out, stderr=subprocess.STDOUT))
+        with open(logs / f"{law}-controller.log", "w") as out:
+            procs.append(subprocess.Popen(
+                ["ros2", "run", "pdsmc_ros", "controller", "--ros-args", "-p", f"type:={law}", "-p", "robot:=ur5",
+                 "-p", "mode:=realtime", "-p", "rate:=1000.0"], env=env, stdout=out, stderr=subprocess.STDOUT))
+        client = Client(domain, names)
+        try:
+            if not client.action.wait_for_server(timeout_sec=90):
+                raise RuntimeError(f"{law}: no action server (logs in {logs})")
+            deadline = time.monotonic() + 30
+            while not client.states and time.monotonic() < deadline:
+                time.sleep(0.05)
+            time.sleep(1.0)  # the hold on activation settles
+            t0 = time.monotonic()
+            rows: dict[str, tuple[float, list[str]]] = {}
+            sign = 1.0
+            for ending in ENDINGS:
+                worst, how = 0.0, []
+                for _ in range(goals):
+                    outcome, ended = run_goal(client, names, ending, sign)
+                    sign = -sign
+                    time.sleep(AFTER_S)
+                    after = client.between(ended, ended + AFTER_S)
+                    ratio = float(np.max(np.abs(after) / limits)) if after.size else float("nan")
+                    worst = max(worst, ratio)
+                    how.append(outcome)
+                rows[ending] = (worst, how)
+            whole = client.between(t0, time.monotonic())
+            rows["whole run"] = (float(np.max(np.abs(whole) / limits)), [])
+            return rows
+        finally:
+            client.close()
+    finally:
+        for proc in procs:
+            proc.send_signal(2)
+        for proc in procs:
+            try:
+                proc.wait(timeout=20)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--laws", default="pd,smc,pdsmc")
+    parser.add_argument("--goals", type=int, default=10)
+    parser.add_argument("--busy", action="store_true", help="keep one core busy with another process")
+    parser.add_argument("--domain", type=int, default=77)
+    args = parser.parse_args()
+    robot = make_robot(resolve_robot("ur5"))
+    names, limits = list(robot.joint_names), np.asarray(robot.velocity_limits, dtype=float)
+    env = dict(os.environ, ROS_DOMAIN_ID=str(args.domain), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
+    logs = Path(f"/tmp/goal_ends-{os.getpid()}")
+    logs.mkdir(parents=True, exist_ok=True)
+    busy = subprocess.Popen([sys.executable, "-c", "while True: pass"]) if args.busy else None
+    worst_after = worst = 0.0
+    try:
+        for law in args.laws.split(","):
+            rows = bench_law(law, names, limits, args.goals, args.domain, env, logs)
+            for ending, (ratio, how) in rows.items():
+                counts = {k: how.count(k) for k in dict.fromkeys(how)}
+                print(f"{law:8s} {ending:15s} largest |qd|/v_max {ratio:.3f}  {counts}", flush=True)
+                if ending == "whole run":
+                    worst = max(worst, ratio)
+                else:
+                    worst_after = max(worst_after, ratio)
+    finally:
+        if busy is not None:
+            busy.kill()
+    print(f"worst_after_end_ratio={worst_after:.3f} worst_ratio={worst:.3f}  (logs: {logs})")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
