@@ -36,7 +36,7 @@ __all__ = [
     "loaded_params",
     "make_run",
     "preset_gains",
-    "run_gains",
+    "resolve_gains",
     "scenario_gain_factors",
     "scenario_names",
     "smc_model_default",
@@ -288,22 +288,28 @@ def _start_configuration(robot: str, contour: str, entry: int) -> FloatArray:  #
     return start
 
 
-def run_gains(robot: str, contour: str, controller: str, *, gains: Gains | None = None,
-              layers: Sequence[Mapping[str, Any]] = (), needs_gains: bool = True) -> Gains:
-    """The gains of a run before its scenario scales them, from layered inputs.
+def resolve_gains(robot: str, contour: str, controller: str, *, scenario: str = "nominal",
+                  gains: Gains | None = None, layers: Sequence[Mapping[str, Any]] = (),
+                  joint_order: Sequence[int] | None = None, needs_gains: bool = True) -> Gains:
+    """The gains of a run: the one resolver, used by every entry point (``pdsmc simulate`` and the
+    other commands through :func:`make_run`, the controller node at start-up and on ``ros2 param set``).
 
     In this order, each layer replacing the gains it names: (1) ``gains`` if given, else the
     presets (``config/gains.yaml``, Tables 4.16 / 4.33; an arm may have none); (2) each of
-    ``layers`` in turn -- a params file's gains, then explicit overrides (``-p kp:=``,
-    ``--gain kp=``). Every gain the law declares as needed must come from some layer; when
-    ``needs_gains`` is False (the nodes other than the controller, which never use them) the
-    missing ones hold their neutral values.
+    ``layers`` in turn -- a params file's gains, then explicit overrides (``-p kp:=``, ``--gain
+    kp=``, ``ros2 param set``), each given in ``joint_order`` (``joint_order[i]``: the robot index
+    of the ``i``-th value, the controller's ``joints``; None: robot order) and put in robot order
+    (one value stands for every joint; an empty one is not given); (3) the scenario's gain factors
+    (Section 4.5.3, :func:`scenario_gain_factors`) on the result, whichever layer gave each gain:
+    a params file's ``kp`` under ``high_pd`` is scaled exactly as the preset's would be. Every gain
+    the law declares as needed must come from some layer; when ``needs_gains`` is False (the nodes
+    other than the controller, which never use them) the missing ones hold their neutral values.
 
     Raises
     ------
     ConfigError
-        A gain the law does not declare, a value out of its bounds, or (``needs_gains``) a
-        gain given by no layer.
+        A gain the law does not declare, a value out of its bounds or of the wrong length, or
+        (``needs_gains``) a gain given by no layer.
     """
     entry = law(controller)
     n = make_robot(resolve_robot(robot)).n
@@ -313,7 +319,10 @@ def run_gains(robot: str, contour: str, controller: str, *, gains: Gains | None 
         base = {}  # an arm or a law without presets: the layers give them
     given: dict[str, Any] = dict(base)
     for layer in layers:
-        given.update(layer)
+        for name, value in layer.items():
+            values = _in_robot_order(value, joint_order, n)
+            if values is not None:
+                given[name] = values
     missing = [g for g in entry.gain_names if g not in given]
     if missing and needs_gains:
         raise MissingGainsError(
@@ -321,7 +330,29 @@ def run_gains(robot: str, contour: str, controller: str, *, gains: Gains | None 
             f"has no {controller} gains for {robot}); give them (-p {missing[0]}:=[...] or --gain {missing[0]}=...) "
             "or a params file (pdsmc tune writes one)")
     neutral = {g.name: [g.neutral] for g in entry.specs if g.name in missing}
-    return Gains.from_mapping({**neutral, **given}, n, controller)
+    return Gains.from_mapping({**neutral, **given}, n, controller).scaled(scenario_gain_factors(scenario, controller))
+
+
+def _in_robot_order(value: Any, joint_order: Sequence[int] | None, n: int) -> Any:
+    """A layer's gain in robot order: a number is one value (for every joint), an empty list is
+    not given (None); a list of ``n`` numbers in ``joint_order`` is permuted; anything else is left
+    for :meth:`Gains.from_mapping` to refuse with its message."""
+    if value is None:
+        return None
+    if isinstance(value, int | float) and not isinstance(value, bool):
+        return [float(value)]
+    if isinstance(value, str | bytes) or not isinstance(value, Sequence | np.ndarray):
+        return value
+    values = list(value)
+    if not values:
+        return None
+    if joint_order is not None and len(values) == n and len(joint_order) == n \
+            and all(isinstance(v, int | float) and not isinstance(v, bool) for v in values):
+        robot = [0.0] * n
+        for i, v in zip(joint_order, values, strict=True):
+            robot[int(i)] = float(v)
+        return robot
+    return values
 
 
 def make_run(
@@ -335,6 +366,7 @@ def make_run(
     params: Mapping[str, Any] | None = None,
     overrides: Mapping[str, Any] | None = None,
     needs_gains: bool = True,
+    joint_order: Sequence[int] | None = None,
     smc_model: Mapping[str, float] | None = None,
     ellipse_error: str = "nearest",
     waypoints_file: str | None = None,
@@ -344,18 +376,18 @@ def make_run(
 ) -> RunSpec:
     """The one run builder (the CLI, the nodes, tune, sweep, Monte Carlo and reproduce use it).
 
-    The gains come from :func:`run_gains`: ``gains`` or the presets, then ``params`` (a params
-    file's gains), then ``overrides`` (explicit ``-p``/``--gain`` values); the scenario of
-    Section 4.5 then applies to the result, whichever layer gave each gain (its gain factors,
-    payload and duration factor). Rates not given are the robot's settings.
+    The gains come from :func:`resolve_gains`: ``gains`` or the presets, then ``params`` (a params
+    file's gains), then ``overrides`` (explicit ``-p``/``--gain`` values), both in ``joint_order``
+    if given (the controller's ``joints``), then the scenario's gain factors; the scenario of
+    Section 4.5 also sets the payload and the duration factor. Rates not given are the robot's settings.
     """
     choice(contour, contour_names(robot), f"contour for {robot}")
     settings = robot_settings(robot)
     scenarios = load_config("scenarios")
     sc = scenarios[choice(scenario, list(scenarios), "scenario")] or {}
-    base = run_gains(robot, contour, controller, gains=gains, layers=[x for x in (params, overrides) if x],
-                     needs_gains=needs_gains)
-    factors = scenario_gain_factors(scenario, controller)
+    resolved = resolve_gains(robot, contour, controller, scenario=scenario, gains=gains,
+                             layers=[x for x in (params, overrides) if x], joint_order=joint_order,
+                             needs_gains=needs_gains)
     model = smc_model_default()
     model.update(smc_model or {})
     return RunSpec(
@@ -363,7 +395,7 @@ def make_run(
         contour=contour,
         controller=controller,
         scenario=scenario,
-        gains=base.scaled(factors),
+        gains=resolved,
         rate=float(rate or settings.control_rate),
         sample_rate=float(sample_rate or settings.sample_rate),
         payload=float(sc.get("payload", 0.0)),
@@ -378,8 +410,9 @@ def make_run(
 
 
 def scenario_gain_factors(scenario: str, controller: str) -> dict[str, float]:
-    """The factors ``scenario`` multiplies ``controller``'s gains by (Section 4.5.3): applied to
-    the gains given (a params file, ``-p``, ``ros2 param set``) as to the presets."""
+    """The factors ``scenario`` multiplies ``controller``'s gains by (Section 4.5.3), by gain name:
+    :func:`resolve_gains` applies them to the gains given (a params file, ``-p``, ``ros2 param set``)
+    as to the presets."""
     scenarios = load_config("scenarios")
     sc = scenarios[choice(scenario, list(scenarios), "scenario")] or {}
     factors = sc.get("gain_factors") or {}

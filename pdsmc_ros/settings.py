@@ -18,40 +18,35 @@ from typing import Any
 
 from .config import read_yaml
 from .errors import ConfigError
+from .parameters.declaration import JOINT, check_values, joint_name_matches
+from .parameters.tables import NODES, gain_parameters, package_parameter_names, parameter_names
+from .parameters.tables import node_parameters as node_table
 
 ALWAYS_DECLARED = ("use_sim_time", "start_type_description_service")
 """Parameters rclpy declares on every node itself."""
 ALWAYS_ALLOWED_PREFIXES = ("qos_overrides.",)
 """Parameters rclpy reads without declaring them for the node (QoS overrides of its topics)."""
 
-CONTROLLER_PARAMETERS = (
-    # the run (every node; pdsmc_ros.nodes.params.RUN_PARAMETERS)
-    "robot", "contour", "type", "scenario", "mode", "rate", "sample_rate", "duration_factor", "smc_reading",
-    "ellipse_error", "waypoints_file", "segment_duration", "clock_rate", "busy_wait",
-    # and the gains every registered law declares (pdsmc_ros.control.gain_names(), not listed here:
-    # a law registered later adds its own)
-    # the controller's own (pdsmc_ros.nodes.controller_params, nodes.params.STABILITY_PARAMETERS)
-    "joints", "autostart", "torque_limit", "stale_periods", "enforce_limits", "stability_margin",
-    "delay_periods", "constraints.goal_time", "constraints.stopped_velocity_tolerance",
-    # every loop node's real-time settings (pdsmc_ros.nodes.realtime_params)
-    "thread_priority", "cpu_affinity", "lock_memory",
-)
-"""What the controller node declares: the keys ``pdsmc simulate/check-gains --params-file`` accept
-(the CLI reads the controller's sections without starting ROS)."""
-
-NODE_NAMES = ("plant", "controller", "trajectory", "recorder", "mujoco_driver", "viewer")
+NODE_NAMES = NODES
 """The package's nodes: one params file may configure several of them (``run_experiment.sh``
 hands the same file to each)."""
-PACKAGE_PARAMETERS = frozenset(CONTROLLER_PARAMETERS) | {
-    # the plant's (pdsmc_ros.nodes.params.SAFETY_PARAMETERS and its own)
-    "watchdog_timeout", "watchdog_periods", "safe_mode", "safe_damping", "safe_stiffness",
-    "on_controller_loss", "safe_time_scale", "expected_subscribers",
-    # the trajectory's, the recorder's, the viewer's and the MuJoCo driver's
-    "lookahead_steps", "output", "display_rate", "host", "port",
-    "substeps", "joint_state_order", "initial_positions", "command_timeout",
-}
-"""Every parameter some node of the package declares: a shared section (``/**``, a pattern) may
-give one that only other nodes of the run take."""
+
+
+def controller_parameters() -> tuple[str, ...]:
+    """What the controller node declares, from its table (:func:`pdsmc_ros.parameters.node_parameters`),
+    the gains of every registered law included: the keys ``pdsmc simulate/check-gains --params-file``
+    accept (the CLI reads the controller's sections without starting ROS)."""
+    return parameter_names("controller")
+
+
+def __getattr__(name: str) -> object:
+    # derived from the tables when asked, so the laws and robots registered by then are included
+    if name == "CONTROLLER_PARAMETERS":  # the controller's own and the run's, without the gains
+        gains = {spec.name for spec in gain_parameters(applied=True)}
+        return tuple(n for n in parameter_names("controller") if n not in gains)
+    if name == "PACKAGE_PARAMETERS":  # every parameter some node of the package declares
+        return package_parameter_names()
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def closest(name: str, names: Iterable[str]) -> str:
@@ -67,7 +62,9 @@ def unknown_parameter(name: str, declared: Iterable[str]) -> str:
 
 def is_declared(name: str, declared: Iterable[str]) -> bool:
     """``name`` is declared, or one rclpy handles for every node."""
-    return name in declared or name in ALWAYS_DECLARED or name.startswith(ALWAYS_ALLOWED_PREFIXES)
+    declared = list(declared)
+    return name in declared or name in ALWAYS_DECLARED or name.startswith(ALWAYS_ALLOWED_PREFIXES) or any(
+        joint_name_matches(d, name) for d in declared if JOINT in d)  # constraints.<joint>.goal
 
 
 def section_pattern(section: str) -> re.Pattern[str]:
@@ -150,11 +147,17 @@ def node_parameters(path: str | Path, node_fqn: str, declared: Iterable[str], *,
         shared = "*" in section  # a pattern: it configures other nodes too
         for key, value in sections[section].items():
             if not is_declared(key, declared):
-                if shared and key in PACKAGE_PARAMETERS:
+                if shared and key in package_parameter_names():
                     continue  # another node's parameter (e.g. the controller's enforce_limits in /**)
                 raise ConfigError(f"{label}: section {section!r}: {unknown_parameter(key, declared)} for node "
                                   f"{node_fqn!r}")
             merged[key] = value
+    name = node_fqn.rsplit("/", 1)[-1]
+    if name in NODES:  # the values, as the node checks them when it starts
+        try:
+            check_values(node_table(name), merged, types_only=[g.name for g in gain_parameters(applied=True)])
+        except ConfigError as exc:
+            raise ConfigError(f"{label}: {exc}") from None
     return merged
 
 

@@ -162,8 +162,8 @@ def test_the_controller_refuses_gains_unstable_in_real_time_advising_the_paramet
 
 @pytest.mark.timeout(200)
 def test_the_cli_knows_every_parameter_the_controller_declares(ros_env: dict) -> None:
-    """settings.CONTROLLER_PARAMETERS and the laws' gains (what pdsmc --params-file accepts without ROS) are
-    the controller's list."""
+    """The controller's table (settings.CONTROLLER_PARAMETERS and the laws' gains: what pdsmc --params-file
+    accepts without ROS) is what the node declares."""
     from pdsmc_ros.settings import ALWAYS_DECLARED, CONTROLLER_PARAMETERS
 
     env = {**ros_env, "ROS_DOMAIN_ID": str(next_domain())}
@@ -181,5 +181,10 @@ def test_the_cli_knows_every_parameter_the_controller_declares(ros_env: dict) ->
     assert proc.returncode == 0, proc.stderr
     declared = set(proc.stdout.split()) - set(ALWAYS_DECLARED)
     from pdsmc_ros.control import gain_names
+    from pdsmc_ros.parameters import node_parameters
 
-    assert declared == set(CONTROLLER_PARAMETERS) | set(gain_names())
+    table = node_parameters("controller")  # what settings.CONTROLLER_PARAMETERS is derived from
+    assert {name for name in declared if not any(spec.matches(name) for spec in table)} == set()
+    assert {spec.name for spec in table if not spec.map_joints} == set(CONTROLLER_PARAMETERS) | set(gain_names())
+    assert {spec.name for spec in table if not spec.map_joints} <= declared
+    assert {"constraints.joint1.goal", "constraints.joint2.trajectory"} <= declared  # one per joint

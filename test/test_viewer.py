@@ -131,4 +131,4 @@ def test_bad_viewer_parameters_are_one_line(ros_env: dict) -> None:
                           env=ros_env, capture_output=True, text=True, timeout=60)
     assert proc.returncode == 2
     assert proc.stderr.strip().splitlines() == [
-        "viewer: error: parameter display_rate: frames per second of wall time in (0, 240], got 0.0"]
+        "viewer: error: parameter display_rate must be a number > 0 and <= 240, got 0.0"]

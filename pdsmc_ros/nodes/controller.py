@@ -36,10 +36,11 @@ from ..runtime.controller import ControllerCore
 from ..runtime.joints import JointSelector
 from ..runtime.limits import JointLimits
 from . import topics
-from .controller_params import OrderedGainUpdates, declare_controller_parameters, gains_in_robot_order
+from .controller_params import declare_controller_parameters
 from .diagnostics import Diagnostics, InputReport
 from .executor import run_node
 from .follow_joint_trajectory import FollowJointTrajectoryServer, topic_trajectory
+from .gain_updates import GainUpdates
 from .inputs import Inputs, Times
 from .lifecycle import EXIT_OK, WATCH_GRACE_S, CommandingEntity, end_when_plant_leaves
 from .params import declare_node_run, description_json
@@ -61,8 +62,7 @@ class ControllerNode(CommandingEntity):
         self.params = params = declare_controller_parameters(node, robot)
         self.joint_map = params.joint_map
         # the description says whether the clamp runs, so simulate(spec) of the bag repeats the run
-        spec = dataclasses.replace(gains_in_robot_order(node, run.spec, self.joint_map),
-                                   enforce_limits=params.enforce_limits)
+        spec = dataclasses.replace(run.spec, enforce_limits=params.enforce_limits)  # gains in robot order
         self.guard = TorqueGuard(params.torque_limit)
         self.core = core = ControllerCore(
             spec, JointSelector(robot.joint_names), self.joint_map,  # the law's vectors stay in robot order
@@ -72,9 +72,8 @@ class ControllerNode(CommandingEntity):
             goal_settings=params.goal_settings)
         check_rate(spec, core.reference, **run.stability)  # refuse gains that fail in this mode (and delay)
         # gains: the on-set callback checks a change is stable at the running rate, the post-set one applies it
-        self.gain_updates = OrderedGainUpdates(node, spec, lambda new: check_rate(new, core.reference, **run.stability),
-                                               self.apply_gains)
-        self.gain_updates.joint_map = self.joint_map
+        self.gain_updates = GainUpdates(node, spec, lambda new: check_rate(new, core.reference, **run.stability),
+                                        self.apply_gains, joint_map=self.joint_map)
         self.active = self.done = False  # commanding; the run is over
         self.exit_code = EXIT_OK
 

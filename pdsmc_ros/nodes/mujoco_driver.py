@@ -20,28 +20,27 @@ from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
-from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
 from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray, String
 
 from ..bag.cdr import decode_float64_multi_array, encode_joint_state
-from ..checks import are_real, is_real
+from ..checks import are_real
 from ..errors import CdrError, ConfigError, InvalidInputError
-from ..robots.catalog import allowed_robots, resolve_robot
+from ..parameters import mujoco_driver_parameters
+from ..parameters.ros import declare, guard
+from ..robots.catalog import resolve_robot
 from ..robots.registry import make_robot
 from ..runtime.joints import check_joint_names
 from ..runtime.realtime import PLANT_PRIORITY
 from ..sim.mujoco_driver import (
-    JOINT_STATE_ORDERS,
     MujocoDriver,
     default_positions,
     initial_passive,
     joint_state_order,
 )
 from ..sim.mujoco_model import build_model
-from .descriptors import declare_busy_wait, declare_int_parameter
 from .executor import run_node
 from .inputs import Inputs
 from .lifecycle import EXIT_OK
@@ -52,18 +51,6 @@ WARN_EVERY_S = 1.0  # dropped commands: one warning a second at most
 PERIODS_KEPT = 100_000  # achieved periods summarised at the end (the last 100 s at 1 kHz)
 
 
-def _declare(node: Node, name: str, default: Any, description: str) -> Any:
-    node.declare_parameter(name, default, ParameterDescriptor(description=description, dynamic_typing=True))
-    return node.get_parameter(name).value
-
-
-def _number(node: Node, name: str, default: float, description: str, lo: float, hi: float) -> float:
-    value = _declare(node, name, default, description)
-    if not is_real(value) or not lo <= value <= hi:
-        raise ConfigError(f"parameter {name} must be a number in [{lo:g}, {hi:g}], got {value!r}")
-    return float(value)
-
-
 class MujocoDriverNode:
     """Thin wrapper: parameters, topics and the wall-clock tick around :class:`MujocoDriver`."""
 
@@ -71,23 +58,11 @@ class MujocoDriverNode:
 
     def __init__(self) -> None:
         self.node = node = Node("mujoco_driver")
-        robot = _declare(node, "robot", "serial_3r", "the arm: " + allowed_robots())
-        rate = _number(node, "rate", 1000.0, "state rate and physics period in Hz", 1.0, 20000.0)
-        substeps = declare_int_parameter(node, "substeps", 1, "MuJoCo steps per period", lo=1, hi=1000)
-        order = _declare(node, "joint_state_order", "alphabetical",
-                         "order of /joint_states: " + ", ".join(JOINT_STATE_ORDERS))
-        joints = _declare(node, "joints", None, "joint of each command entry (default: the arm's actuated joints)")
-        initial = _declare(node, "initial_positions", None,
-                           "initial angles of the actuated joints, robot order (default: a URDF arm's home, a "
-                           "thesis arm at its circle contour's start)")
-        timeout = _number(node, "command_timeout", 0.0,
-                          "seconds without a command after which the brakes close again (0: never)", 0.0, 3600.0)
-        self.busy_wait = declare_busy_wait(node)
-        if not isinstance(robot, str):
-            raise ConfigError(f"parameter robot must be a name or a .urdf path, got {robot!r}")
-        if order not in JOINT_STATE_ORDERS:  # before the (slower) model is built
-            raise ConfigError(f"parameter joint_state_order must be one of {', '.join(JOINT_STATE_ORDERS)}, "
-                              f"got {order!r}")
+        values = declare(node, mujoco_driver_parameters())  # read-only; each of its type and in its bounds
+        robot, rate, substeps, order = values["robot"], values["rate"], values["substeps"], values["joint_state_order"]
+        joints, initial, timeout = values["joints"], values["initial_positions"], values["command_timeout"]
+        self.busy_wait = values["busy_wait"]
+        guard(node, mujoco_driver_parameters())
         try:
             robot = resolve_robot(robot)
         except ConfigError as exc:

@@ -5,7 +5,7 @@ default law), and rcl skips a params file's sections that match no node. After t
 process are built (:func:`~pdsmc_ros.nodes.executor.run_nodes`), every params file given must
 have a section for one of them and no key the matching node does not declare
 (:mod:`pdsmc_ros.settings`), and each ``-p`` override left undeclared is warned about, naming
-the closest declared parameter.
+the closest declared parameter (every name some node declares: the tables of :mod:`pdsmc_ros.parameters`).
 """
 
 from __future__ import annotations
@@ -15,9 +15,9 @@ from collections.abc import Sequence
 
 from rclpy.node import Node
 
+from ..parameters import package_parameter_names
 from ..settings import (
     ALWAYS_DECLARED,
-    PACKAGE_PARAMETERS,
     is_declared,
     node_parameters,
     params_files_in,
@@ -61,7 +61,7 @@ def warn_unknown_arguments(name: str, args: Sequence[str] | None) -> None:
     declares (the build's own error may be a consequence: ``-p typ:=pd`` left the default law,
     whose gains were then refused)."""
     args = list(sys.argv if args is None else args)
-    known = [*PACKAGE_PARAMETERS, *ALWAYS_DECLARED]
+    known = [*package_parameter_names(), *ALWAYS_DECLARED]
     for flag, value in zip(args, args[1:]):
         if flag in ("-p", "--param") and ":=" in value:
             key = value.split(":=", 1)[0].rsplit(":", 1)[-1]  # node:name:=value names a node's parameter

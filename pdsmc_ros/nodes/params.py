@@ -1,8 +1,5 @@
-"""Run parameters of the nodes: one schema, validated on set, applied post-set.
-
-Turns ROS parameters into a :class:`~pdsmc_ros.presets.RunSpec`; nothing here computes
-physics, control or metrics.
-"""
+"""Run parameters of the nodes: declared from the tables (:mod:`pdsmc_ros.parameters`), turned
+into a :class:`~pdsmc_ros.presets.RunSpec`; nothing here computes physics, control or metrics."""
 
 from __future__ import annotations
 
@@ -11,165 +8,131 @@ import json
 from dataclasses import dataclass
 from typing import Any
 
-from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
-from rclpy.exceptions import ParameterUninitializedException
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
-from ..checks import are_real, is_real, is_whole
-from ..config import choice
-from ..control import GAINS, gain_names, law, law_names
+from ..control import law
 from ..errors import ConfigError
-from ..presets import RunSpec, contour_names, make_run, smc_reading
-from ..robots.catalog import ROBOT_DESCRIPTION, allowed_robots, register_description
-from .descriptors import SAFETY_PARAMETERS, declare_busy_wait, descriptor
+from ..parameters import BUSY_WAIT, CONTROLLER, STABILITY, gain_parameters, run_parameters
+from ..parameters.ros import READ_AT_START, declare, guard, value_of
+from ..presets import RunSpec, make_run, smc_reading
+from ..robots import make_robot
+from ..robots.catalog import ROBOT_DESCRIPTION, register_description, resolve_robot
+from ..runtime.joint_map import JointMap
 from .robot_description import receive_robot_description
-from .topics import MODES
-
-RUN_PARAMETERS: dict[str, tuple[Any, ParameterDescriptor]] = {
-    "robot": ("serial_3r", descriptor("manipulator", constraints="one of: " + allowed_robots())),
-    "contour": ("circle", descriptor("contour preset (config/contours.yaml) or csv")),
-    "type": ("pdsmc", descriptor("controller type", constraints="one of: " + ", ".join(law_names()))),
-    "scenario": ("nominal", descriptor("robustness scenario (config/scenarios.yaml)")),
-    "mode": ("lockstep", descriptor("timing mode", constraints="one of: lockstep, realtime")),
-    "rate": (0.0, descriptor("control rate in Hz (0: preset, 10 kHz serial / 5 kHz parallel)", lo=0.0, hi=1.0e6)),
-    "sample_rate": (0.0, descriptor("statistics rate in Hz (0: thesis value)", lo=0.0, hi=1.0e6)),
-    "duration_factor": (1.0, descriptor("multiplies the contour duration", lo=0.001, hi=1000.0)),
-    "smc_reading": ("literal", descriptor("SMC model estimate (config/smc_readings.yaml)")),
-    "ellipse_error": ("nearest", descriptor("ellipse contour error", constraints="nearest or osculating")),
-    "waypoints_file": ("", descriptor("CSV of task-space waypoints for contour csv")),
-    "segment_duration": (2.0, descriptor("seconds per CSV segment", lo=0.001, hi=1000.0)),
-    "clock_rate": (100.0, descriptor("lockstep: /clock publication rate in sim-time Hz", lo=1.0, hi=1.0e6)),
-}
-STABILITY_PARAMETERS: dict[str, tuple[Any, ParameterDescriptor]] = {
-    "stability_margin": (0.0, descriptor(
-        "required control rate / lowest stable rate of the gains (0: the mode's, 2 realtime, 1 lockstep)",
-        lo=0.0, hi=1.0e6)),
-    "delay_periods": (0, ParameterDescriptor(
-        description="periods of delay beyond the mode's own that the stability check models (a driver's)",
-        additional_constraints="a whole number in [0, 1000]", dynamic_typing=True)),
-}
-"""The controller's: what :func:`~pdsmc_ros.control.stability.check_rate` requires of its gains."""
 
 
 @dataclass(frozen=True)
 class NodeRun:
     """What every node starts from: the run its parameters name, the mode and the busy-wait;
-    for the controller, ``stability``: the keywords of
-    :func:`~pdsmc_ros.control.stability.check_rate` its gains must pass."""
+    for the controller, ``stability`` (the keywords of :func:`~pdsmc_ros.control.stability.check_rate`
+    its gains must pass) and ``joint_map`` (its ``joints``); ``values``: every parameter declared
+    so far, by name (None: not set)."""
 
     spec: RunSpec
     mode: str
     busy_wait: float
     stability: dict[str, Any] = dataclasses.field(default_factory=dict)
+    joint_map: JointMap | None = None
+    values: dict[str, Any] = dataclasses.field(default_factory=dict)
 
 
 def declare_node_run(node: Node, *, gains: bool = False) -> NodeRun:
-    """The start-up lines of every node: declare the run's parameters (and the gains) and
-    ``busy_wait``, and build the RunSpec they name (a ConfigError if bad). ``gains``: the node
-    needs them (the controller: no preset and none given is an error; it also declares
-    :data:`STABILITY_PARAMETERS`); the other nodes accept them and run without. A node whose run
-    cannot change adds :func:`refuse_run_changes` once all its parameters are declared."""
-    declare_run_parameters(node, gains=gains)
-    busy_wait = declare_busy_wait(node)  # used in real time
-    if node.get_parameter("robot").value == ROBOT_DESCRIPTION:
+    """The start-up lines of every node: declare the run's parameters, the gains and ``busy_wait``
+    and build the RunSpec they name (a ConfigError if bad). ``gains``: the node is the controller
+    (it needs them: no preset and none given is an error; they can change at run time; it also
+    declares its stability and own parameters, :data:`~pdsmc_ros.parameters.STABILITY` and
+    :data:`~pdsmc_ros.parameters.CONTROLLER`, and its gains given as parameters follow its
+    ``joints``); the other nodes take them read-only and run without. Every parameter of the
+    tables is read-only but the controller's gains (:func:`~pdsmc_ros.parameters.ros.guard`)."""
+    values = declare_run_parameters(node, gains=gains)
+    values.update(declare(node, (BUSY_WAIT,)))  # used in real time
+    if values["robot"] == ROBOT_DESCRIPTION:
         try:
             register_description(receive_robot_description(node))
         except ConfigError as exc:
             raise ConfigError(f"parameter robot: {exc}") from None
-    spec = run_spec_from_parameters(node, needs_gains=gains)
-    mode = str(node.get_parameter("mode").value)
-    stability = stability_from_parameters(node, mode) if gains else {}
-    return NodeRun(spec, mode, busy_wait, stability)
-
-
-def stability_from_parameters(node: Node, mode: str) -> dict[str, Any]:
-    """``check_rate``'s keywords from ``stability_margin`` and ``delay_periods`` (ConfigError if bad)."""
-    margin = node.get_parameter("stability_margin").value
-    if not is_real(margin) or not 0.0 <= margin <= 1.0e6:
-        raise ConfigError(f"parameter stability_margin must be a number >= 0 (0: the mode's), got {margin!r}")
-    delay = node.get_parameter("delay_periods").value
-    if not is_whole(delay) or not 0 <= delay <= 1000:
-        raise ConfigError(f"parameter delay_periods must be a whole number in [0, 1000], got {delay!r}")
-    return {"mode": mode, "delay_periods": delay, "margin": float(margin) or None, "entry": "node"}
-
-
-def _range_of(name: str) -> tuple[float, float]:
-    ranges = RUN_PARAMETERS[name][1].floating_point_range
-    if ranges:
-        return ranges[0].from_value, ranges[0].to_value
-    return float("-inf"), float("inf")
-
-
-def declare_run_parameters(node: Node, *, gains: bool = False) -> None:
-    """Declare the parameters that define a run and the gains (every node: one params file or
-    ``-p kp:=`` serves all; only the controller uses them) and, for the controller (``gains``),
-    :data:`STABILITY_PARAMETERS`."""
-    for name, (default, desc) in RUN_PARAMETERS.items():
-        node.declare_parameter(name, default, desc)
-    for name, spec in GAINS.items():  # every gain a registered law declares (one params file for all)
-        node.declare_parameter(name, None, descriptor(spec.help()))
+    joint_map = None
     if gains:
-        for name, (default, desc) in STABILITY_PARAMETERS.items():
-            node.declare_parameter(name, default, desc)
+        try:
+            robot_joints = make_robot(resolve_robot(values["robot"])).joint_names
+        except ConfigError as exc:
+            raise ConfigError(f"parameters: {exc}") from None
+        values.update(declare(node, CONTROLLER, defaults={"joints": list(robot_joints)}))
+        joint_map = JointMap(robot_joints, values["joints"])
+    spec = spec_from_values(values, needs_gains=gains, joint_order=None if joint_map is None else joint_map.user_of)
+    mode = values["mode"]
+    stability = stability_from_values(values, mode) if gains else {}
+    return NodeRun(spec, mode, float(values["busy_wait"]), stability, joint_map, values)
+
+
+def declare_run_parameters(node: Node, *, gains: bool = False) -> dict[str, Any]:
+    """Declare the run's parameters and the gains (every node: one params file or ``-p kp:=``
+    serves all; only the controller uses them, ``gains``, and it also declares
+    :data:`~pdsmc_ros.parameters.STABILITY`), guard them (:func:`~pdsmc_ros.parameters.ros.guard`:
+    the gains are the controller's to check, :class:`~.gain_updates.GainUpdates`) and return their values."""
+    values = declare(node, run_parameters())
+    gain_specs = gain_parameters(applied=gains and _law_gains(values["type"]))
+    specs = (*run_parameters(), *gain_specs, *(STABILITY if gains else ()))
+    values.update(declare(node, gain_specs, checked=False))  # the resolver's messages name the law
+    if gains:
+        values.update(declare(node, STABILITY))
+    guard(node, specs, checked_by_node=[g.name for g in gain_specs])
+    return values
+
+
+def _law_gains(controller: str) -> tuple[str, ...]:
+    """The gains ``controller`` needs (the controller applies those at run time); none for an
+    unknown law (the run's check names it)."""
+    try:
+        return law(controller).gain_names
+    except ConfigError:
+        return ()
 
 
 def run_spec_from_parameters(node: Node, *, needs_gains: bool = True) -> RunSpec:
-    """Build and validate the RunSpec named by the node's parameters.
+    """The RunSpec named by the node's declared parameters (:func:`spec_from_values`)."""
+    values = {spec.name: value_of(node, spec.name) for spec in (*run_parameters(), *gain_parameters(applied=False))}
+    return spec_from_values(values, needs_gains=needs_gains)
+
+
+def spec_from_values(values: dict[str, Any], *, needs_gains: bool = True,
+                     joint_order: Any = None) -> RunSpec:
+    """Build and validate the RunSpec the parameter ``values`` name.
 
     The gains given (``-p kp:=``, a params file: rcl merges both) are the overrides layer of
-    :func:`~pdsmc_ros.presets.make_run`, the one builder ``pdsmc simulate`` uses too: they
-    replace the preset's, then the scenario's gain factors apply (``scenario:=high_pd`` scales
-    them the same way in-process and in the nodes). An arm without preset gains needs them all
-    given when ``needs_gains`` (the controller); the other nodes run with neutral placeholders.
+    :func:`~pdsmc_ros.presets.make_run`, the one builder ``pdsmc simulate`` uses too, in
+    ``joint_order`` (the controller's ``joints``): its resolver puts them in robot order, replaces
+    the preset's with them and scales them by the scenario's factors, as in-process. An arm
+    without preset gains needs them all given when ``needs_gains`` (the controller); the other
+    nodes run with neutral placeholders.
 
     Raises
     ------
-    InvalidInputError
+    ConfigError
         With a message naming the parameter and what is allowed.
     """
-    p = {}
-    for name, (default, _desc) in RUN_PARAMETERS.items():
-        value = node.get_parameter(name).value
-        if isinstance(default, str):
-            if not isinstance(value, str):
-                raise ConfigError(f"parameter {name} must be a string, got {value!r}")
-        else:
-            if not is_real(value):
-                raise ConfigError(f"parameter {name} must be a number, got {value!r}")
-            value = float(value)
-            lo, hi = _range_of(name)
-            if not lo <= value <= hi:
-                raise ConfigError(f"parameter {name} must be in [{lo:g}, {hi:g}], got {value:g}")
-        p[name] = value
-    if p["mode"] not in MODES:
-        raise ConfigError(f"parameter mode: unknown value {p['mode']!r}; choose one of: lockstep, realtime")
-    overrides = {}
-    for name in gain_names():
-        if not node.has_parameter(name):
-            continue
-        try:
-            value = node.get_parameter(name).value
-        except ParameterUninitializedException:
-            continue  # not given: the preset applies
-        if is_real(value):
-            value = [value]  # a scalar gain given as a number
-        if value is not None and len(value) > 0:
-            if not are_real(value):
-                raise ConfigError(f"parameter {name} must be a list of numbers, got {value!r}")
-            overrides[name] = [float(v) for v in value]
+    p = values
+    overrides = {g.name: p[g.name] for g in gain_parameters(applied=False) if p.get(g.name) is not None}
     try:
-        choice(p["contour"], contour_names(p["robot"]), f"contour for {p['robot']}")
         spec = make_run(p["robot"], p["contour"], p["type"], scenario=p["scenario"], rate=p["rate"] or None,
                         sample_rate=p["sample_rate"] or None,
                         smc_model=smc_reading(p["smc_reading"]) if law(p["type"]).model_based else None,
                         ellipse_error=p["ellipse_error"], waypoints_file=p["waypoints_file"] or None,
-                        segment_duration=p["segment_duration"], overrides=overrides, needs_gains=needs_gains)
+                        segment_duration=p["segment_duration"], overrides=overrides, needs_gains=needs_gains,
+                        joint_order=joint_order)
     except ConfigError as exc:
         raise ConfigError(f"parameters: {exc}") from None
     if p["duration_factor"] != 1.0:
         spec = dataclasses.replace(spec, duration_factor=spec.duration_factor * p["duration_factor"])
     return spec
+
+
+def stability_from_values(values: dict[str, Any], mode: str) -> dict[str, Any]:
+    """``check_rate``'s keywords from ``stability_margin`` and ``delay_periods`` (checked when declared)."""
+    return {"mode": mode, "delay_periods": int(values["delay_periods"]),
+            "margin": float(values["stability_margin"]) or None, "entry": "node"}
 
 
 def description_json(spec: RunSpec, mode: str) -> str:
@@ -179,11 +142,10 @@ def description_json(spec: RunSpec, mode: str) -> str:
 
 
 def refuse_run_changes(params: list[Parameter]) -> SetParametersResult:
-    """Set-parameters callback of the plant, trajectory and recorder: a run's definition
-    is fixed while it runs."""
+    """Set-parameters callback of the plant, trajectory, recorder and viewer: every parameter of
+    their tables is read-only (rclpy refuses a set), and so is ``use_sim_time``."""
     for param in params:
-        if param.name in RUN_PARAMETERS or param.name in SAFETY_PARAMETERS or param.name == "output":
+        if param.name in READ_AT_START:
             return SetParametersResult(
-                successful=False, reason=f"{param.name} defines the run and cannot change while it runs"
-            )
+                successful=False, reason=f"{param.name} is read at start-up and cannot change while the node runs")
     return SetParametersResult(successful=True)

@@ -54,7 +54,7 @@ from .diagnostics import Diagnostics
 from .executor import run_node
 from .inputs import Inputs
 from .lifecycle import EXIT_FAILURE, EXIT_OK
-from .params import declare_node_run, refuse_run_changes
+from .params import declare_node_run
 from .plant_params import declare_plant_parameters
 from .publishers import GuardedPublisher
 from .topics import (
@@ -84,7 +84,6 @@ class PlantNode:
         self.mode, self.busy_wait = run.mode, run.busy_wait
         params = declare_plant_parameters(node, spec.rate)
         self.expected = params.expected_subscribers
-        node.add_on_set_parameters_callback(refuse_run_changes)
         reference = spec.reference()
         robot = spec.robot_model()
         stepper = PlantStepper(robot, 1.0 / spec.rate, reference.sample([0.0]).q[0], np.zeros(robot.n))

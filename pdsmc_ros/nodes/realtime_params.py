@@ -3,8 +3,8 @@
 ``thread_priority`` (SCHED_FIFO priority of the loop's thread, 1-99; 0 = normal scheduling;
 50 by default in ``mode:=realtime``, as the controller manager), ``cpu_affinity`` (cores the
 loop's thread may run on; empty = any) and ``lock_memory`` (``mlockall`` of present and
-future pages; on by default in real time). They are read once at start-up and fixed while
-the loop runs (a later set is refused); :mod:`pdsmc_ros.runtime.realtime` applies them.
+future pages; on by default in real time). They are read once at start-up and read-only
+while the loop runs; :mod:`pdsmc_ros.runtime.realtime` applies them.
 """
 
 from __future__ import annotations
@@ -12,18 +12,14 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any
 
-from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.node import Node
-from rclpy.parameter import Parameter
 
-from ..checks import is_whole
 from ..errors import ConfigError
+from ..parameters import realtime_parameters
+from ..parameters.ros import declare
 from ..runtime.realtime import (
     DEFAULT_PRIORITY,
     FIFO_BUSY_SHARE,
-    MAX_PRIORITY,
-    PLANT_PRIORITY,
-    TRAJECTORY_PRIORITY,
     Applied,
     Collector,
     RealtimeSettings,
@@ -34,52 +30,20 @@ from ..runtime.realtime import (
 from ..runtime.statistics import LoopStatistics, status_name
 from .diagnostics import Diagnostics
 
-NAMES = ("thread_priority", "cpu_affinity", "lock_memory")
-
 
 def declare_realtime_parameters(node: Node, mode: str, priority: int = DEFAULT_PRIORITY) -> RealtimeSettings:
-    """Declare the three parameters on ``node`` with ``mode``'s defaults (``priority`` in real
-    time); the validated settings, or a ConfigError naming the parameter and what it allows."""
+    """Declare the three parameters on ``node`` (:func:`~pdsmc_ros.parameters.realtime_parameters`,
+    read-only) with ``mode``'s defaults (``priority`` in real time); the validated settings, or a
+    ConfigError naming the parameter and what it allows."""
     default = RealtimeSettings.for_mode(mode, priority)
-    node.declare_parameter("thread_priority", default.thread_priority, ParameterDescriptor(
-        description=f"SCHED_FIFO priority of the loop's thread, 1-{MAX_PRIORITY} (0: normal scheduling; "
-                    f"default {priority} in real time: the controller {DEFAULT_PRIORITY}, as ros2_control's "
-                    f"controller manager, the plant {PLANT_PRIORITY} and the trajectory {TRAJECTORY_PRIORITY} "
-                    "just below it)",
-        dynamic_typing=True))
-    node.declare_parameter("cpu_affinity", [-1], ParameterDescriptor(
-        description="cores the loop's thread may run on, e.g. [1] (default [-1]: any core)", dynamic_typing=True))
-    node.declare_parameter("lock_memory", default.lock_memory, ParameterDescriptor(
-        description="lock the process's present and future memory pages (mlockall; default on in real time)",
-        dynamic_typing=True))
-    node.add_on_set_parameters_callback(_refuse_changes)
-    priority = node.get_parameter("thread_priority").value
-    if not is_whole(priority):
-        raise ConfigError(f"parameter thread_priority must be a whole number in [0, {MAX_PRIORITY}] "
-                          f"(0: normal scheduling), got {priority!r}")
-    cores = node.get_parameter("cpu_affinity").value
-    if is_whole(cores):
-        cores = [cores]
-    if isinstance(cores, str) or not isinstance(cores, (list, tuple)) or not all(
-            isinstance(c, int) and not isinstance(c, bool) for c in cores):
-        raise ConfigError(f"parameter cpu_affinity must be a list of core numbers, e.g. [1], or [-1] "
-                          f"for any core, got {cores!r}")
-    cores = [] if list(cores) == [-1] else list(cores)
-    lock = node.get_parameter("lock_memory").value
-    if not isinstance(lock, bool):
-        raise ConfigError(f"parameter lock_memory must be true or false, got {lock!r}")
+    values = declare(node, realtime_parameters(priority), defaults={
+        "thread_priority": default.thread_priority, "lock_memory": default.lock_memory})
+    cores = values["cpu_affinity"]
+    cores = [] if cores is None or list(cores) == [-1] else list(cores)
     try:
-        return RealtimeSettings(priority, tuple(cores), lock).validated()
+        return RealtimeSettings(values["thread_priority"], tuple(cores), values["lock_memory"]).validated()
     except ConfigError as exc:
         raise ConfigError(f"parameter {exc}") from None
-
-
-def _refuse_changes(params: list[Parameter]) -> SetParametersResult:
-    for param in params:
-        if param.name in NAMES:
-            return SetParametersResult(
-                successful=False, reason=f"{param.name} is applied at start-up and cannot change while the loop runs")
-    return SetParametersResult(successful=True)
 
 
 class LoopReport:

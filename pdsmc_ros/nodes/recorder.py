@@ -52,13 +52,15 @@ from ..bag.reader import DESCRIPTION_KEY, RECORDER_DESCRIPTION_TOPIC
 from ..bag.tf import TF_TYPE, TfRecorder
 from ..bag.writer import MessageAppender, RunProgress, flush_chunk, open_new_bag
 from ..errors import BagError, CdrError, ConfigError
+from ..parameters import RECORDER
+from ..parameters.ros import declare
 from ..presets import control_steps
 from .descriptors import descriptor
 from .executor import run_node
 from .graph_types import interface_class, message_class, type_definition
 from .inputs import Inputs
 from .lifecycle import EXIT_FAILURE, EXIT_OK
-from .params import declare_node_run, description_json, refuse_run_changes
+from .params import declare_node_run, description_json
 from .topics import (
     LATCHED_QOS,
     LOCKSTEP_QOS,
@@ -101,9 +103,7 @@ class RecorderNode:
         self.node = node = Node("recorder") if node is None else node
         run = declare_node_run(node)
         self.spec = run.spec
-        node.declare_parameter("output", "")
-        node.add_on_set_parameters_callback(refuse_run_changes)
-        output = str(node.get_parameter("output").value)
+        output = declare(node, RECORDER)["output"]  # read-only, as the run's (declare_node_run guards them)
         try:
             self.writer = open_new_bag(output)
         except ConfigError as exc:

@@ -37,25 +37,24 @@ from trajectory_msgs.msg import JointTrajectory
 from ..bag.cdr import decode_stamp, encode_point_stamped
 from ..bag.stamps import stamp_step, step_stamp
 from ..errors import CdrError
+from ..parameters import TRAJECTORY
+from ..parameters.ros import declare
 from ..presets import control_steps
 from ..runtime.realtime import TRAJECTORY_PRIORITY
 from ..runtime.reference_windows import ReferenceWindows
-from .descriptors import declare_int_parameter
 from .executor import run_node
 from .inputs import Inputs
 from .lifecycle import EXIT_OK, WATCH_GRACE_S, end_when_plant_leaves
-from .params import declare_node_run, refuse_run_changes
+from .params import declare_node_run
 from .publishers import GuardedPublisher
 from .topics import (
     STEADY_CLOCK,
-    STREAM_DEPTH,
     STREAM_QOS,
     TOPIC_EE_DESIRED,
     TOPIC_JOINT_STATES,
     TOPIC_REFERENCE,
 )
 
-LOOKAHEAD_STEPS = 500  # lockstep: 50 ms at 10 kHz; far below STREAM_DEPTH
 TRAJECTORY_BATCH_S = 0.002  # lockstep: take the plant's states every 2 ms, in batches
 
 
@@ -69,13 +68,8 @@ class TrajectoryNode:
         node = self.node
         run = declare_node_run(node)
         self.spec, self.mode, self.busy_wait = run.spec, run.mode, run.busy_wait
-        self.expected = declare_int_parameter(
-            node, "expected_subscribers", 2, "subscribers of /reference to wait for (controller, recorder)",
-            lo=0, hi=100)
-        self.lookahead = declare_int_parameter(
-            node, "lookahead_steps", LOOKAHEAD_STEPS, "lockstep: references published ahead of the plant's state",
-            lo=1, hi=STREAM_DEPTH // 2)
-        node.add_on_set_parameters_callback(refuse_run_changes)
+        own = declare(node, TRAJECTORY)  # read-only, as the run's (declare_node_run guards them)
+        self.expected, self.lookahead = own["expected_subscribers"], own["lookahead_steps"]
         reference = self.spec.reference()
         self.robot = self.spec.robot_model()
         self.last_step = control_steps(reference.duration, self.spec.rate)

@@ -19,16 +19,14 @@ from rclpy.node import Node
 from sensor_msgs.msg import JointState
 
 from ..bag.cdr import decode_joint_state_named
-from ..checks import is_real
 from ..errors import CdrError, ConfigError
-from ..live_view import DEFAULT_DISPLAY_RATE, FoxgloveView, LiveView
-from .descriptors import declare_int_parameter
+from ..live_view import FoxgloveView, LiveView
+from ..parameters import VIEWER
+from ..parameters.ros import declare
 from .executor import run_node
 from .lifecycle import EXIT_OK, end_when_plant_leaves
-from .params import declare_node_run, refuse_run_changes
+from .params import declare_node_run
 from .topics import OBSERVER_QOS, STEADY_CLOCK, TOPIC_JOINT_STATES_THROTTLED
-
-MAX_DISPLAY_RATE = 240.0
 
 
 class ViewerNode:
@@ -38,14 +36,8 @@ class ViewerNode:
         self.node = Node("viewer")
         node = self.node
         run = declare_node_run(node)
-        port = declare_int_parameter(node, "port", 8765, "WebSocket port of the Foxglove server (0: any free)",
-                                     lo=0, hi=65535)
-        host = str(node.declare_parameter("host", "127.0.0.1").value)
-        rate = node.declare_parameter("display_rate", DEFAULT_DISPLAY_RATE).value
-        if not is_real(rate) or not 0.0 < rate <= MAX_DISPLAY_RATE:
-            raise ConfigError(f"parameter display_rate: frames per second of wall time in (0, {MAX_DISPLAY_RATE:g}], "
-                              f"got {rate!r}")
-        node.add_on_set_parameters_callback(refuse_run_changes)
+        own = declare(node, VIEWER)  # read-only, as the run's (declare_node_run guards them)
+        port, host, rate = own["port"], own["host"], own["display_rate"]
         self.spec = run.spec
         self.view = LiveView(self.spec)
         try:

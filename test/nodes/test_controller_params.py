@@ -13,11 +13,8 @@ import rclpy  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 
 from pdsmc_ros.errors import ConfigError  # noqa: E402
-from pdsmc_ros.nodes.controller_params import (  # noqa: E402
-    OrderedGainUpdates,
-    declare_controller_parameters,
-    gains_in_robot_order,
-)
+from pdsmc_ros.nodes.controller_params import declare_controller_parameters  # noqa: E402
+from pdsmc_ros.nodes.gain_updates import GainUpdates  # noqa: E402
 from pdsmc_ros.nodes.params import declare_node_run  # noqa: E402
 
 REORDERED = ["joint3", "joint1", "joint2"]
@@ -51,19 +48,18 @@ def test_gains_and_limits_given_in_joints_order_land_in_robot_order(node_with) -
     run = declare_node_run(node, gains=True)
     robot = run.spec.robot_model()
     params = declare_controller_parameters(node, robot)
-    spec = gains_in_robot_order(node, run.spec, params.joint_map)
+    spec = run.spec  # the one resolver put the gains given in joints order in robot order
     np.testing.assert_array_equal(spec.gains["kp"], [2000.0, 1900.0, 400.0])  # joint1, joint2, joint3
     np.testing.assert_array_equal(spec.gains["kd"], [100.0, 90.0, 20.0])
     np.testing.assert_array_equal(params.torque_limit, [3.0, 1.0, 2.0])  # the clamp works in joints order
     # ros2 param set kp in joints order: validated and applied in robot order
     applied = []
-    updates = OrderedGainUpdates(node, spec, lambda new: None, applied.append)
-    updates.joint_map = params.joint_map
+    GainUpdates(node, spec, lambda new: None, applied.append, joint_map=params.joint_map)
     result = node.set_parameters([Parameter("kp", value=[300.0, 1800.0, 1700.0])])[0]
     assert result.successful, result.reason
     np.testing.assert_array_equal(applied[-1]["kp"], [1800.0, 1700.0, 300.0])
     refused = node.set_parameters([Parameter("enforce_limits", value=False)])[0]
-    assert not refused.successful and "read at start" in refused.reason
+    assert not refused.successful and "read-only" in refused.reason  # rclpy refuses a read-only parameter
 
 
 def test_the_clamp_defaults_to_the_arms_effort_limits_and_opts_out(node_with) -> None:  # noqa: ANN001
@@ -80,10 +76,9 @@ def test_the_clamp_defaults_to_the_arms_effort_limits_and_opts_out(node_with) ->
 
 def test_an_unknown_joint_is_refused_naming_the_robots_joints(node_with) -> None:  # noqa: ANN001
     node = node_with(Parameter("robot", value="serial_3r"), Parameter("joints", value=["joint1", "joint2", "wrist"]))
-    run = declare_node_run(node, gains=True)
     with pytest.raises(ConfigError, match=r"'wrist' is not a joint of the robot; its actuated joints are "
                                           r"\['joint1', 'joint2', 'joint3'\]"):
-        declare_controller_parameters(node, run.spec.robot_model())
+        declare_node_run(node, gains=True)  # before the gains: they are given in joints order
 
 
 @pytest.mark.timeout(120)

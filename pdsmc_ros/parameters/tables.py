@@ -1,0 +1,248 @@
+"""Every node's parameters, declared once as data (ROS-free).
+
+Each node's table is a tuple of :class:`~.declaration.ParameterSpec` built by a function, so
+what changes with the registries -- the gains every registered law declares (a plugin law's
+``ki`` among them), the laws and robots a parameter accepts -- is read when a node starts
+or the documentation is generated. :mod:`.ros` declares a table on a node; :mod:`pdsmc_ros.settings`
+checks params files against the names; :func:`catalog` is the parameter reference.
+
+Groups shared by several nodes: :func:`run_parameters` (the run: every node of a run takes the
+same values, so one params file serves them all), :func:`gain_parameters` (every node declares
+the gains; only the controller applies them, and only there can they change at run time),
+``busy_wait`` and the real-time settings of a ticking node (:func:`realtime_parameters`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Collection
+from typing import Any
+
+from ..control.registry import GAINS, law_names
+from ..control.safety import MAX_SAFE_DAMPING, MAX_SAFE_STIFFNESS, SAFE_MODES
+from ..control.stability import MODES
+from ..live_view import DEFAULT_DISPLAY_RATE
+from ..runtime.goal import STOPPED_VELOCITY_TOLERANCE
+from ..runtime.limits import START_TOLERANCE
+from ..runtime.realtime import AUTO_BUSY_WAIT, DEFAULT_PRIORITY, MAX_PRIORITY, PLANT_PRIORITY, TRAJECTORY_PRIORITY
+from .declaration import JOINT, ParameterSpec
+
+P = ParameterSpec
+
+NODES = ("controller", "plant", "trajectory", "recorder", "mujoco_driver", "viewer")
+"""The package's nodes: one params file may configure several of them (``run_experiment.sh``
+hands the same file to each)."""
+
+LOOKAHEAD_STEPS = 500
+"""The trajectory's ``lookahead_steps`` default (lockstep: 50 ms at 10 kHz)."""
+MAX_LOOKAHEAD_STEPS = 5000
+"""Half the depth of the lockstep streams' queues (:data:`pdsmc_ros.nodes.topics.STREAM_DEPTH`)."""
+
+
+def _scenarios() -> tuple[str, ...]:
+    from ..presets import scenario_names
+
+    return scenario_names()
+
+
+def _smc_readings() -> tuple[str, ...]:
+    from ..config import load_config
+
+    return tuple(load_config("smc_readings"))
+
+
+def run_parameters() -> tuple[ParameterSpec, ...]:
+    """The parameters that define a run (every node of it but the MuJoCo stand-in)."""
+    from ..robots.catalog import allowed_robots
+
+    return (
+        P("robot", "string", "serial_3r", "manipulator", constraints="one of: " + allowed_robots()),
+        P("contour", "string", "circle", "contour preset (config/contours.yaml) or csv"),
+        P("type", "string", "pdsmc", "controller type", constraints="one of: " + ", ".join(law_names())),
+        P("scenario", "string", "nominal", "robustness scenario (config/scenarios.yaml)",
+          constraints="one of: " + ", ".join(_scenarios())),
+        P("mode", "string", "lockstep", "timing mode", choices=MODES),
+        P("rate", "double", 0.0, "control rate in Hz (0: preset, 10 kHz serial / 5 kHz parallel)", lo=0.0, hi=1.0e6),
+        P("sample_rate", "double", 0.0, "statistics rate in Hz (0: thesis value)", lo=0.0, hi=1.0e6),
+        P("duration_factor", "double", 1.0, "multiplies the contour duration", lo=0.001, hi=1000.0),
+        P("smc_reading", "string", "literal", "SMC model estimate (config/smc_readings.yaml)",
+          constraints="one of: " + ", ".join(_smc_readings())),
+        P("ellipse_error", "string", "nearest", "ellipse contour error", choices=("nearest", "osculating")),
+        P("waypoints_file", "string", "", "CSV of task-space waypoints for contour csv"),
+        P("segment_duration", "double", 2.0, "seconds per CSV segment", lo=0.001, hi=1000.0),
+        P("clock_rate", "double", 100.0, "lockstep: /clock publication rate in sim-time Hz", lo=1.0, hi=1.0e6),
+    )
+
+
+def gain_parameters(*, applied: bool | Collection[str]) -> tuple[ParameterSpec, ...]:
+    """One parameter per gain a registered law declares (:data:`pdsmc_ros.control.registry.GAINS`,
+    its :class:`~pdsmc_ros.control.registry.GainSpec`): a double array of one value per joint (one
+    value: every joint), or a double for a gain with one value for every joint. ``applied``: the
+    node applies a change at run time (the controller: True for the reference, else the names of
+    its law's gains); the others are read-only (every node declares every gain so that one params
+    file serves every node and every law)."""
+    return tuple(
+        P(g.name, "double_array" if g.per_joint else "double", None, g.help(), lo=g.lower, lo_open=g.lower_open,
+          hi=None if g.upper == float("inf") else g.upper, per_joint=g.per_joint, one_for_all=True,
+          read_only=not (applied is True or (not isinstance(applied, bool) and g.name in applied)))
+        for g in GAINS.values()
+    )
+
+
+BUSY_WAIT = P(
+    "busy_wait", "double", AUTO_BUSY_WAIT,
+    "real time: seconds before each tick spent busy-waiting instead of sleeping (absorbs late wake-ups, costs that "
+    "share of a core); -1 (default): 0.0002 at normal priority, at SCHED_FIFO 0.00005, 0.0003 for a process "
+    "ticking several loop nodes; at SCHED_FIFO at most half a period",
+    lo=0.0, hi=1.0, special=(AUTO_BUSY_WAIT,), constraints="-1 (automatic) or a number of seconds in [0, 1]")
+
+STABILITY = (
+    P("stability_margin", "double", 0.0,
+      "required control rate / lowest stable rate of the gains (0: the mode's, 2 realtime, 1 lockstep)",
+      lo=0.0, hi=1.0e6),
+    P("delay_periods", "int", 0,
+      "periods of delay beyond the mode's own that the stability check models (a driver's)", lo=0, hi=1000),
+)
+"""The controller's: what :func:`~pdsmc_ros.control.stability.check_rate` requires of its gains."""
+
+CONTROLLER = (
+    P("joints", "string_array", None,
+      "the controlled joints by name, any order (default: the robot's actuated joints in URDF order); the order "
+      "of the command's data, of gains and torque_limit given as parameters and of every per-joint output",
+      constraints="a list of the robot's actuated joint names, each once"),
+    P("autostart", "bool", True, "configure and activate at start (false: wait for the lifecycle transitions)"),
+    P("torque_limit", "double_array", None,
+      "per-joint torque limits in N m, joints order (default: the arm's effort limits)", lo=0.0, lo_open=True,
+      per_joint=True),
+    P("enforce_limits", "bool", True,
+      "clamp torques to the limits and refuse trajectories outside the joint limits (false: opt out of both)"),
+    P("stale_periods", "int", 20, "real time: periods after which a state or reference is stale", lo=1, hi=10**6),
+    P("constraints.goal_time", "double", 0.0,
+      "action goals: default goal_time_tolerance in s (0: wait for the goal tolerances)", lo=0.0),
+    P("constraints.stopped_velocity_tolerance", "double", STOPPED_VELOCITY_TOLERANCE,
+      "action goals: default goal velocity tolerance in rad/s (0: not checked)", lo=0.0),
+    P(f"constraints.{JOINT}.trajectory", "double", 0.0, f"default trajectory position tolerance of {JOINT} in rad",
+      lo=0.0, map_joints=True),
+    P(f"constraints.{JOINT}.goal", "double", 0.0, f"default goal position tolerance of {JOINT} in rad", lo=0.0,
+      map_joints=True),
+    P("cmd_timeout", "double", 0.0, "hold the measured position this long (s) after a trajectory's last point "
+      "(0: never; ignored unless above constraints.goal_time)", lo=0.0),
+    P("allowed_start_tolerance", "double", START_TOLERANCE, "beyond JTC: a trajectory whose reference at receipt "
+      "is more than this (rad) from the current position is a step", lo=0.0),
+    P("allow_partial_joints_goal", "bool", False, "accept trajectories naming some of the joints (the others hold)"),
+    P("allow_nonzero_velocity_at_trajectory_end", "bool", False, "accept trajectories whose last point moves"),
+    P("reject_beyond_limits", "bool", True,
+      "beyond JTC: reject trajectories beyond the arm's limits or with a step"),
+)
+"""The controller's own (besides the run's, the gains and the stability check's)."""
+
+SAFETY = (
+    P("watchdog_timeout", "double", 2.0,
+      "lockstep: wall-clock seconds without effort before safe mode (checked every 20 ms)", lo=0.05, hi=3600.0),
+    P("watchdog_periods", "int", 20, "real time: control periods without effort before safe mode", lo=1),
+    P("safe_mode", "string", "damp", "safe mode: damp (braking only) or hold (hold position)", choices=SAFE_MODES),
+    P("safe_damping", "double", 5.0, "safe-mode braking gain in N m s/rad", lo=0.0, hi=MAX_SAFE_DAMPING),
+    P("safe_stiffness", "double", 200.0, "hold-mode stiffness in N m/rad", lo=0.0, hi=MAX_SAFE_STIFFNESS),
+    P("on_controller_loss", "string", "resume", "after safe mode", choices=("resume", "end")),
+    P("safe_time_scale", "double", 1.0,
+      "lockstep: sim seconds the plant advances per wall second in safe mode (1: real time, 0: frozen)",
+      lo=0.0, hi=1000.0),
+)
+"""The plant's watchdog and safe mode."""
+
+PLANT = (
+    P("expected_subscribers", "int", 3, "subscribers of /joint_states to wait for (trajectory, controller, recorder)",
+      lo=0, hi=100),
+    P("enforce_limits", "bool", True, "clamp the applied torque to the arm's effort limits (false: opt out)"),
+)
+
+TRAJECTORY = (
+    P("expected_subscribers", "int", 2, "subscribers of /reference to wait for (controller, recorder)", lo=0, hi=100),
+    P("lookahead_steps", "int", LOOKAHEAD_STEPS, "lockstep: references published ahead of the plant's state",
+      lo=1, hi=MAX_LOOKAHEAD_STEPS),
+)
+
+RECORDER = (P("output", "string", "", "the new bag directory to write"),)
+
+MAX_DISPLAY_RATE = 240.0
+"""The viewer's highest ``display_rate`` (frames per second of wall time)."""
+
+VIEWER = (
+    P("port", "int", 8765, "WebSocket port of the Foxglove server (0: any free)", lo=0, hi=65535),
+    P("host", "string", "127.0.0.1", "address the Foxglove server listens on"),
+    P("display_rate", "double", DEFAULT_DISPLAY_RATE, "frames per second of wall time", lo=0.0, lo_open=True,
+      hi=MAX_DISPLAY_RATE),
+)
+
+
+def realtime_parameters(priority: int = DEFAULT_PRIORITY) -> tuple[ParameterSpec, ...]:
+    """The real-time settings of a ticking node, named as ros2_control's (applied once, before the
+    loop starts: read-only). Their defaults depend on the mode (:meth:`RealtimeSettings.for_mode
+    <pdsmc_ros.runtime.realtime.RealtimeSettings.for_mode>`): the node gives them when it declares."""
+    return (
+        P("thread_priority", "int", 0,
+          f"SCHED_FIFO priority of the loop's thread, 1-{MAX_PRIORITY} (0: normal scheduling; default {priority} in "
+          f"real time: the controller {DEFAULT_PRIORITY}, as ros2_control's controller manager, the plant "
+          f"{PLANT_PRIORITY} and the trajectory {TRAJECTORY_PRIORITY} just below it)",
+          lo=0, hi=MAX_PRIORITY, constraints=f"a whole number in [0, {MAX_PRIORITY}] (0: normal scheduling)"),
+        P("cpu_affinity", "int_array", [-1], "cores the loop's thread may run on, e.g. [1] (default [-1]: any core)",
+          lo=-1, one_for_all=True, constraints="a list of core numbers, e.g. [1], or [-1] for any core"),
+        P("lock_memory", "bool", False,
+          "lock the process's present and future memory pages (mlockall; default on in real time)"),
+    )
+
+
+def mujoco_driver_parameters() -> tuple[ParameterSpec, ...]:
+    """The MuJoCo stand-in's (a driver of its own: no run, no gains)."""
+    from ..robots.catalog import allowed_robots
+    from ..sim.mujoco_driver import DEFAULT_COMMAND_TIMEOUT_S, JOINT_STATE_ORDERS
+
+    return (
+        P("robot", "string", "serial_3r", "the arm: " + allowed_robots()),
+        P("rate", "double", 1000.0, "state rate and physics period in Hz", lo=1.0, hi=20000.0),
+        P("substeps", "int", 1, "MuJoCo steps per period", lo=1, hi=1000),
+        P("joint_state_order", "string", "alphabetical", "order of /joint_states", choices=JOINT_STATE_ORDERS),
+        P("joints", "string_array", None, "joint of each command entry (default: the arm's actuated joints)"),
+        P("initial_positions", "double_array", None,
+          "initial angles of the actuated joints, robot order (default: a URDF arm's home, a thesis arm at its "
+          "circle contour's start)", per_joint=True),
+        P("command_timeout", "double", DEFAULT_COMMAND_TIMEOUT_S,
+          "seconds without a command after which the brakes close again, as a real driver's watchdog (0: never, "
+          "as a forward command controller)", lo=0.0, hi=3600.0),
+        BUSY_WAIT,
+    )
+
+
+def node_parameters(node: str) -> tuple[ParameterSpec, ...]:
+    """Every parameter ``node`` (one of :data:`NODES`) declares, in declaration order."""
+    run = (*run_parameters(), *gain_parameters(applied=node == "controller"), BUSY_WAIT)
+    tables = {
+        "controller": lambda: (*run, *STABILITY, *CONTROLLER, *realtime_parameters(DEFAULT_PRIORITY)),
+        "plant": lambda: (*run, *SAFETY, *PLANT, *realtime_parameters(PLANT_PRIORITY)),
+        "trajectory": lambda: (*run, *TRAJECTORY, *realtime_parameters(TRAJECTORY_PRIORITY)),
+        "recorder": lambda: (*run, *RECORDER, *realtime_parameters(0)),
+        "viewer": lambda: (*run, *VIEWER),
+        "mujoco_driver": lambda: (*mujoco_driver_parameters(), *realtime_parameters(PLANT_PRIORITY)),
+    }
+    if node not in tables:
+        from ..errors import ConfigError
+
+        raise ConfigError(f"unknown node {node!r}; choose one of: {', '.join(NODES)}")
+    return tables[node]()
+
+
+def catalog() -> dict[str, list[dict[str, Any]]]:
+    """Every node's parameters as plain data (``{node: [{name, type, default, description, allowed,
+    lower, upper, choices, per_joint, read_only, ...}, ...]}``): the documentation's parameter
+    reference. Gains of laws registered at the time of the call are included."""
+    return {node: [spec.as_dict() for spec in node_parameters(node)] for node in NODES}
+
+
+def parameter_names(node: str) -> tuple[str, ...]:
+    """The names ``node`` declares (gains included)."""
+    return tuple(spec.name for spec in node_parameters(node))
+
+
+def package_parameter_names() -> frozenset[str]:
+    """Every parameter some node of the package declares (a shared params-file section may give
+    one that only other nodes of the run take)."""
+    return frozenset(name for node in NODES for name in parameter_names(node))
