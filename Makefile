@@ -80,7 +80,7 @@ figures: setup
 # code at build time (docs/hooks/), MathJax is copied in from its pinned wheel; strict: a broken
 # link, anchor or missing page fails. test/test_docs.py runs the same build under make test.
 docs: setup
-	$(VENV)/bin/mkdocs build --strict --clean --site-dir site
+	NO_MKDOCS_2_WARNING=1 $(VENV)/bin/mkdocs build --strict --clean --site-dir site
 
 reproduce: setup
 	$(PY) -m pdsmc_ros.cli reproduce --out docs

@@ -155,6 +155,6 @@ def factories() -> dict[str, Callable[[], Any]]:
 
 if __name__ == "__main__":
     notes = record(factories(), sys.argv[1] if len(sys.argv) > 1 else "lockstep")
-    sys.stdout.write(json.dumps(notes, indent=1, sort_keys=True) + "\n")
+    sys.stdout.write(json.dumps(notes, indent=1) + "\n")  # in declaration order
     sys.stdout.flush()
     os._exit(0)  # the nodes were never spun: skip their teardown

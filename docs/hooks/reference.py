@@ -141,17 +141,36 @@ def _default(value: Any) -> str:
         return "unset"
     if isinstance(value, bool):
         return _code(str(value).lower())
+    if value == "":
+        return '`""`'
     return _code(json.dumps(value) if isinstance(value, (list, str)) and not isinstance(value, str) else value)
 
 
 RCLPY_PARAMETERS = ("use_sim_time", "start_type_description_service")
 
 
+def parameter_table(found: dict[str, dict[str, Any]]) -> dict[str, list[dict[str, Any]]]:
+    """Every node's parameter rows (``name``, ``default``, ``realtime_default``, ``allowed``,
+    ``description``) by fully qualified node name, in declaration order: the one source of the
+    parameter tables. Today they are the declarations the nodes made when built
+    (:func:`node_interfaces`); a declared catalog of the nodes' parameters would be read here
+    instead, the rest of the page unchanged."""
+    rows: dict[str, list[dict[str, Any]]] = {}
+    for name, info in found["lockstep"].items():
+        realtime = found["realtime"].get(name, {}).get("parameters", {})
+        rows[name] = [{"name": pname, "default": p["default"],
+                       "realtime_default": realtime.get(pname, {}).get("default", p["default"]),
+                       "allowed": _allowed(p), "description": p.get("description", "")}
+                      for pname, p in info["parameters"].items() if pname not in RCLPY_PARAMETERS]
+    return rows
+
+
 def nodes_reference(found: dict[str, dict[str, Any]]) -> str:
     """Markdown of every node: what :func:`node_interfaces` found."""
     lockstep, realtime = found["lockstep"], found["realtime"]
+    parameters = parameter_table(found)
     executables: dict[str, list[str]] = {}
-    for name, info in sorted(lockstep.items()):
+    for name, info in lockstep.items():  # in the order the executables built them
         executables.setdefault(info["executable"], []).append(name)
     lines = [
         "# Node reference",
@@ -175,15 +194,14 @@ def nodes_reference(found: dict[str, dict[str, Any]]) -> str:
         for name in names:
             info, rt = lockstep[name], realtime.get(name, {})
             lines += [f"### `{name}`", ""]
-            params = {k: v for k, v in info["parameters"].items() if k not in RCLPY_PARAMETERS}
-            if params:
+            rows = parameters.get(name, [])
+            if rows:
                 lines += ["| parameter | default | allowed | description |", "| --- | --- | --- | --- |"]
-                for pname, p in params.items():
-                    default = _default(p["default"])
-                    rt_default = rt.get("parameters", {}).get(pname, {}).get("default", p["default"])
-                    if rt_default != p["default"]:
-                        default += f" (real time: {_default(rt_default)})"
-                    lines.append(f"| `{pname}` | {default} | {_allowed(p)} | {_cell(p.get('description', ''))} |")
+                for row in rows:
+                    default = _default(row["default"])
+                    if row["realtime_default"] != row["default"]:
+                        default += f" (real time: {_default(row['realtime_default'])})"
+                    lines.append(f"| `{row['name']}` | {default} | {row['allowed']} | {_cell(row['description'])} |")
                 lines.append("")
             for kind, title in (("publishers", "publishes"), ("subscriptions", "subscribes")):
                 seen: dict[tuple[str, str], str] = {}
