@@ -16,6 +16,7 @@ from ..bag.cdr import encode_float64_multi_array
 from ..robots.base import FloatArray
 from ..runtime.commanding import TorqueGuard
 from . import intra
+from .loop_log import LoopLog
 from .topics import STREAM_QOS
 
 RCLError = _rclpy_impl.RCLError
@@ -103,10 +104,11 @@ class EffortOutput:
     """The effort commands of a controller (``Float64MultiArray``, ``data[i]`` for joint ``i``,
     ``layout.data_offset`` the control step): never a non-finite torque, clamped to the limits,
     and one zero command when it stops commanding (a forward command controller holds the last
-    command forever)."""
+    command forever). Its lines go to ``log`` (the loop's thread publishes: :class:`.LoopLog`)."""
 
-    def __init__(self, node: Node, topic: str, n: int, guard: TorqueGuard) -> None:
+    def __init__(self, node: Node, topic: str, n: int, guard: TorqueGuard, *, log: LoopLog | None = None) -> None:
         self.node = node
+        self.log = log if log is not None else LoopLog(node)
         self.pub = GuardedPublisher(node.create_publisher(Float64MultiArray, topic, STREAM_QOS), node)
         self.n = n
         self.guard = guard
@@ -117,9 +119,9 @@ class EffortOutput:
     def publish(self, tau: FloatArray, step: int) -> None:
         values, note = self.guard.check(tau)
         if note and values is None:
-            self.node.get_logger().error(note)
+            self.log.error(note)
         elif note:
-            self.node.get_logger().warn(note)
+            self.log.warn(note)
         if values is not None:
             self.pub.publish(encode_float64_multi_array(values, step))
             self.commanding = True
@@ -131,5 +133,5 @@ class EffortOutput:
                 return False
             self.pub.publish(encode_float64_multi_array([0.0] * self.n, step))
             self.commanding = False
-        self.node.get_logger().warn(f"{why}: zero effort published, output stopped")
+        self.log.warn(f"{why}: zero effort published, output stopped")
         return True

@@ -23,6 +23,7 @@ from .inputs import (
     take_local,
     take_local_batches,
 )
+from .loop_log import loop_running
 from .realtime_params import LoopReport, apply_settings, due_reports
 
 
@@ -42,8 +43,11 @@ COLD_PERIOD_S = 0.02  # lockstep: the executor's turn (timers, parameters, /cloc
 # (one turn costs 0.2-1 ms of Python; every 5 ms it took 15 % of the lockstep rate)
 GIL_SWITCH_S = 0.0001  # real time: longest the executor thread keeps the GIL from the loop
 # real time, from the spin before a tick to its end: the loop keeps the GIL (another thread
-# taking it there could hold it through a long C call, e.g. rclpy converting a message)
-HOLD_SWITCH_S = 0.005
+# taking it there could hold it through a long C call, e.g. rclpy converting a message). It is
+# also how long the loop waits for the GIL back once it released it there (a contended lock, a
+# system call): 5 ms made each such release a tick up to 5 ms late while another thread ran
+# (a goal validated, a log line written). 1 ms still covers the spin and a tick (~0.3 ms here).
+HOLD_SWITCH_S = 0.001
 
 
 def serve_loop(executor: SingleThreadedExecutor, group: Any,
@@ -97,6 +101,7 @@ def serve_loop(executor: SingleThreadedExecutor, group: Any,
     applied, busy_wait = apply_settings(reports, first, period, busy_wait)
     next_report = clock() + STATISTICS_EVERY_S
     unpublished: list[LoopReport] = []
+    loop_running(True)  # the nodes' loop log lines: written by the executor from now on
     holding = False  # real time: the GIL kept through the spin and the tick (HOLD_SWITCH_S)
     started = False  # real time: the first tick has run
     try:
@@ -187,5 +192,6 @@ def serve_loop(executor: SingleThreadedExecutor, group: Any,
             report.publish()
         if cold_thread is not None:
             cold_thread.stop()
+        loop_running(False)
         sys.setswitchinterval(switch_interval)
         collector.stop()
