@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..arguments import gain_value, positive_float
-from ..errors import ConfigError, PdsmcError
+from ..errors import ConfigError
 
 if TYPE_CHECKING:
     from ..presets import RunSpec
@@ -153,6 +153,7 @@ def spec_from_args(args: argparse.Namespace) -> RunSpec:
         from ..experiments.tuning import controller_parameters, read_params_file
         from ..robots import make_robot
         from ..robots.catalog import resolve_robot
+        from ..robots.options import same_robot
 
         given = controller_parameters(args.params_file)
         flags = {"robot": args.robot, "contour": args.contour, "type": args.controller, "scenario": args.scenario}
@@ -197,11 +198,3 @@ def file_controller(path: str, controllers: list[str]) -> str:
     return str(controller)
 
 
-def same_robot(a: object, b: str) -> bool:
-    """Two spellings of one arm (a URDF file by two paths, a name and its registration)."""
-    from ..robots.catalog import resolve_robot
-
-    try:
-        return resolve_robot(str(a)) == resolve_robot(b)
-    except PdsmcError:
-        return False

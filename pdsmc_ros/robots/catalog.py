@@ -7,11 +7,14 @@ beside it (``arm.urdf`` -> ``arm.yaml``: ``armature``, ``ee_frame``,
 ``locked_joints``, ``home``, ``plane``, ``orientation``, ``effort_limits``,
 ``velocity_limits``, ``position_limits``, the run settings of ``config/robots.yaml``
 and ``contour_size``, ``contours``, ``gains``; each checked, one line naming the file
-and the key). Either is registered once, under the name it was asked by.
+and the key). Either is registered once; a path is registered under its one spelling,
+:func:`~.options.robot_key` (``arm.urdf``, ``./arm.urdf``, ``/home/me/arm.urdf`` and ``~/arm.urdf`` are one
+robot), and the spelling it was asked by is kept as another name of the same arm.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import importlib.metadata
 import json
 from collections.abc import Mapping
@@ -20,8 +23,8 @@ from typing import Any
 
 from ..config import load_config, read_yaml
 from ..errors import ConfigError, InvalidInputError
-from .options import OPTION_KEYS, SETTING_KEYS, check_entry
-from .registry import find_robot, register_robot, robot_names, unregister_robot
+from .options import OPTION_KEYS, SETTING_KEYS, check_entry, robot_key
+from .registry import find_robot, register_robot, robot_config, robot_names, unregister_robot
 from .task import TaskPlane
 from .urdf_robot import UrdfArm, urdf_arm
 
@@ -67,7 +70,10 @@ def allowed_robots() -> str:
 
 
 def resolve_robot(name: str) -> str:
-    """Register the robot ``name`` names if it is not yet, and return ``name``.
+    """Register the robot ``name`` names if it is not yet, and return its :func:`~.options.robot_key`.
+
+    A ``.urdf`` path is registered under its key, and under ``name`` too (the same arm) so that
+    either spelling builds it.
 
     Raises
     ------
@@ -76,8 +82,9 @@ def resolve_robot(name: str) -> str:
     """
     if not isinstance(name, str) or not name:
         raise ConfigError(f"robot must be a name or a .urdf path, got {name!r}; allowed: {allowed_robots()}")
-    if find_robot(name) is not None:  # built in, installed or registered already
-        return name
+    key = robot_key(name)
+    if find_robot(name) is not None and find_robot(key) is not None:  # built in, installed or registered already
+        return key
     if name == ROBOT_DESCRIPTION:
         raise ConfigError(f"robot {name!r}: no URDF received on /robot_description yet (a node waits for it; "
                           "offline, the bag's /robot_description is used)")
@@ -87,18 +94,23 @@ def resolve_robot(name: str) -> str:
         source = example_robot_data_dir() / str(entry.pop("urdf"))
         _register(name, source, entry, f"urdf_arms.yaml:{name}")
         return name
-    path = Path(name)
-    if path.suffix.lower() == ".urdf":
-        if not path.is_file():
-            raise ConfigError(f"robot {name!r}: no such URDF file")
-        options: dict[str, Any] = {}
-        beside = path.with_suffix(".yaml")
-        if beside.is_file():
-            options = read_yaml(beside, str(beside)) or {}
-            if not isinstance(options, dict):
-                raise ConfigError(f"{beside}: must be a mapping of options, got {type(options).__name__}")
-        _register(name, path, options, str(beside))
-        return name
+    if name.lower().endswith(".urdf"):  # a path: registered under its key
+        path = Path(key)
+        if find_robot(key) is None:
+            if not path.is_file():
+                where = "" if Path(name) == path else f" ({key})"
+                raise ConfigError(f"robot {name!r}: no such URDF file{where}")
+            options: dict[str, Any] = {}
+            beside = path.with_suffix(".yaml")
+            if beside.is_file():
+                options = read_yaml(beside, str(beside)) or {}
+                if not isinstance(options, dict):
+                    raise ConfigError(f"{beside}: must be a mapping of options, got {type(options).__name__}")
+            _register(key, path, options, str(beside))
+        arm = find_robot(key)
+        if name != key and find_robot(name) is None and isinstance(arm, UrdfArm):  # the spelling asked by, too
+            register_robot(dataclasses.replace(arm, name=name), config=robot_config(key))
+        return key
     raise ConfigError(f"unknown robot {name!r}; allowed: {allowed_robots()}")
 
 

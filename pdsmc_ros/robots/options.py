@@ -7,6 +7,7 @@ Every problem is one line naming where the options came from and the key.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -18,6 +19,22 @@ from .base import FloatArray
 OPTION_KEYS = ("armature", "ee_frame", "locked_joints", "home", "plane", "orientation", "effort_limits",
                "velocity_limits", "position_limits")
 SETTING_KEYS = ("control_rate", "sample_rate", "contour_bound", "contour_size", "contours", "gains")
+
+
+def robot_key(name: str) -> str:
+    """The one spelling of a robot: a ``.urdf`` path (relative, absolute or ``~/...``) as its
+    absolute path, ``~`` expanded and symbolic links followed; any other name (a registered
+    robot, an arm of the catalog) as given. The registry keeps a path's arm under it
+    (:func:`~.catalog.resolve_robot`), a params file names it (``pdsmc tune``), and
+    :func:`same_robot` compares by it."""
+    if isinstance(name, str) and name.lower().endswith(".urdf"):
+        return str(Path(name).expanduser().resolve())
+    return name
+
+
+def same_robot(a: object, b: object) -> bool:
+    """Whether two spellings name one robot (:func:`robot_key`)."""
+    return isinstance(a, str) and isinstance(b, str) and robot_key(a) == robot_key(b)
 
 
 def check_entry(entry: Mapping[str, Any], where: str) -> None:
