@@ -63,7 +63,7 @@ def test_a_new_arm_tuned_checked_and_run_in_real_time_over_dds(ros_env: dict, tm
     assert tuned.returncode == 0, tuned.stderr
     checked = pdsmc(ros_env, "check-gains", *run, "--params-file", str(params))  # real time, margin x2
     assert checked.returncode == 0, checked.stdout + checked.stderr
-    assert "holds in realtime (zero-order hold + 1 period of delay)" in checked.stdout
+    assert "holds in realtime (zero-order hold + 2 periods of delay)" in checked.stdout
     simulated = pdsmc(ros_env, "simulate", *run, "--params-file", str(params), "--json")
     assert simulated.returncode == 0, simulated.stderr
     in_process = json.loads(simulated.stdout)

@@ -7,7 +7,14 @@ import dataclasses
 import numpy as np
 import pytest
 
-from pdsmc_ros.control.stability import _lowest_rates, check_rate, loop_matrix, rate_margin, spectral_radius
+from pdsmc_ros.control.stability import (
+    REALTIME_DELAY_PERIODS,
+    _lowest_rates,
+    check_rate,
+    loop_matrix,
+    rate_margin,
+    spectral_radius,
+)
 from pdsmc_ros.errors import InvalidInputError, UnstableRateError
 from pdsmc_ros.presets import make_run
 
@@ -81,7 +88,7 @@ def test_thesis_presets_keep_running_in_lockstep_and_are_refused_in_real_time() 
     with pytest.raises(UnstableRateError) as info:
         check_rate(spec, reference, mode="realtime")
     message = str(info.value)
-    assert "realtime (zero-order hold + 1 period of delay)" in message and "--rate" in message
+    assert "realtime (zero-order hold + 2 periods of delay)" in message and "--rate" in message
 
 
 def test_node_errors_advise_the_parameter() -> None:
@@ -109,7 +116,7 @@ def test_margin_and_declared_delay() -> None:
     reference = spec.reference()
     base = rate_margin(spec, reference, mode="realtime")
     more = rate_margin(spec, reference, mode="realtime", delay_periods=2)
-    assert base.delay == 1 and more.delay == 3 and more.margin < base.margin
+    assert base.delay == REALTIME_DELAY_PERIODS == 2 and more.delay == 4 and more.margin < base.margin
     with pytest.raises(UnstableRateError, match="margin"):
         check_rate(spec, reference, mode="realtime", margin=1.5 * base.margin)
     assert rate_margin(spec, reference, mode="lockstep").required_margin == 1.0

@@ -2,9 +2,11 @@
 
 Run from the repository (after `make setup`): `.venv/bin/python tools/tune_arms.py ur5 panda [linear circle
 ellipse]` (the gain groups, all by default). Prints
-the YAML block of each arm for config/gains.yaml and, on stderr, the contour error before and after and
-the margin of the gains kept (rate / lowest stable rate in real time, one period of delay; tune keeps only
-gains that `pdsmc check-gains` accepts there, margin x2, and the PD-SMC's Eq. 3.19 conditions).
+the YAML block of each arm for config/gains.yaml (and, as each law is done, its gains as a one-line YAML
+comment, so that a long run interrupted keeps what it found) and, on stderr, the contour error before and
+after and the margin of the gains kept (rate / lowest stable rate in real time, with the loop's delay of
+stability.REALTIME_DELAY_PERIODS; tune keeps only gains that `pdsmc check-gains` accepts there, margin x2,
+and the PD-SMC's Eq. 3.19 conditions) with the longest constant delay they stay stable with.
 """
 
 from __future__ import annotations
@@ -14,7 +16,7 @@ import sys
 import yaml
 
 from pdsmc_ros.control.gains import Gains
-from pdsmc_ros.control.stability import check_gains
+from pdsmc_ros.control.stability import check_gains, tolerated_delay
 from pdsmc_ros.experiments.tuning import tune
 from pdsmc_ros.presets import make_run
 
@@ -40,8 +42,12 @@ def main(arms: list[str], groups: list[str]) -> int:
                       f"{result.best.contour_mean:.4e} m ({len(result.tried)} runs), max torque "
                       f"{max(result.best.max_torque):.4g} N m, real-time margin "
                       + ", ".join(f"x{c.rate.margin:.2f}" for c in checks)
-                      + f" ({'passes' if all(c.passes for c in checks) else 'FAILS'} check-gains)",
+                      + f" ({'passes' if all(c.passes for c in checks) else 'FAILS'} check-gains), stable with a "
+                      f"constant delay up to {tolerated_delay(result.spec, result.spec.reference())} periods",
                       file=sys.stderr, flush=True)
+                one = yaml.safe_dump({arm: {group: {controller: block[group][controller]}}}, default_flow_style=True,
+                                     width=100000).strip()
+                print(f"# {one}", flush=True)
         print(yaml.safe_dump({arm: block}, sort_keys=False, default_flow_style=None, width=120))
     return 0
 

@@ -25,7 +25,7 @@ def add_parser(sub: argparse._SubParsersAction, commands: dict) -> None:  # type
 
 def run(args: argparse.Namespace) -> int:
     from ..control import law
-    from ..control.stability import THEOREM_LAWS, check_gains, describe_loop
+    from ..control.stability import THEOREM_LAWS, check_gains, describe_loop, tolerated_delay
 
     spec = spec_from_args(args)
     print(f"{spec.robot} / {spec.contour} / {spec.controller} / {spec.scenario}: gains "
@@ -40,13 +40,24 @@ def run(args: argparse.Namespace) -> int:
         margin = "inf" if c.margin == float("inf") else f"x{c.margin:.3g}"
         print(f"  {'holds' if c.holds else 'FAILS':5s}  {c.name:52s} {c.lhs:12.5g} > {c.rhs:<12.5g} margin {margin}")
     check = result.rate
+    if check.plant is not None:
+        if check.plant.holds:
+            largest = f"joint {check.plant.joint!r} the largest" if check.plant.figure > 0.0 else "no joint damped"
+            print(f"plant step at {spec.rate:g} Hz holds: damping/inertia x period {check.plant.figure:.3g} <= "
+                  f"{check.plant.limit:.3g} ({largest})")
+        else:
+            print(f"plant step at {spec.rate:g} Hz FAILS: {check.plant.problem()}")
     if not np.isfinite(check.lowest_stable_rate):
         print(f"discrete-rate condition: not checked ({spec.controller} has no linear gains)")
     else:
         print(
             f"discrete-rate condition at {spec.rate:g} Hz {'holds' if check.passes else 'FAILS'} in "
             f"{describe_loop(check)}: largest pole radius {check.spectral_radius:.4f} "
-            f"(joint {check.worst_joint}); lowest stable rate {check.lowest_stable_rate:,.0f} Hz, margin "
+            f"({check.worst_joint_label}); lowest stable rate {check.lowest_stable_rate:,.0f} Hz, margin "
             f"x{check.margin:.2f} (x{check.required_margin:g} required, --margin)"
         )
+        if check.stable:
+            most = tolerated_delay(spec, spec.reference())
+            print(f"stable at {spec.rate:g} Hz with a constant delay of up to {most} periods "
+                  f"({most / spec.rate * 1e3:.3g} ms): what a loop's stalls may reach at most")
     return 0 if result.passes else EXIT_FAILURE

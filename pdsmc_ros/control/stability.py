@@ -8,15 +8,19 @@ held input, whose exact discretisation is
     ed_{k+1} = ed_k        - h Mbar^{-1} (Kp e_k + Kd ed_k)
 
 (damping, Coriolis and gravity variations left out). That is lockstep, where the
-plant waits for the command of its state. In real time the plant applies the latest
-command it has, computed from the state it published a period earlier: the command
-arrives ``d = 1`` period late (plus any delay the user declares, ``delay_periods``),
-and the map is augmented with the ``d`` commands on their way (:func:`loop_matrix`).
-The loop is stable at rate ``1/h`` only if the spectral radius of that map is below 1
-at every configuration the motion visits. With the serial arm's thesis gains this
-requires about 10 kHz without delay (it diverges at 5 kHz); one period of delay
-roughly doubles the lowest stable rate. :func:`check_rate` asks for a margin
-``rate / lowest stable rate`` on top (:data:`REQUIRED_MARGIN`).
+plant waits for the command of its state. In real time the command is applied ``d``
+periods after the state it was computed from (:data:`REALTIME_DELAY_PERIODS`, the loop's
+delay model; ``delay_periods`` declares more, a driver's or a network's), and the map is
+augmented with the ``d`` commands on their way (:func:`loop_matrix`). The loop is stable at
+rate ``1/h`` only if the spectral radius of that map is below 1 at every configuration the
+motion visits. With the serial arm's thesis gains this requires about 10 kHz without delay
+(it diverges at 5 kHz); each period of delay raises the lowest stable rate. :func:`check_rate`
+asks for a margin ``rate / lowest stable rate`` on top (:data:`REQUIRED_MARGIN`).
+
+The plant itself is integrated explicitly (RK4 at the control period: the in-process plant
+and the MuJoCo stand-in): a joint whose damping over inertia times the period exceeds RK4's
+real-axis limit diverges whatever the gains. :func:`plant_step` names that joint and the
+armature or rate that fixes it.
 
 Effective gains inside the boundary layer (``|s| < phi``), where the
 switching term is linear:
@@ -34,7 +38,7 @@ import numpy as np
 
 from ..checks import is_whole
 from ..errors import InvalidInputError, UnstableRateError
-from ..robots.base import FloatArray
+from ..robots.base import FloatArray, Manipulator
 from ..trajectories import JointReference
 from .lyapunov import Condition, theorem_conditions
 from .registry import law
@@ -119,29 +123,163 @@ def _lowest_rates(mass: FloatArray, kp: FloatArray, kd: FloatArray, delay: int) 
     return np.where(stable_at_lo, 1.0, hi)
 
 
+RK4_REAL_LIMIT = 2.785293563405282
+"""Largest ``|z|`` on the negative real axis where classical RK4 is stable (``|R(z)| = 1`` with
+``R(z) = 1 + z + z^2/2 + z^3/6 + z^4/24``): the plant's free damping ``-Mbar^{-1} B`` integrated
+with step ``h`` diverges beyond ``lambda h = 2.785``."""
+DAMPING_STEP_MARGIN = 2.0
+"""The plant step's margin: ``damping / inertia x period`` at most RK4's limit over this (the
+x2 of the real-time rate check)."""
+
+
+@dataclass(frozen=True)
+class PlantStep:
+    """Whether the plant's explicit integration (RK4 at the control period) holds its damping.
+
+    ``figure`` is the largest eigenvalue of ``Mbar^{-1} B`` times the period along the motion
+    (for one decoupled joint, its damping over its inertia times the period), ``joint`` the joint
+    dominating that mode. ``armature`` gives, for each joint that needs more, the motor inertia
+    ``J`` (kg m^2, in place of the arm's) and ``rate`` the control rate (Hz) that would bring the
+    figure to :data:`RK4_REAL_LIMIT` / :data:`DAMPING_STEP_MARGIN` (each rounded up).
+    """
+
+    figure: float
+    joint: str
+    armature: tuple[tuple[str, float], ...]
+    rate: float
+
+    @property
+    def limit(self) -> float:
+        return RK4_REAL_LIMIT / DAMPING_STEP_MARGIN
+
+    @property
+    def holds(self) -> bool:
+        return self.figure <= self.limit
+
+    def problem(self, entry: str = "cli") -> str:
+        """One line: the joint, the figure and the fixes (armature, rate)."""
+        rate = f"-p rate:={self.rate:.1f}" if entry == "node" else f"--rate {self.rate:g}"
+        armature = ", ".join(f"{value:.3g} kg m^2 for {name!r}" for name, value in self.armature)
+        return (f"joint {self.joint!r}: damping/inertia x period = {self.figure:.3g} > {self.limit:.3g} (RK4, the "
+                f"plant's integrator, diverges beyond {RK4_REAL_LIMIT:.3g} whatever the gains; "
+                f"x{DAMPING_STEP_MARGIN:g} required); give the motors' inertia, armature >= {armature} (the "
+                f"arm's options file beside its URDF: armature, one value per joint), or run at {rate} or higher")
+
+
+def _damping_figures(mass: FloatArray, damping: FloatArray, h: float) -> tuple[FloatArray, FloatArray]:
+    """Largest eigenvalue of ``Mbar^{-1} B`` times ``h`` per configuration and its dominant joint (0-based)."""
+    root = np.sqrt(damping)  # B diagonal, >= 0: the eigenvalues of B^1/2 Mbar^-1 B^1/2, symmetric
+    sym = root[:, None] * np.linalg.inv(mass) * root[None, :]
+    values, vectors = np.linalg.eigh(sym)
+    # w = B^1/2 v: w_i^2 is joint i's share of the mode's dissipation
+    return values[..., -1] * h, np.argmax(np.abs(vectors[..., :, -1]), axis=-1)
+
+
+def plant_step(robot: Manipulator, q: FloatArray, rate: float) -> PlantStep:
+    """:class:`PlantStep` of ``robot`` over the configurations ``q`` (``(m, n)``) at ``rate`` Hz."""
+    damping = np.asarray(robot.B, dtype=float)
+    mass = robot._mass_matrix(np.asarray(q, dtype=float))
+    names = tuple(robot.joint_names) or tuple(f"joint{i + 1}" for i in range(robot.n))
+    h = 1.0 / rate
+    figures, joints = _damping_figures(mass, damping, h)
+    worst = int(np.argmax(figures))
+    figure, joint = float(figures[worst]), int(joints[worst])
+    target = RK4_REAL_LIMIT / DAMPING_STEP_MARGIN
+    if figure <= target:
+        return PlantStep(figure, names[joint], (), rate)
+    added = np.zeros(robot.n)  # motor inertia added, joint by joint, until every configuration holds
+    for _ in range(200):
+        figures, dominant = _damping_figures(mass + np.diag(added), damping, h)
+        k = int(np.argmax(figures))
+        if figures[k] <= target * (1.0 + 1e-9):
+            break
+        j = int(dominant[k])
+        apparent = 1.0 / np.linalg.inv(mass[k] + np.diag(added))[j, j]  # the inertia joint j sees
+        added[j] += max(damping[j] * h / target - apparent, 1e-3 * apparent)
+    needs = [int(j) for j in np.argsort(-added) if added[j] > 0.0]  # the most first
+    return PlantStep(figure, names[joint], tuple((names[j], _round_up(float(robot.J[j] + added[j]))) for j in needs),
+                     _round_up(rate * figure / target))
+
+
+def _round_up(value: float) -> float:
+    """``value`` rounded up to three significant digits (a fix printed that way still holds)."""
+    step = 10.0 ** (np.floor(np.log10(value)) - 2)
+    return float(np.ceil(value / step * (1.0 - 1e-12)) * step)
+
+
+def tolerated_delay(spec: LawRun, reference: JointReference, *, points: int = 13, most: int = 1000) -> int | None:
+    """The largest whole delay (periods) at ``spec.rate`` with which the loop stays stable at every
+    one of ``points`` configurations: None for a law without linear gains, -1 if unstable even
+    without delay, ``most`` if stable up to it (the search stops there)."""
+    robot = spec.robot_model()
+    q = reference.sample(np.linspace(0.0, reference.duration, points)).q
+    masses = robot._mass_matrix(q)
+    linear = [effective_gains(spec, mass) for mass in masses]
+    if any(pair is None for pair in linear):
+        return None
+    kp = np.stack([p[0] for p in linear])  # type: ignore[index]
+    kd = np.stack([p[1] for p in linear])  # type: ignore[index]
+
+    def stable(d: int) -> bool:
+        return bool(np.all(spectral_radius(masses, kp, kd, 1.0 / spec.rate, d)[0] < 1.0))
+
+    if not stable(0):
+        return -1
+    lo, hi = 0, 1
+    while hi <= most and stable(hi):  # the radius grows with the delay: bracket, then bisect
+        lo, hi = hi, 2 * hi
+    if hi > most:
+        return most
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        lo, hi = (mid, hi) if stable(mid) else (lo, mid)
+    return lo
+
+
 MODES = ("lockstep", "realtime")
 """How the loop runs (the nodes' ``mode`` parameter)."""
-COMPUTATION_DELAY = {"lockstep": 0, "realtime": 1}
-"""Periods between the state a command is computed from and the period it is applied in.
-Lockstep: the plant waits for the command of its state (none). Real time: the plant applies
-the latest command it has, computed from the state it published a period earlier (one)."""
+REALTIME_DELAY_PERIODS = 2
+"""Periods between the state a real-time command is computed from and the period the plant
+applies it in, the delay model of this project's real-time loop (the plant, the MuJoCo
+stand-in or a driver, and the controller tick on their own clocks):
+
+* the controller's sampling: the state published at the plant's tick waits for the
+  controller's next tick, up to one period (none when the controller ticks right after it);
+* computation and DDS transport: tens of microseconds (bench/realtime.py: p50 lateness
+  1-3 us, p99 14-90 us at 1 kHz), inside the same period unless the two clocks' phases
+  nearly coincide -- then the command misses the plant's next tick;
+* the plant's sampling: the command is applied from the plant's next tick, one period.
+
+So one period when the phases are apart, two when they nearly coincide or a tick is late:
+two, the worst case. Stalls come on top: bench/realtime.py measures here (1 kHz, five-bar,
+quiet machine) a worst period of 6.3 ms (5.3 ms late) with four processes and 3.9 ms composed,
+0.06-0.3 % missed deadlines; docs/PERFORMANCE.md has worst periods of 1.4-4.5 ms under load,
+cyclictest's wake-ups up to 3.5 ms. Those are single stretched periods, not a delay every
+period, and :data:`REQUIRED_MARGIN`'s x2 covers them: gains stable at half the rate with two
+periods of delay are stable at the rate with a constant delay of five to six periods (5-6 ms
+at 1 kHz; :func:`tolerated_delay` gives the figure of each set of gains, printed by
+``pdsmc check-gains``). Lockstep has no delay: the plant waits for the command of its state."""
+MODE_DELAY = {"lockstep": 0, "realtime": REALTIME_DELAY_PERIODS}
+"""Periods of delay each mode's loop has (:data:`REALTIME_DELAY_PERIODS`)."""
 REQUIRED_MARGIN = {"lockstep": 1.0, "realtime": 2.0}
-"""Default ``rate / lowest stable rate`` each mode requires. Real time: 2x, for what the
-model leaves out (jitter and late periods stretch the delay, damping, Coriolis and a drifting
-inertia change the poles) -- the UR5's old shipped gains, x1.04 without delay, diverged within
-40 ms. Lockstep: stable (x1): its delay is exactly zero and the held input exactly what the
-plant integrates, so the map is exact up to the terms the linearisation leaves out; the
-thesis's presets run there at x1.11 (serial circle, PD-SMC) to x2.95 at the serial arm's 10 kHz
-and x10.7 and up on the five-bar at 5 kHz, and must keep running unchanged."""
+"""Default ``rate / lowest stable rate`` each mode requires. Real time: x2, for what the
+model leaves out: stalls that stretch single periods (:data:`REALTIME_DELAY_PERIODS`),
+damping, Coriolis and a drifting inertia that change the poles -- the UR5's gains tuned
+for x2 with one period of delay, x1.2 with two, oscillated after goals ended and burst to
+4.5 rad/s at 1 kHz. Lockstep: stable (x1): its delay is exactly zero and the held input
+exactly what the plant integrates, so the map is exact up to the terms the linearisation
+leaves out; the thesis's presets run there at x1.11 (serial circle, PD-SMC) to x2.95 at the
+serial arm's 10 kHz and x10.7 and up on the five-bar at 5 kHz, and must keep running
+unchanged."""
 
 
 def loop_delay(mode: str, delay_periods: int = 0) -> int:
     """Periods of delay the check models: the mode's own plus ``delay_periods`` declared."""
-    if mode not in COMPUTATION_DELAY:
+    if mode not in MODE_DELAY:
         raise InvalidInputError(f"unknown mode {mode!r}; choose one of: {', '.join(MODES)}")
     if not is_whole(delay_periods) or delay_periods < 0:
         raise InvalidInputError(f"delay_periods must be a whole number >= 0, got {delay_periods!r}")
-    return COMPUTATION_DELAY[mode] + int(delay_periods)
+    return MODE_DELAY[mode] + int(delay_periods)
 
 
 @dataclass(frozen=True)
@@ -156,6 +294,15 @@ class RateCheck:
     mode: str = "lockstep"
     delay: int = 0  # periods modelled
     required_margin: float = 1.0
+    plant: PlantStep | None = None  # the plant's integration of its damping (None: not checked)
+    joint_names: tuple[str, ...] = ()
+
+    @property
+    def worst_joint_label(self) -> str:
+        """``joint 3 ('elbow_joint')``: the worst joint by number and name."""
+        if 1 <= self.worst_joint <= len(self.joint_names):
+            return f"joint {self.worst_joint} ({self.joint_names[self.worst_joint - 1]!r})"
+        return f"joint {self.worst_joint}"
 
     @property
     def margin(self) -> float:
@@ -166,8 +313,8 @@ class RateCheck:
 
     @property
     def passes(self) -> bool:
-        """Stable, with at least the required margin."""
-        return self.stable and self.margin >= self.required_margin
+        """Stable, with at least the required margin, on a plant whose integration holds its damping."""
+        return self.stable and self.margin >= self.required_margin and (self.plant is None or self.plant.holds)
 
 
 def rate_margin(spec: LawRun, reference: JointReference, *, points: int = 13, mode: str = "lockstep",
@@ -183,17 +330,19 @@ def rate_margin(spec: LawRun, reference: JointReference, *, points: int = 13, mo
     t = np.linspace(0.0, reference.duration, points)
     q = reference.sample(t).q
     masses = robot._mass_matrix(q)
+    plant = plant_step(robot, q, spec.rate)
+    names = tuple(robot.joint_names)
     linear = [effective_gains(spec, mass) for mass in masses]
     pairs = [pair for pair in linear if pair is not None]
     if len(pairs) < len(linear):  # a law without linear gains: not checked
-        return RateCheck(spec.rate, float("nan"), float("nan"), 0, True, mode, delay, required)
+        return RateCheck(spec.rate, float("nan"), float("nan"), 0, True, mode, delay, required, plant, names)
     kp = np.stack([p[0] for p in pairs])
     kd = np.stack([p[1] for p in pairs])
     lowest = float(np.max(_lowest_rates(masses, kp, kd, delay)))
     radii, joints = spectral_radius(masses, kp, kd, 1.0 / spec.rate, delay)
     worst = int(np.argmax(radii))
     radius = float(radii[worst])
-    return RateCheck(spec.rate, lowest, radius, int(joints[worst]), radius < 1.0, mode, delay, required)
+    return RateCheck(spec.rate, lowest, radius, int(joints[worst]), radius < 1.0, mode, delay, required, plant, names)
 
 
 ENTRY_POINTS = ("cli", "node")
@@ -201,7 +350,7 @@ ENTRY_POINTS = ("cli", "node")
 
 
 def describe_loop(check: RateCheck) -> str:
-    """``lockstep (zero-order hold)`` / ``realtime (zero-order hold + 1 period of delay)``."""
+    """``lockstep (zero-order hold)`` / ``realtime (zero-order hold + 2 periods of delay)``."""
     if check.delay == 0:
         return f"{check.mode} (zero-order hold)"
     return f"{check.mode} (zero-order hold + {check.delay} period{'s' if check.delay > 1 else ''} of delay)"
@@ -214,7 +363,7 @@ def check_rate(spec: LawRun, reference: JointReference, *, mode: str = "lockstep
     Parameters
     ----------
     mode : str
-        ``lockstep`` or ``realtime`` (:data:`COMPUTATION_DELAY`).
+        ``lockstep`` or ``realtime`` (:data:`MODE_DELAY`).
     delay_periods : int
         Periods of delay beyond the mode's own (a driver's or a network's).
     margin : float, optional
@@ -233,6 +382,8 @@ def check_rate(spec: LawRun, reference: JointReference, *, mode: str = "lockstep
     result = rate_margin(spec, reference, mode=mode, delay_periods=delay_periods, margin=margin)
     if result.passes:
         return result
+    if result.plant is not None and not result.plant.holds:
+        raise UnstableRateError(f"{spec.robot} at {spec.rate:g} Hz: {result.plant.problem(entry)}")
     needed = max(1.2, result.required_margin * 1.05) * result.lowest_stable_rate
     suggestion = float(np.ceil(needed / spec.sample_rate) * spec.sample_rate)
     if entry == "node":
@@ -241,10 +392,10 @@ def check_rate(spec: LawRun, reference: JointReference, *, mode: str = "lockstep
         rate_advice, margin_name = f"--rate {suggestion:g}", "--margin "
     if result.stable:
         problem = (f"margin only x{result.margin:.2f} in {describe_loop(result)} (lowest stable rate about "
-                   f"{result.lowest_stable_rate:,.0f} Hz, joint {result.worst_joint} the closest to the edge; "
+                   f"{result.lowest_stable_rate:,.0f} Hz, {result.worst_joint_label} the closest to the edge; "
                    f"x{result.required_margin:g} required, {margin_name}sets it)")
     else:
-        problem = (f"joint {result.worst_joint} diverges in {describe_loop(result)} (discrete pole radius "
+        problem = (f"{result.worst_joint_label} diverges in {describe_loop(result)} (discrete pole radius "
                    f"{result.spectral_radius:.3f} > 1); the lowest stable rate is about "
                    f"{result.lowest_stable_rate:,.0f} Hz")
     raise UnstableRateError(
@@ -271,6 +422,8 @@ class GainCheck:
 
     def failure(self) -> str:
         """Why it does not pass (the first reason), or ``''``."""
+        if self.rate.plant is not None and not self.rate.plant.holds:
+            return self.rate.plant.problem()
         for c in self.conditions:
             if not c.holds:
                 return f"Eq. 3.19 fails: {c.name} ({c.lhs:.5g} <= {c.rhs:.5g})"
@@ -286,8 +439,8 @@ def check_gains(spec: LawRun, reference: JointReference | None = None, *, mode: 
                 delay_periods: int = 0, margin: float | None = None, points: int = 401) -> GainCheck:
     """Eq. (3.19) where the law has it (:data:`THEOREM_LAWS`) and :func:`rate_margin` in ``mode``.
 
-    The default mode is the real-time loop's (one period of delay): gains that pass it run on a
-    robot, and pass in lockstep too (no delay, a lower required margin).
+    The default mode is the real-time loop's (:data:`REALTIME_DELAY_PERIODS`): gains that pass it
+    run on a robot, and pass in lockstep too (no delay, a lower required margin).
     """
     rate = rate_margin(spec, reference or spec.reference(), mode=mode, delay_periods=delay_periods, margin=margin)
     conditions = tuple(theorem_conditions(spec, points=points)) if spec.controller in THEOREM_LAWS else ()

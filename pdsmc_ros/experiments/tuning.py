@@ -5,7 +5,7 @@ values that lower the contour error. :func:`tune` does that from a starting poin
 derived from the arm (:func:`starting_gains`), keeping only candidates that
 ``pdsmc check-gains`` accepts (:func:`~pdsmc_ros.control.stability.check_gains`: the
 law's Eq. 3.19 conditions and the discrete rate condition with its margin, by default
-for the real-time loop with its period of delay, the loop a robot runs) and that
+for the real-time loop with its delay, the loop a robot runs) and that
 do not exceed the arm's torque limits (URDF ``<limit effort>``); phi keeps its starting
 value (the thesis's 0.25 rad/s, wider for a PD-SMC whose Ks must exceed gravity's torque).
 Each candidate is one in-process run. ROS-free.
@@ -25,15 +25,19 @@ import yaml
 
 from ..control.gains import Gains
 from ..control.registry import gain_names, law
-from ..control.stability import THEOREM_LAWS, check_gains, loop_delay
+from ..control.stability import THEOREM_LAWS, check_gains, loop_delay, plant_step
 from ..errors import ConfigError, PdsmcError
 from ..presets import RunSpec, make_run
 from ..robots import make_robot
 from ..robots.catalog import resolve_robot
+from ..robots.options import robot_key
 from ..settings import CONTROLLER_PARAMETERS, node_parameters
 
 SWEPT = ("kp", "kd", "ks", "lam", "omega_n", "k1", "k2")
-"""The gains the recipe sweeps, in its order (phi and zeta keep their starting values)."""
+"""The gains the recipe sweeps, in its order; then any other gain the law needs but :data:`KEPT`
+(a law of another package: a PID's ``ki``)."""
+KEPT = ("phi", "zeta")
+"""The gains that keep their starting values (boundary layer, damping ratio)."""
 FACTORS = (0.5, 0.7, 1.4, 2.0)
 """Multipliers tried on one swept gain (all joints at once) per round."""
 BOUNDARY_LAYER = 0.25
@@ -223,7 +227,8 @@ def tune(
         The result does not depend on it: every candidate of a gain starts from the same best.
     requirement : Requirement, optional
         The loop every candidate must be accepted for by ``check-gains`` (default: real time,
-        one period of delay, margin x2: the loop on a robot, whose gains also run in lockstep).
+        :data:`~pdsmc_ros.control.stability.REALTIME_DELAY_PERIODS` of delay, margin x2: the loop on
+        a robot, whose gains also run in lockstep).
         A starting point refused by it is retried at half the bandwidth, up to
         :data:`SLOWER_STARTS` times.
     also : sequence of str
@@ -233,7 +238,9 @@ def tune(
     Raises
     ------
     ConfigError
-        If the starting point itself is refused (unstable at this rate, over a torque limit).
+        If the plant cannot be integrated at this rate (a joint whose damping over inertia times
+        the period is too large: the joint named, with the armature or rate that fixes it), or the
+        starting point itself is refused (unstable at this rate, over a torque limit).
     """
     if rounds < 1:
         raise ConfigError(f"rounds must be >= 1, got {rounds!r}")
@@ -242,6 +249,10 @@ def tune(
     needed = law(controller).gain_names
     requirement = requirement or Requirement()
     spec = _spec(robot, contour, controller, rate)
+    reference = spec.reference()
+    step = plant_step(spec.robot_model(), reference.sample(np.linspace(0.0, reference.duration, 13)).q, spec.rate)
+    if not step.holds:  # no gains can help: say which joint and what fixes it
+        raise ConfigError(f"tune {robot}/{contour}/{controller} at {spec.rate:g} Hz: {step.problem()}")
     others = tuple(_spec(robot, name, controller, rate) for name in also)
     limit = _torque_limit(spec)
     tried: list[Candidate] = []
@@ -256,7 +267,7 @@ def tune(
         w /= 2.0
     if not best.ok:
         raise ConfigError(f"tune {robot}/{contour}/{controller}: the starting gains are {best.verdict}")
-    swept = [name for name in SWEPT if name in needed]
+    swept = [name for name in SWEPT if name in needed] + [name for name in needed if name not in (*SWEPT, *KEPT)]
     with _evaluator(spec, limit, scheduler, requirement, others) as evaluate_all:
         for _ in range(rounds):
             kept = False
@@ -316,8 +327,7 @@ def write_params_file(path: str | Path, gains: Gains, *, controller: str, robot:
     controller's section, the only node that needs them: the same file serves ``ros2 run`` of
     any node, ``scripts/run_experiment.sh --params-file`` and ``pdsmc simulate --params-file``.
     """
-    if Path(robot).suffix == ".urdf" and Path(robot).is_file():
-        robot = str(Path(robot).resolve())  # the file serves from any directory (analyze, ros2 run)
+    robot = robot_key(robot)  # a .urdf path absolute: the file serves from any directory (analyze, ros2 run)
     run: dict[str, Any] = {"robot": robot, "contour": contour, "type": controller, "rate": float(rate)}
     own = {k: [float(x) for x in v] for k, v in gains.as_dict().items() if k in law(controller).gain_names}
     requirement = requirement or Requirement()
