@@ -40,7 +40,7 @@ from .controller_params import declare_controller_parameters
 from .diagnostics import Diagnostics, InputReport
 from .executor import run_node
 from .follow_joint_trajectory import FollowJointTrajectoryServer, topic_trajectory
-from .gain_updates import GainUpdates
+from .gain_updates import GainUpdates, check_gains
 from .inputs import Inputs, Times
 from .lifecycle import EXIT_OK, WATCH_GRACE_S, CommandingEntity, end_when_plant_leaves
 from .params import declare_node_run, description_json
@@ -70,7 +70,7 @@ class ControllerNode(CommandingEntity):
             params.stale_periods / spec.rate, self.lockstep,
             lambda why: node.get_logger().info(f"holding the measured position ({why})"),
             goal_settings=params.goal_settings)
-        check_rate(spec, core.reference, **run.stability)  # refuse gains that fail in this mode (and delay)
+        check_gains(lambda new: check_rate(new, core.reference, **run.stability), spec)  # refuse gains unstable here
         # gains: the on-set callback checks a change is stable at the running rate, the post-set one applies it
         self.gain_updates = GainUpdates(node, spec, lambda new: check_rate(new, core.reference, **run.stability),
                                         self.apply_gains, joint_map=self.joint_map)

@@ -12,10 +12,23 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 
 from ..control import GAINS, Gains
-from ..errors import PdsmcError
+from ..errors import ConfigError, PdsmcError
 from ..parameters.ros import value_of
 from ..presets import RunSpec, resolve_gains
 from ..runtime.joint_map import JointMap
+
+
+def check_gains(check: Callable[[RunSpec], object], spec: RunSpec) -> None:
+    """``check(spec)`` (the stability check), anything it raises besides the package's own errors
+    (a ``LinAlgError`` of gains of 1e308) a ConfigError naming the gains: at start-up a one-line
+    error, on a set a refusal."""
+    try:
+        check(spec)
+    except PdsmcError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - numpy's, numba's: what the check could not foresee
+        raise ConfigError(f"gains {spec.gains.as_dict()} cannot be checked for stability "
+                          f"({type(exc).__name__}: {exc})") from None
 
 
 class GainUpdates:
@@ -54,10 +67,9 @@ class GainUpdates:
         try:
             gains = resolve_gains(spec.robot, spec.contour, spec.controller, scenario=spec.scenario,
                                   layers=[given], joint_order=self.joint_order)
-            self.check(dataclasses.replace(spec, gains=gains))
+            check_gains(self.check, dataclasses.replace(spec, gains=gains))
         except Exception as exc:  # noqa: BLE001 - a refusal with the reason, never an escape into the executor
-            reason = str(exc) if isinstance(exc, PdsmcError) else \
-                f"{', '.join(changes)}: the stability check failed ({type(exc).__name__}: {exc})"
+            reason = str(exc) if isinstance(exc, PdsmcError) else f"{', '.join(changes)}: {type(exc).__name__}: {exc}"
             return SetParametersResult(successful=False, reason=" ".join(reason.split()))
         self.pending = (gains, given)
         return SetParametersResult(successful=True)

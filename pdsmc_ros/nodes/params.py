@@ -8,14 +8,12 @@ import json
 from dataclasses import dataclass
 from typing import Any
 
-from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
-from rclpy.parameter import Parameter
 
 from ..control import law
 from ..errors import ConfigError
 from ..parameters import BUSY_WAIT, CONTROLLER, STABILITY, gain_parameters, run_parameters
-from ..parameters.ros import READ_AT_START, declare, guard, value_of
+from ..parameters.ros import declare, guard, value_of
 from ..presets import RunSpec, make_run, smc_reading
 from ..robots import make_robot
 from ..robots.catalog import ROBOT_DESCRIPTION, register_description, resolve_robot
@@ -139,13 +137,3 @@ def description_json(spec: RunSpec, mode: str) -> str:
     data = spec.describe()
     data["mode"] = mode
     return json.dumps(data, sort_keys=True)
-
-
-def refuse_run_changes(params: list[Parameter]) -> SetParametersResult:
-    """Set-parameters callback of the plant, trajectory, recorder and viewer: every parameter of
-    their tables is read-only (rclpy refuses a set), and so is ``use_sim_time``."""
-    for param in params:
-        if param.name in READ_AT_START:
-            return SetParametersResult(
-                successful=False, reason=f"{param.name} is read at start-up and cannot change while the node runs")
-    return SetParametersResult(successful=True)
