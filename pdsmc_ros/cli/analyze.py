@@ -44,13 +44,16 @@ def run(args: argparse.Namespace) -> int:
         raise InvalidInputError(f"--settle-band must be a number of radians > 0, got {args.settle_band!r}")
     graphs = [path for path in paths if is_graph_bag(path)]
     pipeline = [path for path in paths if path not in graphs]
-    code = run_pipeline(args, pipeline) if pipeline else 0
+    reports: list[Any] = []  # --json: one list of both kinds
+    code = run_pipeline(args, pipeline, reports) if pipeline else 0
     if graphs:
-        code = max(code, run_graphs(args, graphs, after_table=bool(pipeline)))
+        code = max(code, run_graphs(args, graphs, reports, after_table=bool(pipeline)))
+    if args.json:
+        print(json.dumps(reports))
     return code
 
 
-def run_graphs(args: argparse.Namespace, paths: list[Path], *, after_table: bool) -> int:
+def run_graphs(args: argparse.Namespace, paths: list[Path], reports: list[Any], *, after_table: bool) -> int:
     """Recorded graphs (a real arm's runs): one table per bag, a column per goal."""
     from ..experiments.analysis import analyze_graph_bag, goal_table, write_graph_outputs
     from ..experiments.goals import DEFAULT_SETTLE_BAND
@@ -61,7 +64,7 @@ def run_graphs(args: argparse.Namespace, paths: list[Path], *, after_table: bool
         print("pdsmc analyze: --plots draws the project's own runs; a recorded graph has its table only",
               file=sys.stderr)
     if args.json:
-        print(json.dumps([b.as_dict() for b in bags]))
+        reports += [b.as_dict() for b in bags]
     else:
         for i, b in enumerate(bags):
             if i or after_table:
@@ -79,7 +82,7 @@ def run_graphs(args: argparse.Namespace, paths: list[Path], *, after_table: bool
     return EXIT_FAILURE if any(b.diverged for b in bags) else 0
 
 
-def run_pipeline(args: argparse.Namespace, paths: list[Path]) -> int:
+def run_pipeline(args: argparse.Namespace, paths: list[Path], reports: list[Any]) -> int:
     """Bags of the project's own pipeline: the thesis-style comparison."""
     from ..experiments.analysis import analyze_bag, comparison_table, write_outputs
 
@@ -107,7 +110,7 @@ def run_pipeline(args: argparse.Namespace, paths: list[Path]) -> int:
                                        out / "contour_mean_comparison.png", "mean contour error"))
         print(f"wrote {len(written)} figures into {out}/", file=sys.stderr)
     if args.json:
-        print(json.dumps([b.as_dict() for b in bags]))
+        reports += [b.as_dict() for b in bags]
     else:
         print(comparison_table(bags))
     if args.out:
