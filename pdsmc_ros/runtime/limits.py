@@ -104,7 +104,8 @@ class JointLimits:
 
     def _outside(self, q: FloatArray, qd: FloatArray) -> FloatArray:
         lo, hi = self.position[:, 0], self.position[:, 1]
-        return (q < lo - SLACK) | (q > hi + SLACK) | (np.abs(qd) > self.velocity + SLACK)
+        outside: FloatArray = (q < lo - SLACK) | (q > hi + SLACK) | (np.abs(qd) > self.velocity + SLACK)
+        return outside
 
     def _first_bad_segment(self, reference: JointTrajectoryReference) -> int:
         """The first segment between two points (k >= 1) that leaves the limits, or -1."""
@@ -123,7 +124,7 @@ class JointLimits:
                     break
                 duration = (times[index] - times[index - 1])[:, None, None]
                 t = duration * fractions[None, :, None]
-                def column(values: list, at: FloatArray) -> FloatArray:  # noqa: E306
+                def column(values: Sequence[FloatArray | None], at: FloatArray) -> FloatArray:  # noqa: E306
                     return np.asarray([values[i] for i in at])[:, None, :]
                 p0, p1 = column(p, index - 1), column(p, index)
                 v0 = v1 = a0 = a1 = None

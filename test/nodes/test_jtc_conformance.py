@@ -457,7 +457,7 @@ def test_nonzero_velocity_at_trajectory_end_is_accepted(arms) -> None:  # noqa: 
     q0 = arm.q()
     handle = arm.send(goal([point(q0 + [0.0, 0.0, 0.05], 0.5, [0.0, 0.0, 0.05])]))
     assert handle.accepted, arm.logs()  # type: ignore[attr-defined]
-    arm.result(handle)
+    assert arm.result(handle)[1] != INVALID_GOAL  # executed, not refused after acceptance
 
 
 @pytest.mark.timeout(120)
