@@ -18,9 +18,10 @@ from collections.abc import Collection
 from typing import Any
 
 from ..control.registry import GAINS, law_names
-from ..control.safety import MAX_SAFE_DAMPING, MAX_SAFE_STIFFNESS, SAFE_MODES
+from ..control.safety import DEFAULT_K_POSITION, MAX_SAFE_DAMPING, MAX_SAFE_STIFFNESS, SAFE_MODES, SOFT_VELOCITY_BAND
 from ..control.stability import MODES
 from ..live_view import DEFAULT_DISPLAY_RATE
+from ..runtime.commanding import DEFAULT_RUNAWAY_POSITION_MARGIN, DEFAULT_RUNAWAY_VELOCITY_FACTOR, RUNAWAY_STOPS
 from ..runtime.goal import STOPPED_VELOCITY_TOLERANCE
 from ..runtime.limits import START_TOLERANCE
 from ..runtime.realtime import AUTO_BUSY_WAIT, DEFAULT_PRIORITY, MAX_PRIORITY, PLANT_PRIORITY, TRAJECTORY_PRIORITY
@@ -135,6 +136,24 @@ CONTROLLER = (
 )
 """The controller's own (besides the run's, the gains and the stability check's)."""
 
+OUTPUT_LIMITS = (
+    P("soft_limits.k_position", "double", DEFAULT_K_POSITION,
+      "soft limits: allowed velocity toward a position limit per rad of distance to it (1/s; ros2_control's "
+      "k_position)", lo=0.0),
+    P("soft_limits.k_velocity", "double_array", None,
+      "soft limits: per joint, joints order, the effort bound's slope beyond the velocity bound (N m s/rad; "
+      f"ros2_control's k_velocity); default effort limit / ({SOFT_VELOCITY_BAND:g} x velocity limit): the whole "
+      "effort up to 90 % of the velocity limit", lo=0.0, per_joint=True),
+    P("runaway.velocity_factor", "double", DEFAULT_RUNAWAY_VELOCITY_FACTOR,
+      "real time: a joint faster than this many times its velocity limit stops the motion", lo=0.0, lo_open=True),
+    P("runaway.position_margin", "double", DEFAULT_RUNAWAY_POSITION_MARGIN,
+      "real time: a joint this far beyond a position limit stops the motion (rad)", lo=0.0),
+    P("runaway.stop", "string", "damp", "real time: the output once the runaway guard tripped: damp (a damping "
+      "torque that brings the arm to rest) or zero (no torque)", choices=RUNAWAY_STOPS),
+)
+"""The controller's output limits: ros2_control's soft limits and the runaway guard (none applies
+with ``enforce_limits:=false``)."""
+
 SAFETY = (
     P("watchdog_timeout", "double", 2.0,
       "lockstep: wall-clock seconds without effort before safe mode (checked every 20 ms)", lo=0.05, hi=3600.0),
@@ -216,7 +235,7 @@ def node_parameters(node: str) -> tuple[ParameterSpec, ...]:
     """Every parameter ``node`` (one of :data:`NODES`) declares, in declaration order."""
     run = (*run_parameters(), *gain_parameters(applied=node == "controller"), BUSY_WAIT)
     tables = {
-        "controller": lambda: (*run, *STABILITY, *CONTROLLER, *realtime_parameters(DEFAULT_PRIORITY)),
+        "controller": lambda: (*run, *STABILITY, *CONTROLLER, *OUTPUT_LIMITS, *realtime_parameters(DEFAULT_PRIORITY)),
         "plant": lambda: (*run, *SAFETY, *PLANT, *realtime_parameters(PLANT_PRIORITY)),
         "trajectory": lambda: (*run, *TRAJECTORY, *realtime_parameters(TRAJECTORY_PRIORITY)),
         "recorder": lambda: (*run, *RECORDER, *realtime_parameters(0)),
