@@ -91,15 +91,15 @@ def test_check_gains_for_pd_shows_no_smc_conditions() -> None:
     assert proc.returncode == 0, proc.stderr
     assert "Ks_" not in proc.stdout and "lambda" not in proc.stdout and "FAILS" not in proc.stdout
     assert "no conditions of it for pd" in proc.stdout
-    assert "holds in realtime (zero-order hold + 1 period of delay)" in proc.stdout and "x2 required" in proc.stdout
+    assert "holds in realtime (zero-order hold + 2 periods of delay)" in proc.stdout and "x2 required" in proc.stdout
     pdsmc_check = pdsmc("check-gains", "--robot", "parallel_5r", "--contour", "circle", "--controller", "pdsmc")
     assert "Ks_1 > max |tau_d,1|" in pdsmc_check.stdout
 
 
 def test_check_gains_fails_below_the_margin() -> None:
     args = ["check-gains", "--robot", "serial_3r", "--contour", "circle", "--controller", "pd"]
-    realtime = pdsmc(*args)  # the thesis's gains at its 10 kHz: x0.59 with one period of delay
-    assert realtime.returncode == 1 and "FAILS" in realtime.stdout and "margin x0.59" in realtime.stdout
+    realtime = pdsmc(*args)  # the thesis's gains at its 10 kHz: x0.37 with the real-time loop's two periods of delay
+    assert realtime.returncode == 1 and "FAILS" in realtime.stdout and "margin x0.37" in realtime.stdout
     lockstep = pdsmc(*args, "--mode", "lockstep")  # x1.19 without delay: the thesis's runs go on
     assert lockstep.returncode == 0 and "margin x1.19 (x1 required" in lockstep.stdout
     strict = pdsmc(*args, "--mode", "lockstep", "--margin", "1.5")

@@ -256,9 +256,12 @@ quiet machine) a worst period of 6.3 ms (5.3 ms late) with four processes and 3.
 0.06-0.3 % missed deadlines; docs/PERFORMANCE.md has worst periods of 1.4-4.5 ms under load,
 cyclictest's wake-ups up to 3.5 ms. Those are single stretched periods, not a delay every
 period, and :data:`REQUIRED_MARGIN`'s x2 covers them: gains stable at half the rate with two
-periods of delay are stable at the rate with a constant delay of five to six periods (5-6 ms
-at 1 kHz; :func:`tolerated_delay` gives the figure of each set of gains, printed by
-``pdsmc check-gains``). Lockstep has no delay: the plant waits for the command of its state."""
+periods of delay stay stable at the rate with a constant delay of four to five periods (the
+UR5's and the Panda's shipped gains: 4-5 ms at 1 kHz, against 2-3 ms for the gains tuned for
+one period, which burst after goal ends), a persistent stall of 2-3 ms on top of the two
+periods, the worst single stalls measured here (3.9-6.3 ms periods) only once in hundreds of
+periods. :func:`tolerated_delay` gives the figure of any gains (``pdsmc check-gains`` prints it).
+Lockstep has no delay: the plant waits for the command of its state."""
 MODE_DELAY = {"lockstep": 0, "realtime": REALTIME_DELAY_PERIODS}
 """Periods of delay each mode's loop has (:data:`REALTIME_DELAY_PERIODS`)."""
 REQUIRED_MARGIN = {"lockstep": 1.0, "realtime": 2.0}

@@ -218,7 +218,9 @@ def test_simulate_a_ur5_prints_the_usual_keys_and_check_gains_runs_for_it() -> N
     result = json.loads(proc.stdout)
     assert {"axial_mean", "axial_sd", "task_mean", "contour_mean", "contour_within_pct", "max_torque"} <= set(result)
     assert len(result["axial_mean"]) == 6 and result["run"]["robot"] == "ur5"
-    assert result["contour_mean"] < 1e-3  # the tuned gains track the 0.3 m circle within a millimetre
+    # the tuned gains track the 0.3 m circle within 2.5 mm (gains that hold with the real-time loop's two
+    # periods of delay at margin x2, stability.REALTIME_DELAY_PERIODS: 1.99 mm; those for one period, 0.7 mm)
+    assert result["contour_mean"] < 2.5e-3
     check = subprocess.run([sys.executable, "-m", "pdsmc_ros.cli", "check-gains", "--robot", "ur5", "--contour",
                             "circle", "--controller", "pdsmc"], capture_output=True, text=True, timeout=300)
     assert "discrete-rate condition at 1000 Hz holds" in check.stdout, check.stderr
