@@ -148,7 +148,7 @@ def test_a_bad_params_file_is_one_line_and_exit_2(ros_env: dict, tmp_path: Path,
 
 @pytest.mark.timeout(300)
 def test_the_controller_refuses_gains_unstable_in_real_time_advising_the_parameter(ros_env: dict) -> None:
-    # the UR5's old shipped gains: x1.04 without delay, unstable with the real-time loop's period of delay
+    # the UR5's old shipped gains: x1.04 without delay, unstable with the real-time loop's delay
     old = {"kp": [179700.0, 514400.0, 136400.0, 38820.0, 40500.0, 2742.0],
            "kd": [28.08, 80.37, 21.31, 6.066, 6.329, 0.4284], "ks": [112.3, 321.5, 85.22, 24.26, 25.31, 1.714],
            "lam": [1600.0] * 6, "phi": [0.25] * 6}
@@ -156,7 +156,7 @@ def test_the_controller_refuses_gains_unstable_in_real_time_advising_the_paramet
     proc = ros2_run(ros_env, "controller", "-p", "robot:=ur5", "-p", "mode:=realtime", *gains, timeout=120)
     assert proc.returncode == 2, proc.stderr
     errors = [line for line in proc.stderr.splitlines() if "error" in line]
-    assert len(errors) == 1 and "realtime (zero-order hold + 1 period of delay)" in errors[0], proc.stderr
+    assert len(errors) == 1 and "realtime (zero-order hold + 2 periods of delay)" in errors[0], proc.stderr
     assert "-p rate:=" in errors[0] and "--rate" not in errors[0]
 
 

@@ -97,8 +97,9 @@ def whole_number_from_zero(text: str) -> int:
 
 def add_loop_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--mode", choices=("realtime", "lockstep"), default="realtime",
-                   help="the loop the gains must hold in: realtime (default: zero-order hold plus one period of "
-                   "delay, as on a robot) or lockstep (zero-order hold, no delay)")
+                   help="the loop the gains must hold in: realtime (default: zero-order hold plus two periods of "
+                   "delay, the controller's and the plant's sampling, as on a robot) or lockstep (zero-order hold, "
+                   "no delay)")
     p.add_argument("--delay-periods", type=whole_number_from_zero, default=0,
                    help="periods of delay beyond the mode's own (a driver's, a network's; default 0)")
     p.add_argument("--margin", type=positive_float, default=None,
