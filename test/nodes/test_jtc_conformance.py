@@ -194,10 +194,13 @@ def arms(ros_env: dict, tmp_path_factory: pytest.TempPathFactory) -> Iterator[Ca
                 old.close()
             current.clear()
             arm = Arm(ros_env, tmp_path_factory.mktemp(config), CONFIGS[config])
+            ready = (arm.wait(lambda: len(arm.states) > 100, 90) and arm.action.wait_for_server(timeout_sec=90)
+                     and arm.wait(lambda: arm.controller_states > 5, 180))  # active, commanding
+            if not ready:
+                logs = arm.logs()
+                arm.close()  # the next case starts a pair again rather than use a broken one
+                pytest.fail(f"the driver and controller did not come up\n{logs}")
             current[config] = arm
-            assert arm.wait(lambda: len(arm.states) > 100, 90), arm.logs()
-            assert arm.action.wait_for_server(timeout_sec=90), arm.logs()
-            assert arm.wait(lambda: arm.controller_states > 5, 180), arm.logs()  # active, commanding
             time.sleep(1.0)  # settled in the hold of activation
         return current[config]
 
