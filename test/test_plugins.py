@@ -24,6 +24,8 @@ import pytest
 import yaml
 from conftest import node_log_tails
 
+from pdsmc_ros.experiments.tuning import FACTORS
+
 ROOT = Path(__file__).resolve().parent.parent
 SCRIPT = ROOT / "scripts" / "run_experiment.sh"
 DISTRIBUTION = "pdsmc-pid-example"
@@ -205,19 +207,24 @@ def test_the_installed_law_and_robot_are_registered_after_the_built_ins(installe
                        "'NO_SUCH_LAW' (left out)")], proc.stderr
 
 
-def test_pdsmc_simulate_check_gains_and_compare_run_the_installed_law(installed: Path) -> None:  # noqa: ARG001
+@pytest.mark.timeout(900)
+def test_pdsmc_simulate_runs_the_installed_law_with_its_gains_as_flags(installed: Path) -> None:  # noqa: ARG001
     proc = pdsmc("simulate", "--robot", "serial_3r", "--contour", "circle", "--controller", "pid", "--json")
     assert proc.returncode == 0, proc.stderr
     result = json.loads(proc.stdout)
     assert result["run"]["controller"] == "pid" and 0.0 < result["contour_mean"] < 1e-3, result
     assert "broken" not in proc.stderr  # a run of one law loads no other plugin
-    # its gains as flags, checked against its declaration
     bad = pdsmc("simulate", "--robot", "serial_3r", "--contour", "circle", "--controller", "pid", "--gain", "ki=-1")
     assert bad.returncode == 2 and "gain ki of pid must be finite and >= 0, got [-1.0, -1.0, -1.0]" in bad.stderr
+
+
+@pytest.mark.timeout(900)
+def test_check_gains_and_compare_take_the_installed_law(installed: Path) -> None:  # noqa: ARG001
     checked = pdsmc("check-gains", "--robot", "serial_3r", "--contour", "circle", "--controller", "pid", "--mode",
                     "lockstep")
     assert checked.returncode == 0 and "ki=" in checked.stdout, checked.stdout + checked.stderr
-    compared = pdsmc("compare", "--robot", "serial_3r", "--contour", "circle", "--laws", "pd,pid", "--json")
+    compared = pdsmc("compare", "--robot", "serial_3r", "--contour", "circle", "--laws", "pd,pid",
+                     "--json", timeout=600)
     assert compared.returncode == 0, compared.stderr
     assert [row["law"] for row in json.loads(compared.stdout)["rows"]] == ["pd", "pid"]
 
@@ -243,7 +250,7 @@ def test_the_installed_robot_runs_the_installed_law(installed: Path, tmp_path: P
     assert 0.0 < result["contour_mean"] < 5e-3
 
 
-@pytest.mark.timeout(600)
+@pytest.mark.timeout(1200)
 def test_tune_then_the_controller_node_over_dds_equals_in_process(installed: Path, tmp_path: Path,  # noqa: ARG001
                                                                   ros_env: dict) -> None:
     """``pdsmc tune`` writes the law's gains, ``ki`` among them; the controller node (``ros2 run
@@ -251,10 +258,13 @@ def test_tune_then_the_controller_node_over_dds_equals_in_process(installed: Pat
     parameters, takes the file, and runs the step-for-step run of the simulator."""
     params = tmp_path / "pid.yaml"
     tuned = pdsmc("tune", "--robot", "serial_3r", "--contour", "circle", "--controller", "pid", "--rounds", "1",
-                  "--quiet", "--out", str(params))
+                  "--rate", "2000", "--out", str(params), timeout=900)  # 2 kHz: a fifth of the serial arm's steps
     assert tuned.returncode == 0, tuned.stderr
     gains = yaml.safe_load(params.read_text())["controller"]["ros__parameters"]
     assert set(gains) >= {"kp", "kd", "ki"} and min(gains["ki"]) > 0.0, gains
+    # ki is swept as kp and kd are (one line per candidate: "... kp=[...], kd=[...], ki=[...]")
+    tried_ki = {line.split("ki=")[1] for line in tuned.stderr.splitlines() if "ki=" in line}
+    assert len(tried_ki) >= 1 + len(FACTORS), tuned.stderr
 
     out = tmp_path / "pid"
     env = {**ros_env, "PYTHONPATH": os.pathsep.join(p for p in (str(ROOT), ros_env.get("PYTHONPATH", "")) if p)}
@@ -273,6 +283,6 @@ def test_tune_then_the_controller_node_over_dds_equals_in_process(installed: Pat
     assert run.spec.controller == "pid" and run.spec.gains["ki"] == pytest.approx(gains["ki"], rel=0, abs=0)
     sim = simulate(run.spec)
     every = run.spec.sample_every
-    assert run.steps == 2500
+    assert run.spec.rate == 2000.0 and run.steps == 500  # 0.25 s at the params file's rate
     assert np.max(np.abs(run.q[::every] - sim.samples.q)) <= 1e-9
     assert np.max(np.abs(run.tau[::every] - sim.samples.tau)) <= 1e-9
