@@ -14,7 +14,7 @@ from typing import Any
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy_impl
 
-from ..runtime.realtime import AUTO_BUSY_WAIT, Collector, restore
+from ..runtime.realtime import AUTO_BUSY_WAIT, Collector, raise_helpers, restore
 from .executor_thread import ExecutorThread
 from .inputs import (
     pending,
@@ -37,6 +37,9 @@ class LocalInputs:
 
 
 STATISTICS_EVERY_S = 1.0  # real time: loop statistics on /diagnostics this often
+# real time at FIFO: threads started since the loop began (rclpy's multi-threaded executors start their
+# workers at their first callback) are raised below the loop this often, as those that existed then
+HELPERS_EVERY_S = 1.0
 # real time: spare-time work (the young generation, a window ahead) only with this share of a period to spare
 IDLE_MARGIN = 0.2
 COLD_PERIOD_S = 0.02  # lockstep: the executor's turn (timers, parameters, /clock) this often
@@ -99,7 +102,7 @@ def serve_loop(executor: SingleThreadedExecutor, group: Any,
     cold_thread = ExecutorThread(executor, first) if period else None
     # after the executor thread exists (scheduling is per thread); at FIFO, busy_wait may shrink
     applied, busy_wait = apply_settings(reports, first, period, busy_wait)
-    next_report = clock() + STATISTICS_EVERY_S
+    next_report = next_helpers = clock() + STATISTICS_EVERY_S
     unpublished: list[LoopReport] = []
     loop_running(True)  # the nodes' loop log lines: written by the executor from now on
     holding = False  # real time: the GIL kept through the spin and the tick (HOLD_SWITCH_S)
@@ -146,6 +149,11 @@ def serve_loop(executor: SingleThreadedExecutor, group: Any,
                     continue  # no time to spare
                 if unpublished:
                     unpublished.pop().publish()
+                elif applied.helpers and now >= next_helpers:
+                    # a thread at normal priority holding the GIL is preempted by the machine's load
+                    # for milliseconds while the loop waits (the action server's validating workers)
+                    applied.helpers += raise_helpers()
+                    next_helpers = now + HELPERS_EVERY_S
                 else:
                     collector.idle()
                     for idle in group.idlers:  # e.g. a state topic at 20 Hz: not in another thread,
