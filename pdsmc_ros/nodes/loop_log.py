@@ -51,8 +51,8 @@ class LoopLog:
 
     def _queue(self, level: str, text: str) -> None:
         if not _looping:
+            self.lines.append((level, text))
             self.flush()
-            getattr(self.logger, level)(text)
             return
         if len(self.lines) >= LOOP_LOG_KEPT:
             self.lines.popleft()
@@ -77,4 +77,10 @@ class LoopLog:
                              "waited for the executor)")
         while self.lines:
             level, text = self.lines.popleft()
-            getattr(self.logger, level)(text)
+            # one call site per severity: rclpy refuses a call site whose severity changes
+            if level == "info":
+                self.logger.info(text)
+            elif level == "warn":
+                self.logger.warn(text)
+            else:
+                self.logger.error(text)

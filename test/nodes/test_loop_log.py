@@ -85,3 +85,19 @@ def test_the_end_of_the_loop_writes_what_is_queued_and_counts_what_was_dropped(n
     assert [text for _, text, _ in recorded.lines[1:]] == [f"line {k}" for k in range(3, LOOP_LOG_KEPT + 3)]
     log.info("after the loop")
     assert recorded.lines[-1][1] == "after the loop"
+
+
+def test_the_node_logger_takes_every_severity_in_turn(node) -> None:
+    """rclpy refuses a call site whose severity changes: each severity has its own."""
+    rcl_node, executor = node
+    log = LoopLog(rcl_node)
+    loop_running(True)
+    for text in ("a", "b"):
+        log.info(text)
+        log.warn(text)
+        log.error(text)
+    executor.spin_once(timeout_sec=5.0)
+    assert not log.lines
+    loop_running(False)
+    log.warn("after")
+    log.info("after")
