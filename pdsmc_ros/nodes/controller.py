@@ -8,9 +8,11 @@ in a thread of its own); whichever spoke last drives. Real time: on activation, 
 a goal is canceled or aborted, the controller holds the position it measures (through the
 chosen law); a trajectory's time is the node clock (``header.stamp``, or the reception
 time when zero). Joints by name (``joints``, any order, mapped onto the robot's). Out:
-torques on ``/effort_controller/commands`` (``data[i]`` for ``joints[i]``, clamped to the
-arm's effort limits), ``~/controller_state``, ``/pdsmc/run_description`` (latched) and
-``/diagnostics``. Lockstep pairs the state and the reference of each step (no hold: the
+torques on ``/effort_controller/commands`` (``data[i]`` for ``joints[i]``, within the arm's soft
+limits: :mod:`.output_limits`), ``~/controller_state``, ``/pdsmc/run_description`` (latched) and
+``/diagnostics``. Real time: a joint running away (beyond its velocity limit by
+``runaway.velocity_factor``, beyond a position limit) aborts the active goal and latches a stop
+until the next activation; the node then exits 1. Lockstep pairs the state and the reference of each step (no hold: the
 plant waits for its command). Stopping (signal, lifecycle, stale inputs) publishes one zero command.
 A law with internal state (an integrator: ``sta``, ``ismc``) starts from zero at each activation
 and integrates it once per command with the nominal period ``1 / rate`` (not the measured one).
@@ -42,7 +44,9 @@ from .executor import run_node
 from .follow_joint_trajectory import FollowJointTrajectoryServer, topic_trajectory
 from .gain_updates import GainUpdates, check_gains
 from .inputs import Inputs, Times
-from .lifecycle import EXIT_OK, WATCH_GRACE_S, CommandingEntity, end_when_plant_leaves
+from .lifecycle import EXIT_FAILURE, EXIT_OK, WATCH_GRACE_S, CommandingEntity, end_when_plant_leaves
+from .loop_log import LoopLog
+from .output_limits import declare_limit_parameters
 from .params import declare_node_run, description_json
 from .publishers import EffortOutput, RowBatches
 
@@ -63,13 +67,17 @@ class ControllerNode(CommandingEntity):
         self.joint_map = params.joint_map
         # the description says whether the clamp runs, so simulate(spec) of the bag repeats the run
         spec = dataclasses.replace(run.spec, enforce_limits=params.enforce_limits)  # gains in robot order
-        self.guard = TorqueGuard(params.torque_limit)
+        soft_table, runaway = declare_limit_parameters(node, robot, params, 1.0 / spec.rate, self.lockstep,
+                                                       spec.reference().sample([0.0]).q[0])
+        self.guard = TorqueGuard(soft_table)
+        self.limits_report = Diagnostics(node, "controller: limits", spec.robot)
+        self.loop_log = LoopLog(node)  # lines of the loop's thread, written by the executor's
         self.core = core = ControllerCore(
             spec, JointSelector(robot.joint_names), self.joint_map,  # the law's vectors stay in robot order
             JointLimits.of(robot, robot.joint_names) if params.enforce_limits else None, self.guard,
             params.stale_periods / spec.rate, self.lockstep,
-            lambda why: node.get_logger().info(f"holding the measured position ({why})"),
-            goal_settings=params.goal_settings)
+            lambda why: self.loop_log.info(f"holding the measured position ({why})"),
+            runaway=runaway, on_runaway=self.on_runaway, goal_settings=params.goal_settings)
         check_gains(lambda new: check_rate(new, core.reference, **run.stability), spec)  # refuse gains unstable here
         # gains: the on-set callback checks a change is stable at the running rate, the post-set one applies it
         self.gain_updates = GainUpdates(node, spec, lambda new: check_rate(new, core.reference, **run.stability),
@@ -77,15 +85,16 @@ class ControllerNode(CommandingEntity):
         self.active = self.done = False  # commanding; the run is over
         self.exit_code = EXIT_OK
 
-        self.effort = EffortOutput(node, topics.TOPIC_EFFORT, robot.n, self.guard)
+        self.effort = EffortOutput(node, topics.TOPIC_EFFORT, robot.n, self.guard, log=self.loop_log)
         self.report_input = InputReport(Diagnostics(node, "controller: inputs", spec.robot,
                                                     values=lambda: {"joints": ",".join(self.params.joints)}))
         self.inputs = Inputs(node, self.mode)
         self.inputs.subscribe(JointState, topics.TOPIC_JOINT_STATES, self.on_state)
         self.inputs.subscribe(JointTrajectory, topics.TOPIC_REFERENCE, self.on_reference)
-        # off the loop's path: a goal is rare, and an input taken at every pass of the loop costs a take per pass
+        # off the loop's path: a goal is rare, and an input taken at every pass of the loop costs a take per pass;
+        # real time: taken and validated by the action server's thread, never the loop's
         goals = self.observed_inputs = Inputs(node, self.mode, batch_s=GOAL_BATCH_S, suffix="_goals")
-        if self.lockstep:  # real time: taken and validated by the action server's thread, never the loop's
+        if self.lockstep:
             goals.subscribe(JointTrajectory, topics.TOPIC_JOINT_TRAJECTORY, self.on_goals, topics.TRAJECTORY_QOS,
                             with_receipt=True)
         description = String(data=description_json(spec, self.mode))
@@ -104,6 +113,13 @@ class ControllerNode(CommandingEntity):
         waiting = "" if params.autostart else "; unconfigured until configure and activate"
         node.get_logger().info(f"{spec.controller} controller for {spec.robot}/{spec.contour}, {self.mode}, "
                                f"{spec.rate:g} Hz, joints {list(params.joints)}{waiting}")
+
+    def on_runaway(self, why: str) -> None:
+        """The runaway guard tripped (the loop's thread): reported, and the run fails."""
+        stop = self.core.runaway.stop if self.core.runaway is not None else ""
+        self.limits_report.report("error", f"{why}: active goal aborted, {stop} stop until the controller is "
+                                           "deactivated and activated again")
+        self.exit_code = EXIT_FAILURE
 
     def configure(self) -> None:
         self.core.configure()  # the law's kernel and the path from a message to a command, warmed up
@@ -155,7 +171,10 @@ class ControllerNode(CommandingEntity):
         """Lockstep: the torque of a state paired with its reference."""
         if paired is not None:
             step, q, qd, ref = paired
-            if self.active and (tau := self.core.command(step / self.core.spec.rate, q, qd, ref)) is not None:
+            tau = self.core.command(step / self.core.spec.rate, q, qd, ref) if self.active else None
+            if self.core.limit_note:
+                self.node.get_logger().warn(self.core.limit_note)
+            if tau is not None:
                 self.effort.publish(self.joint_map.to_user(tau), step)
             self.done = self.core.pairing.finished
 
@@ -169,10 +188,12 @@ class ControllerNode(CommandingEntity):
         if self.active:
             tau, change = self.core.realtime_command(now, self.now)
             if change == "stale":
-                self.node.get_logger().error(f"state or reference older than {self.params.stale_periods} periods")
+                self.loop_log.error(f"state or reference older than {self.params.stale_periods} periods")
                 self.stop_commanding("inputs stale")
             elif change == "fresh":
-                self.node.get_logger().info("fresh state and reference again: output resumed")
+                self.loop_log.info("fresh state and reference again: output resumed")
+            if self.core.limit_note:
+                self.loop_log.warn(self.core.limit_note)
             if tau is not None:
                 with self.effort.lock:
                     if self.active:
@@ -192,7 +213,9 @@ class ControllerNode(CommandingEntity):
         if not self.lockstep:
             self.timing_rows.flush()
         if self.guard.clamped:
-            self.node.get_logger().warn(f"torque clamped to the limits in {self.guard.clamped} periods")
+            saturated = self.joint_map.to_user(self.guard.joint_saturated).tolist()
+            self.node.get_logger().warn(f"torque limited by the soft limits in {self.guard.clamped} periods (at "
+                                        f"the effort limit, per joint: {dict(zip(self.params.joints, saturated))})")
         if not self.core.pairing.finished and self.stop_commanding("stopping"):  # complete: the plant has ended
             self.effort.pub.publisher.wait_for_all_acked(Duration(nanoseconds=int(STOP_ACK_S * 1e9)))
 
