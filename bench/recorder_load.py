@@ -94,8 +94,8 @@ def main() -> int:
     time.sleep(3.0)
     driver = start("mujoco_driver", "-p", "robot:=serial_3r")
     controller = start("controller", "-p", "robot:=serial_3r", "-p", "type:=pd", "-p", "mode:=realtime",
-                       "-p", "rate:=1000.0", "-p", "sample_rate:=1000.0", "-p", "kp:=[2000.0, 2000.0, 400.0]",
-                       "-p", "kd:=[100.0, 100.0, 20.0]", "-p", "stale_periods:=200")
+                       "-p", "rate:=1000.0", "-p", "sample_rate:=1000.0", "-p", "kp:=[800.0, 800.0, 160.0]",
+                       "-p", "kd:=[40.0, 40.0, 8.0]", "-p", "stale_periods:=200")
     deadline = time.monotonic() + 120.0  # start-up (memory locked, kernels loaded) before the window
     while time.monotonic() < deadline and controller.poll() is None and "real time: " not in (
             work / "controller.log").read_text(errors="replace"):

@@ -376,7 +376,8 @@ def goal_table(bag: AnalyzedGraphBag) -> str:
     row("result", [f"{g.status} ({g.result})" for g in goals])
     row("start (s)", [_fmt(g.start, "{:.3f}") for g in goals])
     row("duration (s)", [_fmt(None if g.end is None else g.end - g.start, "{:.3f}") for g in goals])
-    row("desired state from", [g.reference.split(" (")[0] for g in goals])
+    row("desired state from", [g.reference.split(" (")[0] + (" (sparse)" if "too sparse" in g.reference else "")
+                               for g in goals])
     for i in range(len(run.names)):
         row(f"axis {i + 1} mean |e| (rad)", [_fmt(g.metrics.axial_mean[i] if g.metrics else None, "{:.4e}")
                                            for g in goals])
@@ -405,6 +406,8 @@ def goal_table(bag: AnalyzedGraphBag) -> str:
     for g in goals:
         if g.error_string:
             lines.append(f"{g.label}: {g.error_string}")
+        if "too sparse" in g.reference:
+            lines.append(f"{g.label}: desired state from {g.reference}")
     if bag.diverged:
         lines.append(f"{bag.path}: the run {bag.diverged}")
     lines += format_loop_statistics(str(bag.path), bag.loop_statistics)

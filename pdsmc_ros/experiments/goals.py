@@ -16,6 +16,9 @@ state a cubic Hermite curve through the controller's samples (positions and velo
 20 Hz), exact for the cubic segments JTC interpolates and within a few micro-radians of a
 quintic at 20 Hz.
 
+Where the desired-state samples leave a gap longer than :data:`MAX_REFERENCE_GAP` within the
+goal, it gets no tracking figures (the reason is in its ``reference``).
+
 Settling: the first instant after which every joint stays within ``settle_band`` of the goal's
 last desired position, up to the next goal (or the end of the bag), counted from the end of
 the desired motion; None when the arm is not there by then (an aborted or preempted goal).
@@ -40,6 +43,10 @@ DEFAULT_SETTLE_BAND = 0.01
 """rad: a joint within this of the goal's last desired position counts as settled."""
 LATE_FACTOR = 2.0
 REFERENCE_STILL = 1e-6  # rad: the desired motion has ended once the desired position stays this close to its last
+MAX_REFERENCE_GAP = 0.2
+"""s: the longest interval between desired-state samples a curve is drawn across (four of
+joint_trajectory_controller's 20 Hz periods); a controller that published more sparsely over a
+goal (a loaded machine) gets no tracking figures for it, rather than errors against a made-up curve."""
 
 
 def nominal_period(t: FloatArray) -> float:
@@ -135,11 +142,12 @@ def goal_figures(run: GraphRun, goal: GoalRecord, index: int, window_end: float,
     t0 = float(run.t[0])
     period = nominal_period(run.t)
     end = goal.ended if goal.ended is not None else window_end
-    reference, source = goal.desired, "feedback"
-    if reference is None or len(reference.t) < 2:
-        shown = _window(run.reference.t, goal.accepted, end)
-        reference = ReferenceSamples(run.reference.t[shown], run.reference.q[shown], run.reference.qd[shown])
-        source = "controller_state"
+    # the denser of the goal's feedback and the controller's state over the goal
+    shown = _window(run.reference.t, goal.accepted, end)
+    reference = ReferenceSamples(run.reference.t[shown], run.reference.q[shown], run.reference.qd[shown])
+    source = "controller_state"
+    if goal.desired is not None and len(goal.desired.t) >= max(2, len(reference.t)):
+        reference, source = goal.desired, "feedback"
     whole = _window(run.t, goal.accepted, window_end)
     velocity_max = (np.nanmax(np.abs(run.qd[whole]), axis=0) if len(whole) else np.full(n, np.nan))
     late = late_periods(run.t[whole], period) if len(whole) else 0
@@ -148,6 +156,11 @@ def goal_figures(run: GraphRun, goal: GoalRecord, index: int, window_end: float,
         source = f"{source} ({len(reference.t)} samples)"
         start = max(float(reference.t[0]), goal.accepted)
         steps = int(np.floor((end - start) / period))
+        inside = reference.t[(reference.t >= start) & (reference.t <= end)]
+        gap = float(np.max(np.diff(np.concatenate([[start], inside, [end]])))) if steps >= 1 else 0.0
+        if gap > MAX_REFERENCE_GAP:
+            source = f"{source}; a gap of {gap:.3f} s: too sparse for tracking figures"
+            steps = 0
         if steps >= 1:
             grid: FloatArray = start + np.arange(steps + 1, dtype=float) * period
             q = np.column_stack([np.interp(grid, run.t, run.q[:, j]) for j in range(n)])
