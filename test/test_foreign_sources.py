@@ -32,7 +32,7 @@ import rclpy.clock  # noqa: E402
 import rclpy.duration  # noqa: E402
 import rclpy.executors  # noqa: E402
 
-RATE = 1000.0
+RATE = 2000.0  # the five-bar's preset gains hold in real time (two periods of delay) at x2.1 here
 Q = {"joint1": 0.3, "joint2": 1.2}  # the driver's state, by name
 QD = {"joint1": 0.1, "joint2": -0.2}
 REF = ((0.35, 1.1), (0.05, 0.02), (0.5, -0.4))  # joint1, joint2: q, qd, qdd
@@ -154,9 +154,9 @@ def start_controller(ros_env: dict, domain: int, log: Path, *params: str) -> sub
         "-p",
         f"sample_rate:={RATE}",
         "-p",
-        "stale_periods:=200",
-        # the five-bar's preset PD gains hold at 1 kHz with a period of delay at x1.73 of their lowest
-        # stable rate, below the default real-time margin of x2 that this test is not about
+        "stale_periods:=400",
+        # the five-bar's preset PD gains hold at 2 kHz with two periods of delay at about x2.1 of their
+        # lowest stable rate: a margin this test is not about
         "-p",
         "stability_margin:=1.5",
         # these tests check the topic semantics with hand-made states far from any motion the
@@ -202,7 +202,7 @@ def test_driver_with_wall_stamps_shuffled_names_missing_joint_gains_and_sigint(
             np.testing.assert_allclose(data, expected, rtol=0, atol=1e-9)
 
         # joint1 missing: no torque from such a state; one zero command once the last good
-        # state is stale (200 periods); an error diagnostic naming the joint
+        # state is stale (400 periods); an error diagnostic naming the joint
         count = len(driver.efforts)
         driver.state = lambda: joint_state(driver, ["joint2", "gripper"], Q, QD)
         driver.spin(1.5)

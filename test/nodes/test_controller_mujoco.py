@@ -35,8 +35,8 @@ from std_msgs.msg import Float64MultiArray  # noqa: E402
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint  # noqa: E402
 
 NAMES = ["joint1", "joint2", "joint3"]
-KP = [2000.0, 2000.0, 400.0]  # stable at 1 kHz with one period of delay (margin x2)
-KD = [100.0, 100.0, 20.0]
+KP = [1200.0, 1200.0, 240.0]  # stable at 1 kHz with the real-time loop's two periods of delay (margin x2.1)
+KD = [60.0, 60.0, 12.0]
 # a hold keeps the arm within this (rad) once settled; without a command joint 2 sags over 1 rad in 0.5 s
 HOLD = 0.05
 COMMON = ["-p", "thread_priority:=0"]  # a shared 2-core test machine: no SCHED_FIFO spinning beside DDS

@@ -41,8 +41,8 @@ from sensor_msgs.msg import JointState  # noqa: E402
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint  # noqa: E402
 
 JOINTS = ["joint1", "joint2", "joint3"]
-# PD gains stable at 1 kHz with one period of delay (test_controller_mujoco.py)
-GAINS = ("-p", "kp:=[2000.0, 2000.0, 400.0]", "-p", "kd:=[100.0, 100.0, 20.0]")
+# PD gains stable at 1 kHz with the real-time loop's two periods of delay (test_controller_mujoco.py)
+GAINS = ("-p", "kp:=[1200.0, 1200.0, 240.0]", "-p", "kd:=[60.0, 60.0, 12.0]")  # x2.1 at 1 kHz, 2 periods of delay
 SUCCESSFUL = FollowJointTrajectory.Result.SUCCESSFUL
 INVALID_GOAL = FollowJointTrajectory.Result.INVALID_GOAL
 PATH_TOLERANCE_VIOLATED = FollowJointTrajectory.Result.PATH_TOLERANCE_VIOLATED
