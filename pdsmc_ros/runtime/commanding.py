@@ -144,7 +144,8 @@ class TorqueGuard:
 
     def limit(self, tau: FloatArray, q: FloatArray, qd: FloatArray) -> str:
         """Limit ``tau`` (robot order, in place) for the state ``(q, qd)``; a line to log ("" for none)."""
-        if self.table is None or not soft_limit(tau, q, qd, self.table, self.joint_saturated, 1):
+        if self.table is None or not soft_limit(tau, np.asarray(q, dtype=float), np.asarray(qd, dtype=float),
+                                                self.table, self.joint_saturated, 1):
             return ""
         self.clamped += 1
         return _every(self.clamped, f"torque limited by the soft limits ({self.clamped} periods so far)")
@@ -225,6 +226,7 @@ class RunawayGuard:
         (it is latched from then on), else ""."""
         if self.reason:
             return ""
+        q, qd = np.asarray(q, dtype=float), np.asarray(qd, dtype=float)  # a message's tuples, too
         joint = self.check.check(q, qd, 0)
         if joint < 0:
             return ""

@@ -77,6 +77,15 @@ def test_a_non_finite_state_trips_the_guard() -> None:
     assert "not finite" in runaway_guard().trip(np.array([np.nan, 0.0, 0.0]), ZERO, 1.0)
 
 
+def test_the_guards_take_a_message_s_tuples() -> None:
+    """The joint selector hands the loop tuples of floats: both guards take them as arrays."""
+    assert runaway_guard().trip((0.0, 0.0, 0.0), (0.0, 0.0, 99.0), 0.0).startswith("runaway stop")
+    guard = core().guard
+    tau = np.array([0.0, 1e9, 0.0])
+    guard.limit(tau, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
+    assert tau[1] == ROBOT.effort_limits[1]
+
+
 def test_a_runaway_aborts_the_active_goal_and_commands_the_stop_until_activation() -> None:
     guard = runaway_guard()
     ctl = core(guard)
