@@ -4,7 +4,8 @@ For each thesis arm (circle, PD-SMC at 10 kHz) it runs, in one process and alter
 that a loaded machine slows both alike:
 
 - the production loop (:mod:`pdsmc_ros.sim.loop`: every step the state's check,
-  :func:`pdsmc_ros.control.safety.watch`, and the soft limits, :func:`~pdsmc_ros.control.safety.soft_limit`), and
+  :func:`pdsmc_ros.control.safety.watch`, and the clamp to the effort limits through
+  :func:`~pdsmc_ros.control.safety.soft_limit` with unknown velocity limits), and
 - the same loop without them, written here as it was before issue 29 (the same law, RK4 and
   sampling code),
 
@@ -28,7 +29,7 @@ from numba import njit
 
 from pdsmc_ros.control import ControlLaw
 from pdsmc_ros.control.dispatch import law_torque
-from pdsmc_ros.control.safety import DivergenceCheck, robot_soft_limits
+from pdsmc_ros.control.safety import DivergenceCheck, effort_only_table
 from pdsmc_ros.presets import make_run
 from pdsmc_ros.robots import compiled as robot_compiled
 from pdsmc_ros.robots.parallel_5r_kernels import PARALLEL_5R
@@ -92,7 +93,7 @@ def measure(robot: str, repeats: int) -> tuple[float, float, float, float, bool]
     def unchecked() -> None:
         UNCHECKED[kind](*setup, refs[0, 0].copy(), np.zeros(n), refs, h, every, *outs, work, law.state)
 
-    table = robot_soft_limits(plant, refs[0, 0], spec.rate)
+    table = effort_only_table(plant.effort_limits, n)
 
     def production() -> None:
         check = DivergenceCheck.for_robot(plant)

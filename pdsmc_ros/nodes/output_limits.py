@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 from rclpy.node import Node
 
-from ..control.safety import robot_soft_limits
+from ..control.safety import effort_only_table, robot_soft_limits
 from ..errors import ConfigError, InvalidInputError
 from ..parameters import OUTPUT_LIMITS
 from ..parameters.ros import declare
@@ -23,10 +23,14 @@ from .controller_params import ControllerParameters
 
 def declare_limit_parameters(node: Node, robot: Manipulator, params: ControllerParameters, period: float,
                              lockstep: bool, start_q: FloatArray) -> tuple[FloatArray | None, RunawayGuard | None]:
-    """Declare the output-limit parameters; the soft-limit table (robot order, about the run's
-    start configuration ``start_q``: :func:`~pdsmc_ros.control.safety.robot_soft_limits`) and the runaway
-    guard (real time only: a lockstep run's divergence test ends a run that runs away), each
-    None with ``enforce_limits:=false``.
+    """Declare the output-limit parameters; the output-limit table (robot order) and the runaway
+    guard, each None with ``enforce_limits:=false``.
+
+    Real time: the soft limits about the run's start configuration ``start_q``
+    (:func:`~pdsmc_ros.control.safety.robot_soft_limits`) and the runaway guard. Lockstep: the
+    effort clamp alone, as the in-process simulator runs (a lockstep run is a simulation whose
+    divergence test must see an unstable law run away: soft limits would hold it at the velocity
+    limit), and no runaway guard.
 
     Raises
     ------
@@ -44,14 +48,14 @@ def declare_limit_parameters(node: Node, robot: Manipulator, params: ControllerP
     joint_map = params.joint_map
     effort = (np.asarray(robot.effort_limits, dtype=float) if params.torque_limit is None
               else joint_map.to_robot(params.torque_limit))
+    if lockstep:
+        return effort_only_table(effort, robot.n), None
     gains = None if not k_velocity else joint_map.to_robot([float(v) for v in k_velocity])
     try:
         table = robot_soft_limits(robot, start_q, 1.0 / period, k_position=float(k_position),
                                   k_velocity=gains, effort=effort)
     except InvalidInputError as exc:
         raise ConfigError(f"parameter {exc}") from None
-    if lockstep:
-        return table, None
     runaway = RunawayGuard(robot.joint_names, robot.position_limits, robot.velocity_limits, effort,
                            inertia=lambda q: np.diag(robot.mass_matrix(q)), period=period,
                            velocity_factor=float(factor), position_margin=float(margin),

@@ -16,7 +16,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ..control.law import ControlLaw
-from ..control.safety import robot_soft_limits
+from ..control.safety import effort_only_table
 from ..control.stability import check_rate
 from ..metrics import Metrics, RunStatistics, Samples, build_samples
 from ..presets import RunSpec, control_steps
@@ -99,7 +99,7 @@ def simulate(spec: RunSpec, *, check_stability: bool = True, plant: Manipulator 
     steps = refs.shape[0] - 1
     every = spec.sample_every
     q0 = refs[0, 0] if initial_error is None else refs[0, 0] + np.asarray(initial_error, dtype=float)
-    limit = robot_soft_limits(robot, refs[0, 0], spec.rate) if spec.enforce_limits else None
+    limit = effort_only_table(robot.effort_limits, robot.n) if spec.enforce_limits else None
     out_q, _, out_tau, outcome = run_loop(robot, ControlLaw.from_spec(spec), q0, refs, 1.0 / spec.rate, every,
                                           limit, every_step=True)
     t, xy_ref = _task_samples(spec, reference, steps)

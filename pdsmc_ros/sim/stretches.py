@@ -16,7 +16,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ..control.law import ControlLaw
-from ..control.safety import DivergenceCheck, robot_soft_limits
+from ..control.safety import DivergenceCheck, effort_only_table
 from ..metrics import Metrics, RunStatistics, build_samples
 from ..presets import RunSpec, control_steps
 from ..robots.base import Manipulator
@@ -49,8 +49,7 @@ def run_in_stretches(spec: RunSpec, robot: Manipulator, reference: JointReferenc
     count = steps // every + 1
     stats = RunStatistics(robot.n, bound=spec.bound, rate=spec.rate)
     law = ControlLaw.from_spec(spec)
-    start_q = np.asarray(reference.sample(np.zeros(1)).stacked())[0, 0]
-    limit = robot_soft_limits(robot, start_q, spec.rate) if spec.enforce_limits else None
+    limit = effort_only_table(robot.effort_limits, robot.n) if spec.enforce_limits else None
     check = DivergenceCheck.for_robot(robot)
     h = 1.0 / spec.rate
     total = LoopOutcome([0] * robot.n)

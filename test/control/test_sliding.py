@@ -123,7 +123,9 @@ def test_ismc_presets_have_the_smcs_stiffness_and_at_most_its_damping(robot: str
     np.testing.assert_allclose(np.diagonal(kp_i), np.diagonal(kp_s), rtol=1e-12)
     assert np.all(np.diagonal(kd_i) < np.diagonal(kd_s))
     lam_s, lam_i = np.array(smc.gains["lam"]), np.array(ismc.gains["lam"])
-    assert np.all(2.0 * lam_i > 0.9 * lam_s)  # near the damping-matching 2 lam = lam_SMC (massless joints)
+    # below the damping-matching 2 lam = lam_SMC of massless joints, which it nears where Ks / phi
+    # outweighs Mbar lam^2 (the thesis arms; not the URDF arms' gentler real-time gains)
+    assert np.all(lam_i < lam_s)
 
 
 @pytest.mark.parametrize(("robot", "contour"), _preset_robot_contours())

@@ -21,7 +21,19 @@ def arm() -> MujocoArm:
 
 
 def driver(arm: MujocoArm, **kwargs: object) -> md.MujocoDriver:
+    """A driver that holds the last command as a forward command controller does (no watchdog),
+    unless the test gives ``command_timeout``."""
+    kwargs.setdefault("command_timeout", 0.0)
     return md.MujocoDriver(arm, md.default_positions("serial_3r"), **kwargs)  # type: ignore[arg-type]
+
+
+def test_the_stand_in_brakes_after_a_tenth_of_a_second_without_a_command_by_default(arm: MujocoArm) -> None:
+    d = md.MujocoDriver(arm, md.default_positions("serial_3r"))
+    assert d.command_timeout == md.DEFAULT_COMMAND_TIMEOUT_S == 0.1
+    d.command([0.0, 0.0, 0.0], 1.0)
+    d.advance(1.05)
+    assert not d.braked
+    assert d.advance(1.11) and d.braked
 
 
 def test_braked_until_the_first_command_then_it_moves(arm: MujocoArm) -> None:
