@@ -470,13 +470,12 @@ def main() -> int:
         if len(timing.all()) < 1000:
             print(f"bench/storm.py: error: the controller did not command (logs in {logs})", file=sys.stderr)
             return 1
-        for role in ROLES:
+        for role in ROLES:  # one after the other: participants created at the same instant hung here
             storms.append(subprocess.Popen(
                 [sys.executable, __file__, "--worker", role, "--domain", str(args.domain),
                  "--large-points", str(args.large_points), "--seed", str(args.seed)],
                 env=env, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, start_new_session=True))
-        for role, proc in zip(ROLES, storms):
-            hello = json.loads(proc.stdout.readline() or "{}")  # type: ignore[union-attr]
+            hello = json.loads(storms[-1].stdout.readline() or "{}")  # type: ignore[union-attr]
             if not hello.get("ready"):
                 print(f"bench/storm.py: error: the storm's {role} clients did not connect: {hello}", file=sys.stderr)
                 return 1
