@@ -39,9 +39,9 @@ from .limits import JointLimits
 from .warm import warm_up
 
 CONTINUITY_TOLERANCE = 0.05
-"""rad: a hold or a new trajectory continues from the commanded position while every joint is
-this close to it (:meth:`ControllerCore.start_state`): above any steady-state error of a tuned
-law, below what an arm that could not follow is away from its reference."""
+"""rad: a hold keeps the commanded position while every joint is this close to it
+(:meth:`ControllerCore.start_state`): above any steady-state error of a tuned law, below what an
+arm that could not follow is away from its reference."""
 SOURCE_SKEW_S = 5.0  # a zero-stamped trajectory starts at its source time if that is at most this old
 
 Tolerance = tuple[str, float, float, float]
@@ -133,15 +133,17 @@ class ControllerCore:
             self.law = law  # one attribute store: a period uses the old or the new
 
     def start_state(self) -> tuple[FloatArray, FloatArray] | None:
-        """Where a hold or a new trajectory starts: the position and velocity the controller
-        commands now while every joint is within :data:`CONTINUITY_TOLERANCE` of it, else the
-        measured state (None before the first state).
+        """Where a hold starts: the position and velocity the controller commands now while every
+        joint is within :data:`CONTINUITY_TOLERANCE` of it, else the measured state (None before
+        the first state).
 
-        joint_trajectory_controller starts from the measured state; an effort controller whose
-        law leaves a steady-state error (PD under gravity) would then sink by that error at every
-        cancel and every new goal (200 send-and-cancel pairs left a UR5's elbow 0.15 rad lower).
-        Continuing from the commanded reference keeps the error from accumulating; an arm that is
-        far from it (it could not follow, it was pushed) is taken where it is."""
+        joint_trajectory_controller holds the measured position; an effort controller whose law
+        leaves a steady-state error (PD under gravity) would then sink by that error at every
+        cancel (200 send-and-cancel pairs left a UR5's elbow 0.15 rad lower). Holding the
+        commanded position keeps the error from accumulating; an arm that is far from it (it
+        could not follow, it was pushed) is held where it is. A new trajectory starts from the
+        measured state, as JTC's (a client such as MoveIt starts it at the position it measures,
+        and its step check compares with that)."""
         if self.last_state is None:
             return None
         q, qd = self.last_state[1], self.last_state[2]
@@ -220,7 +222,7 @@ class ControllerCore:
         settings, joints = self.goal_settings, self.selector.joints
         if latched := self.runaway_latched():
             return None, latched, False
-        state = self.start_state()
+        state = self.last_state[1:] if self.last_state is not None else None  # JTC: from the measured state
         reference, problem = prepare_trajectory(settings, self.limits, joints, stamp, names, points, now, state,
                                                 effort_sizes)
         if reference is None:
@@ -238,7 +240,7 @@ class ControllerCore:
         settings, joints = self.goal_settings, self.selector.joints
         if latched := self.runaway_latched():
             return GoalStart(Outcome("aborted", INVALID_GOAL, latched), "")
-        state = self.start_state()
+        state = self.last_state[1:] if self.last_state is not None else None  # JTC: from the measured state
         reference, problem = prepare_trajectory(settings, self.limits, joints, stamp, names, points, now, state,
                                                 effort_sizes)
         if reference is None:

@@ -400,9 +400,9 @@ def test_a_runaway_aborts_the_goal_stops_the_arm_and_fails_the_run(ros_env: dict
         assert client.wait(lambda: bool(errors), 5) and errors[0].startswith("runaway stop"), errors
         time.sleep(1.0)
         settled = client.window(time.time() - 0.3, time.time())
-        # damped: joint 1 (no gravity about its axis) at rest; the others sink no faster than gravity
-        # against the damping allows
-        assert max(abs(s[2][0]) for s in settled) < 0.05, logs(tmp_path)
+        # damped, not driven: the vertical arm sinks under gravity at about G / D (D = 60, 45, 25
+        # N m s/rad here: a few tenths of a rad/s), far below the rates a drive could give it
+        assert max(float(np.max(np.abs(s[2]))) for s in settled) < 0.5, logs(tmp_path)
     finally:
         client.close()
         code, _ = stop_process(ctl)
