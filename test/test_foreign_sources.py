@@ -308,12 +308,13 @@ def test_standard_trajectory_lifecycle_and_deactivate(ros_env: dict, domain: int
         driver.spin(30, until=lambda: len(driver.efforts) > 50)
         assert nonzero(driver.efforts), log.read_text()
 
-        # a three-point trajectory (positions only: linear), names shuffled with an extra joint
+        # a three-point trajectory (positions only: linear), names shuffled (a joint the controller
+        # lacks would be refused, as joint_trajectory_controller refuses it)
         driver.reference = None
         points = [([0.4, 1.0], 0.8), ([0.5, 1.3], 1.6), ([0.2, 1.1], 2.4)]  # joint1, joint2; s from receipt
         msg = JointTrajectory()
-        msg.joint_names = ["wrist", "joint2", "joint1"]
-        msg.points = [JointTrajectoryPoint(positions=[9.0, p[1], p[0]], time_from_start=rclpy.duration.Duration(
+        msg.joint_names = ["joint2", "joint1"]
+        msg.points = [JointTrajectoryPoint(positions=[p[1], p[0]], time_from_start=rclpy.duration.Duration(
             seconds=at).to_msg()) for p, at in points]
         count = len(driver.efforts)
         driver.pub_traj.publish(msg)
