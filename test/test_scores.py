@@ -99,6 +99,7 @@ def test_a_simulated_run_carries_the_scores_of_its_control_steps() -> None:
     import dataclasses
 
     from pdsmc_ros.control import ControlLaw
+    from pdsmc_ros.control.safety import effort_only_table
     from pdsmc_ros.presets import make_run
     from pdsmc_ros.sim import simulate
     from pdsmc_ros.sim.loop import run_loop
@@ -111,7 +112,7 @@ def test_a_simulated_run_carries_the_scores_of_its_control_steps() -> None:
     _, refs = _reference_samples(spec)
     robot = spec.robot_model()
     q, _, tau, _ = run_loop(robot, ControlLaw.from_spec(spec), refs[0, 0], refs, 1.0 / spec.rate, 1,
-                            robot.effort_limits)
+                            effort_only_table(robot.effort_limits, robot.n))
     expected = compute_scores(refs[:, 0] - q, tau[:-1], spec.rate)  # every step, the loop's own samples
     assert m.control_energy == expected.control_energy and m.torque_tv_rate == expected.torque_tv_rate
     assert m.error_itae == expected.error_itae and m.run_scores["error_rms"] == expected.run["error_rms"]
