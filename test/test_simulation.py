@@ -241,7 +241,7 @@ def test_statistics_sampling_matches_thesis_rates() -> None:
 
 def test_discrete_stability_check_names_joint_and_rate() -> None:
     with pytest.raises(
-        UnstableRateError, match=r"at 5000 Hz: joint \d diverges.*lowest stable rate is about [0-9,]+ Hz"
+        UnstableRateError, match=r"at 5000 Hz: joint \d \('joint\d'\) diverges.*lowest stable rate is about [0-9,]+ Hz"
     ):
         simulate(make_run("serial_3r", "circle", "pd", rate=5000.0))
 
