@@ -18,7 +18,7 @@ import dataclasses
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 import yaml
@@ -347,7 +347,8 @@ def controller_parameters(path: str | Path, *, node: str = NODE_NAME) -> dict[st
         One line naming the file: not a params file, no section for the controller, or a key the
         controller does not declare (the closest one suggested).
     """
-    return node_parameters(path, "/" + node, CONTROLLER_PARAMETERS + gain_names())
+    own = cast(tuple[str, ...], CONTROLLER_PARAMETERS)  # derived from the parameter tables on first use
+    return node_parameters(path, "/" + node, own + tuple(gain_names()))
 
 
 def read_params_file(path: str | Path, n: int, controller: str, *, node: str = NODE_NAME) -> dict[str, list[float]]:
