@@ -61,16 +61,22 @@ class Driver:
         self.pub_traj = self.node.create_publisher(JointTrajectory, "/controller/joint_trajectory", 10)
         self.efforts: list[tuple[float, tuple[float, ...], int]] = []
         self.diagnostics: list[tuple[int, str]] = []
+        self.latest_level: dict[str, int] = {}  # each status name's latest level
         self.node.create_subscription(
             Float64MultiArray, "/effort_controller/commands",
             lambda m: self.efforts.append((time.monotonic(), tuple(m.data), m.layout.data_offset)), 100)
         self.node.create_subscription(
             DiagnosticArray, "/diagnostics",
-            lambda m: self.diagnostics.extend((s.level[0] if isinstance(s.level, bytes) else s.level, s.message)
-                                              for s in m.status), 100)
+            self.on_diagnostics, 100)
         self.state: Callable[[], object] | None = None
         self.reference: Callable[[], object] | None = None
         self.node.create_timer(0.005, self.publish)
+
+    def on_diagnostics(self, msg: DiagnosticArray) -> None:
+        for status in msg.status:
+            level = status.level[0] if isinstance(status.level, bytes) else status.level
+            self.diagnostics.append((level, status.message))
+            self.latest_level[status.name] = level
 
     def publish(self) -> None:
         if self.state is not None:
@@ -223,7 +229,8 @@ def test_driver_with_wall_stamps_shuffled_names_missing_joint_gains_and_sigint(
         driver.state = lambda: joint_state(driver, names, Q, QD)
         driver.spin(30, until=lambda: len(driver.efforts) > count + 100)
         np.testing.assert_allclose(driver.efforts[-1][1], expected, rtol=0, atol=1e-9)
-        assert driver.diagnostics[-1][0] == 0
+        # the inputs' status is OK again (a loaded machine may warn of late ticks meanwhile: another status)
+        assert driver.latest_level.get("controller: inputs") == 0, (driver.latest_level, driver.diagnostics[-5:])
 
         # an unstable gain through the parameter service: refused with the lowest stable rate
         unstable = dataclasses.replace(spec(), gains=Gains.from_mapping(

@@ -42,6 +42,10 @@ STATISTICS_EVERY_S = 1.0  # real time: loop statistics on /diagnostics this ofte
 HELPERS_EVERY_S = 1.0
 # real time: spare-time work (the young generation, a window ahead) only with this share of a period to spare
 IDLE_MARGIN = 0.2
+# real time: a loop with no time to spare still runs its nodes' spare-time work (the action's feedback,
+# ~/controller_state) after a tick once it has gone this long without: under a busy CPU every tick may be
+# late, and a goal's client would otherwise get no feedback for the whole goal (JTC: 20 Hz)
+IDLE_STARVED_S = 0.25
 COLD_PERIOD_S = 0.02  # lockstep: the executor's turn (timers, parameters, /clock) this often
 # (one turn costs 0.2-1 ms of Python; every 5 ms it took 15 % of the lockstep rate)
 GIL_SWITCH_S = 0.0001  # real time: longest the executor thread keeps the GIL from the loop
@@ -107,6 +111,7 @@ def serve_loop(executor: SingleThreadedExecutor, group: Any,
     loop_running(True)  # the nodes' loop log lines: written by the executor from now on
     holding = False  # real time: the GIL kept through the spin and the tick (HOLD_SWITCH_S)
     started = False  # real time: the first tick has run
+    last_idle = clock()  # real time: when the nodes' spare-time work last ran
     try:
         next_cold = float("inf") if period else 0.0
         next_tick = clock() + period if period else float("inf")
@@ -146,7 +151,12 @@ def serve_loop(executor: SingleThreadedExecutor, group: Any,
                     unpublished = due_reports(reports, collector)
                     next_report = now + STATISTICS_EVERY_S
                 if next_tick - now <= busy_wait + IDLE_MARGIN * period:
-                    continue  # no time to spare
+                    if now - last_idle < IDLE_STARVED_S:
+                        continue  # no time to spare
+                    last_idle = now  # starved: once now, with a period of its own (this tick is late anyway)
+                    for idle in group.idlers:
+                        idle(now + period)
+                    continue
                 if unpublished:
                     unpublished.pop().publish()
                 elif applied.helpers and now >= next_helpers:
@@ -156,6 +166,7 @@ def serve_loop(executor: SingleThreadedExecutor, group: Any,
                     next_helpers = now + HELPERS_EVERY_S
                 else:
                     collector.idle()
+                    last_idle = now
                     for idle in group.idlers:  # e.g. a state topic at 20 Hz: not in another thread,
                         idle(next_tick - busy_wait)  # whose message conversion would hold the GIL
                 continue

@@ -24,6 +24,8 @@ Paired = tuple[int, FloatArray, FloatArray, Reference]
 
 
 class TrajectorySource(Protocol):
+    def begin(self, t: float) -> None: ...  # the loop samples it at t next (the first time: its start)
+
     def sample(self, t: float) -> Reference: ...
 
 
@@ -96,6 +98,7 @@ class LockstepPairing:
             return None
         step, q, qd = self.state
         if self.source == "trajectory" and self.trajectory is not None:
+            self.trajectory.begin(step / self.rate)
             ref = self.trajectory.sample(step / self.rate)
             self.refs.pop(step, None)
         else:
@@ -318,7 +321,12 @@ class LatestInputs:
         if self.staleness.stale or self.state is None:
             return None, change
         t = clock()
-        ref = self.reference if from_stream else self.trajectory.sample(t)  # type: ignore[union-attr]
+        if from_stream:
+            ref = self.reference
+        else:
+            trajectory = self.trajectory
+            trajectory.begin(t)  # type: ignore[union-attr]
+            ref = trajectory.sample(t)  # type: ignore[union-attr]
         return (*self.state, ref, t), change  # type: ignore[return-value]
 
 

@@ -245,6 +245,7 @@ class ControllerCore:
                                                 effort_sizes)
         if reference is None:
             return GoalStart(Outcome("aborted", INVALID_GOAL, problem), "")
+        reference.starts_at_first_sample = stamp == 0.0  # JTC: "now" is the loop's first sample of it
         tolerances, warning = resolve_tolerances(settings.tolerances(len(joints)), joints, path, goal, goal_time)
         return GoalStart(GoalExecution(reference, tolerances, joints, cmd_timeout=settings.timeout(),
                                        wrap=settings.wrap), warning)

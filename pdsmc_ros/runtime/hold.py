@@ -33,6 +33,9 @@ class Hold:
         self.zero = np.zeros_like(self.q)
         self.why = why
 
+    def begin(self, t: float) -> None:  # noqa: ARG002
+        """Nothing: a hold has no start time."""
+
     def sample(self, t: float) -> tuple[FloatArray, FloatArray, FloatArray]:  # noqa: ARG002
         """The held position at zero velocity and acceleration (the same arrays every call:
         the law only reads them)."""

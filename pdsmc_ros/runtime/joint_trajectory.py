@@ -166,6 +166,9 @@ class JointTrajectoryReference:
         self.start_q = start_q
         self.start_qd = start_qd
         self.end_time = start_time + float(times[-1])
+        # an action goal stamped 0 starts where the control loop first samples it, not where it
+        # was validated (joint_trajectory_controller's Trajectory::sample): :meth:`begin`
+        self.starts_at_first_sample = False
         last_v = velocities[-1]
         self._end = (positions[-1], np.zeros_like(positions[-1]) if last_v is None else last_v)
 
@@ -222,6 +225,14 @@ class JointTrajectoryReference:
         if problem:
             return None, problem
         return cls.from_checked(selector.joints, stamp, names, points, now, q, qd)
+
+    def begin(self, t: float) -> None:
+        """The control loop is about to sample this trajectory at ``t``: one flagged
+        :attr:`starts_at_first_sample` starts there (its times are relative to its start)."""
+        if self.starts_at_first_sample:
+            self.starts_at_first_sample = False
+            self.start_time = t
+            self.end_time = t + float(self.times[-1])
 
     def segment_samples(self, k: int, count: int) -> tuple[FloatArray, FloatArray, FloatArray]:
         """``(t, q, qd)`` at ``count`` instants evenly spread over the segment that ends at point ``k``
