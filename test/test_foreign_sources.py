@@ -17,6 +17,7 @@ import subprocess
 import time
 from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pytest
@@ -31,6 +32,9 @@ pytest.importorskip("rclpy")
 import rclpy.clock  # noqa: E402
 import rclpy.duration  # noqa: E402
 import rclpy.executors  # noqa: E402
+
+if TYPE_CHECKING:
+    from diagnostic_msgs.msg import DiagnosticArray
 
 RATE = 2000.0  # the five-bar's preset gains hold in real time (two periods of delay) at x2.1 here
 Q = {"joint1": 0.3, "joint2": 1.2}  # the driver's state, by name
