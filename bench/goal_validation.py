@@ -1,10 +1,10 @@
 """How long a trajectory's validation takes in the action server's thread: prints the figures.
 
 A goal or a ``~/joint_trajectory`` message is validated when it arrives
-(:func:`pdsmc_ros.runtime.goal.prepare_trajectory`: joint_trajectory_controller's checks, the
+(:func:`pdsmc_ros.controller.goals.prepare_trajectory`: joint_trajectory_controller's checks, the
 reference built from the measured state, the arm's limits along every segment and the step
 check), in the action server's thread, never the control loop's. A trajectory longer than
-:data:`pdsmc_ros.runtime.joint_trajectory.MAX_POINTS` is refused before it is looked at; this
+:data:`pdsmc_ros.controller.joint_trajectory.MAX_POINTS` is refused before it is looked at; this
 prints what the accepted sizes cost: positions only (linear segments) and with velocities
 and accelerations (quintic segments), six joints, best of three, with the machine's load.
 
@@ -19,9 +19,9 @@ import time
 
 import numpy as np
 
-from pdsmc_ros.runtime import goal as g
-from pdsmc_ros.runtime.joint_trajectory import MAX_POINTS
-from pdsmc_ros.runtime.limits import JointLimits
+from pdsmc_ros.controller import goals as g
+from pdsmc_ros.controller.joint_trajectory import MAX_POINTS
+from pdsmc_ros.controller.limits import JointLimits
 
 JOINTS = tuple(f"joint{i + 1}" for i in range(6))
 

@@ -4,8 +4,8 @@ For each thesis arm (circle, PD-SMC at 10 kHz) it runs, in one process and alter
 that a loaded machine slows both alike:
 
 - the production loop (:mod:`pdsmc_ros.sim.loop`: every step the state's check,
-  :func:`pdsmc_ros.control.safety.watch`, and the clamp to the effort limits through
-  :func:`~pdsmc_ros.control.safety.soft_limit` with unknown velocity limits), and
+  :func:`pdsmc_ros.sim.divergence.watch`, and the clamp to the effort limits through
+  :func:`~pdsmc_ros.control.soft_limits.soft_limit` with unknown velocity limits), and
 - the same loop without them, written here as it was before issue 29 (the same law, RK4 and
   sampling code),
 
@@ -29,11 +29,12 @@ from numba import njit
 
 from pdsmc_ros.control import ControlLaw
 from pdsmc_ros.control.dispatch import law_torque
-from pdsmc_ros.control.safety import DivergenceCheck, effort_only_table
+from pdsmc_ros.control.soft_limits import effort_only_table
 from pdsmc_ros.presets import make_run
 from pdsmc_ros.robots import compiled as robot_compiled
 from pdsmc_ros.robots.parallel_5r_kernels import PARALLEL_5R
 from pdsmc_ros.robots.serial_3r import SERIAL_3R
+from pdsmc_ros.sim.divergence import DivergenceCheck
 from pdsmc_ros.sim.loop import _CLOSED_LOOPS
 from pdsmc_ros.sim.rk4 import carve, rk4_advance
 from pdsmc_ros.sim.simulator import _reference_samples

@@ -38,8 +38,8 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
+from pdsmc_ros.bag.loop_statistics import bag_loop_statistics  # noqa: E402
 from pdsmc_ros.experiments.analysis import controller_timing  # noqa: E402
-from pdsmc_ros.runtime.statistics import bag_loop_statistics  # noqa: E402
 
 COMPOSED = ["--compose", "plant,controller,trajectory", "--intra-process"]
 BASELINE = ["--param", "thread_priority:=0", "--param", "lock_memory:=false"]

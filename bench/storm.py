@@ -3,7 +3,7 @@
 The UR5 in the MuJoCo stand-in (``ros2 run pdsmc_ros mujoco_driver robot:=ur5 rate:=1000.0``) and
 the controller in real time (``type:=pd robot:=ur5 mode:=realtime rate:=1000.0``), in a ROS
 domain of their own. The loop's timing comes from its ``/pdsmc/controller_timing`` rows
-(:class:`~pdsmc_ros.runtime.commanding.TickTiming`: each commanding tick's wall time and its
+(:class:`~pdsmc_ros.loop.statistics.TickTiming`: each commanding tick's wall time and its
 lateness after its deadline), taken by a subscription in this process.
 
 Windows of ``--duration`` seconds alternate, ``--rounds`` times: an idle window (the storm's
@@ -17,7 +17,7 @@ rclpy clients:
   (preemption); their feedback flows while they run;
 * every ``LARGE_EVERY_S`` a large goal, in turn of ``--large-points`` points (beyond the
   controller's size limit: refused) and of the limit's
-  (:data:`~pdsmc_ros.runtime.joint_trajectory.MAX_POINTS`: validated);
+  (:data:`~pdsmc_ros.controller.joint_trajectory.MAX_POINTS`: validated);
 * ``set_parameters`` calls every ``PARAM_EVERY_S``, valid (the running gains again) and invalid
   (a negative gain, a wrong length, a string) in turn, through a plain service client;
 * every ``NODE_EVERY_S`` a new client node in the storm's process (an action client and a
@@ -56,7 +56,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from pdsmc_ros.runtime import joint_trajectory  # noqa: E402
+from pdsmc_ros.controller import joint_trajectory  # noqa: E402
 
 # the controller's size limit for a trajectory (a goal at the limit is validated); 5,000 where it has none
 MAX_POINTS = int(getattr(joint_trajectory, "MAX_POINTS", 5_000))
@@ -337,8 +337,8 @@ class TimingRows:
         import rclpy.executors
         from std_msgs.msg import Float64MultiArray
 
-        from pdsmc_ros.nodes.topics import STREAM_QOS, TOPIC_TIMING
-        from pdsmc_ros.runtime.commanding import TickTiming
+        from pdsmc_ros.loop.statistics import TickTiming
+        from pdsmc_ros.ros.topics import STREAM_QOS, TOPIC_TIMING
 
         self.width = TickTiming.FIELDS
         self.rclpy = rclpy

@@ -1,8 +1,9 @@
 """pdsmc_ros: PD, SMC and hybrid PD-SMC control of robotic manipulators on ROS 2.
 
-The modules directly under this package are ROS-free numpy code (models,
-trajectories, controllers, simulator, metrics); ``pdsmc_ros.nodes`` holds the
-thin rclpy wrappers.
+The maths (``control``, ``robots``, ``trajectories``, ``sim``) and the modules directly under
+this package are ROS-free numpy code; each ROS component is a folder holding its ROS-free
+decisions beside its thin rclpy wiring (``controller``, ``plant``, ``trajectory``, ``recorder``,
+``mujoco_driver``, ``viewer``), on the shared ``loop``, ``ros`` and ``parameters`` plumbing.
 """
 
 from __future__ import annotations

@@ -191,7 +191,7 @@ stop_all() {
 }
 
 # A node that finished its work and then hung in Fast DDS's teardown is ended by its own
-# teardown watch with SIGALRM (status 142, pdsmc_ros.nodes.lifecycle.EXIT_TEARDOWN_HUNG): its
+# teardown watch with SIGALRM (status 142, pdsmc_ros.loop.lifecycle.EXIT_TEARDOWN_HUNG): its
 # outputs are complete, so that is a warning, not a failure. Prints the status to judge by.
 TEARDOWN_HUNG=142
 outcome() {

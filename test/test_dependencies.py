@@ -3,8 +3,8 @@
 Every ``import`` of a ``pdsmc_ros`` module counts, wherever it stands: at the top of a module,
 inside a function (a lazy import runs as soon as the function does, so it ties the modules as
 firmly; deferring it only hides the circle from the interpreter) and under ``if TYPE_CHECKING:``
-(a module that needs another's types to be read depends on it: issue 39 counts
-``nodes/controller`` <-> ``controller_state`` through such imports). An edge goes to the module
+(a module that needs another's types to be read depends on it: the controller's action server
+reads the node through a Protocol of its own for that reason). An edge goes to the module
 named: ``from ..control.registry import law`` to ``pdsmc_ros.control.registry``,
 ``from . import python_form`` to that submodule, ``from ..control import GAINS`` to the package
 ``pdsmc_ros.control``; the parents a Python import also runs (``pdsmc_ros.control/__init__``) are no
@@ -12,9 +12,10 @@ edge of their own, or every package re-exporting its modules would be a circle.
 
 Held: no import circle beyond the known ones (:data:`KNOWN_CIRCLES`, each to be removed; a new
 circle, or a known one grown, fails); nothing imports :mod:`pdsmc_ros.cli`; the maths
-(``control/``, ``robots/``, ``trajectories/``, ``sim/``) imports neither the nodes, the runtime
-below them, the command line nor ROS; ``experiments/`` imports neither the nodes nor the command
-line.
+(``control/``, ``robots/``, ``trajectories/``, ``sim/``) imports neither the ROS components
+(:data:`COMPONENTS`), the plumbing they share (``loop/``, ``ros/``, ``parameters/``), the command
+line nor ROS; ``experiments/`` imports neither the ROS layer nor the command line; the components'
+ROS-free decisions (:data:`ROS_FREE`) import no ROS.
 """
 
 from __future__ import annotations
@@ -28,24 +29,25 @@ import pytest
 ROOT = Path(__file__).resolve().parent.parent
 PACKAGE = ROOT / "pdsmc_ros"
 
-KNOWN_CIRCLES = {
-    # issue 39: the controller node's pieces import each other's types (the controller and H2's action
-    # server; to be removed with the controller/ component, then this entry)
-    frozenset({"pdsmc_ros.nodes.controller", "pdsmc_ros.nodes.controller_state",
-               "pdsmc_ros.nodes.follow_joint_trajectory"}),
-}
+KNOWN_CIRCLES: set[frozenset[str]] = set()
 """Import circles that still exist, each a set of modules (a strongly connected component)."""
 
-KNOWN_UPWARD = {
-    # issue 39: analysis reads bags through the loop statistics of the runtime (to move beside the bag reader)
-    ("pdsmc_ros.experiments.analysis", "pdsmc_ros.runtime.statistics"),
-}
+KNOWN_UPWARD: set[tuple[str, str]] = set()
 """Imports against the direction still in the package, each (importer, imported)."""
 
 MATHS = ("control", "robots", "trajectories", "sim")
 """The ROS-free maths: below everything else."""
-ABOVE_MATHS = ("nodes", "runtime", "cli")
-ABOVE_EXPERIMENTS = ("nodes", "runtime", "cli")
+COMPONENTS = ("controller", "plant", "trajectory", "recorder", "mujoco_driver", "viewer", "composed")
+"""The ROS components, each its ROS-free decisions and its node."""
+ROS_LAYER = (*COMPONENTS, "loop", "ros", "parameters")
+"""The components and the plumbing they share (the loop, topics and publishers, parameters)."""
+ABOVE_MATHS = (*ROS_LAYER, "cli")
+ROS_FREE = tuple(f"pdsmc_ros.controller.{m}" for m in ("core", "commanding", "goals", "joint_trajectory", "hold",
+                                                       "joints", "joint_map", "limits", "warm")) + (
+    "pdsmc_ros.trajectory.reference_windows", "pdsmc_ros.loop.realtime", "pdsmc_ros.loop.statistics",
+    "pdsmc_ros.loop.rt_check", "pdsmc_ros.viewer.live_view")
+"""The components' ROS-free decisions, testable without ROS (the nodes beside them wire them)."""
+ABOVE_EXPERIMENTS = (*ROS_LAYER, "cli")
 ROS_MODULES = ("rclpy", "rosidl_runtime_py", "builtin_interfaces", "std_msgs", "sensor_msgs", "trajectory_msgs",
                "control_msgs", "diagnostic_msgs", "rosgraph_msgs", "lifecycle_msgs", "rcl_interfaces",
                "visualization_msgs", "geometry_msgs", "tf2_msgs", "action_msgs")
@@ -188,9 +190,9 @@ def upward_imports() -> list[tuple[str, str, int, str]]:
             if layer(target) == "cli" and layer(module) != "cli":
                 out.append((module, target, line, "nothing imports the command line"))
             elif layer(module) in MATHS and layer(target) in ABOVE_MATHS:
-                out.append((module, target, line, "the maths imports nothing of the nodes, runtime or CLI"))
+                out.append((module, target, line, "the maths imports nothing of the ROS layer or CLI"))
             elif layer(module) == "experiments" and layer(target) in ABOVE_EXPERIMENTS:
-                out.append((module, target, line, "experiments import nothing of the nodes, runtime or CLI"))
+                out.append((module, target, line, "experiments import nothing of the ROS layer or CLI"))
     return out
 
 
@@ -205,10 +207,10 @@ def test_a_known_upward_import_still_exists_until_its_entry_is_removed(known: tu
     assert known in {(m, t) for m, t, _, _ in upward_imports()}, f"{known} is gone: remove it from KNOWN_UPWARD"
 
 
-def test_the_maths_never_imports_ros() -> None:
+def test_the_maths_and_the_components_decisions_never_import_ros() -> None:
     wrong = []
     for module, path in MODULES.items():
-        if layer(module) in MATHS:
+        if layer(module) in MATHS or module in ROS_FREE:
             wrong += [f"  {module} imports {name} (line {line})" for name, line in imports(module, path)
                       if name.split(".")[0] in ROS_MODULES]
     assert not wrong, "the maths imports ROS:\n" + "\n".join(wrong)

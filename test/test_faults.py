@@ -20,16 +20,11 @@ from hypothesis import strategies as st
 from pdsmc_ros.bag.mcapscan import scan
 from pdsmc_ros.bag.reader import read_run
 from pdsmc_ros.control import ControlLaw, Gains
-from pdsmc_ros.control.safety import (
-    DivergenceCheck,
-    SafetyConfig,
-    check_effort,
-    effort_only_table,
-    safe_torque,
-    soft_limit,
-)
+from pdsmc_ros.control.soft_limits import effort_only_table, soft_limit
 from pdsmc_ros.errors import InvalidInputError
 from pdsmc_ros.sim import PlantStepper, simulate
+from pdsmc_ros.sim.divergence import DivergenceCheck
+from pdsmc_ros.sim.safe_mode import SafetyConfig, check_effort, safe_torque
 
 ROOT = Path(__file__).resolve().parent.parent
 SCRIPT = ROOT / "scripts" / "run_experiment.sh"
@@ -510,7 +505,7 @@ def test_nice_applies_to_the_critical_path_only(ros_env: dict, tmp_path: Path) -
 
 TEARDOWN_HANG = r"""
 import sys, time
-from pdsmc_ros.nodes.lifecycle import arm_teardown_watch
+from pdsmc_ros.loop.lifecycle import arm_teardown_watch
 arm_teardown_watch(int(sys.argv[1]), seconds=0.3)
 time.sleep(30)  # a teardown that never ends
 """

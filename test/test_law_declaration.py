@@ -109,8 +109,8 @@ def test_the_controller_node_declares_and_takes_it(pd_g: None) -> None:  # noqa:
     rclpy = pytest.importorskip("rclpy")
     from rclpy.parameter import Parameter
 
-    from pdsmc_ros.nodes.gain_updates import GainUpdates
-    from pdsmc_ros.nodes.params import declare_run_parameters, run_spec_from_parameters
+    from pdsmc_ros.controller.parameters import GainUpdates
+    from pdsmc_ros.parameters.run import declare_run_parameters, run_spec_from_parameters
 
     context = rclpy.context.Context()
     rclpy.init(context=context)

@@ -141,7 +141,7 @@ def test_settings_derives_the_names_from_the_tables() -> None:
 
 def test_the_lookahead_bound_is_half_the_streams_depth() -> None:
     pytest.importorskip("rclpy")
-    from pdsmc_ros.nodes.topics import STREAM_DEPTH
+    from pdsmc_ros.ros.topics import STREAM_DEPTH
 
     assert STREAM_DEPTH // 2 == MAX_LOOKAHEAD_STEPS
 

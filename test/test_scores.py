@@ -99,7 +99,7 @@ def test_a_simulated_run_carries_the_scores_of_its_control_steps() -> None:
     import dataclasses
 
     from pdsmc_ros.control import ControlLaw
-    from pdsmc_ros.control.safety import effort_only_table
+    from pdsmc_ros.control.soft_limits import effort_only_table
     from pdsmc_ros.presets import make_run
     from pdsmc_ros.sim import simulate
     from pdsmc_ros.sim.loop import run_loop

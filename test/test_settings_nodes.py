@@ -19,7 +19,7 @@ rclpy = pytest.importorskip("rclpy")
 from rclpy.parameter import Parameter  # noqa: E402
 
 from pdsmc_ros.control import Gains  # noqa: E402
-from pdsmc_ros.nodes.params import declare_run_parameters, run_spec_from_parameters  # noqa: E402
+from pdsmc_ros.parameters.run import declare_run_parameters, run_spec_from_parameters  # noqa: E402
 
 GIVEN = {"kp": [300.0, 200.0], "kd": [20.0, 30.0], "ks": [1.5, 2.0], "lam": [10.0, 12.0], "phi": [0.4, 0.5]}
 
@@ -168,8 +168,8 @@ def test_the_cli_knows_every_parameter_the_controller_declares(ros_env: dict) ->
 
     env = {**ros_env, "ROS_DOMAIN_ID": str(next_domain())}
     script = ("import sys, rclpy\n"
-              "from pdsmc_ros.nodes.controller import ControllerNode\n"
-              "from pdsmc_ros.nodes.realtime_params import declare_realtime_parameters\n"
+              "from pdsmc_ros.controller.node import ControllerNode\n"
+              "from pdsmc_ros.loop.realtime_params import declare_realtime_parameters\n"
               "rclpy.init(args=['--ros-args', '-p', 'robot:=parallel_5r', '-p', 'autostart:=false'])\n"
               "wrapper = ControllerNode()\n"
               "declare_realtime_parameters(wrapper.node, 'realtime')\n"

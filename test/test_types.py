@@ -14,8 +14,12 @@ ROOT = Path(__file__).resolve().parent.parent
 CORE = ["pdsmc_ros/bag", "pdsmc_ros/robots", "pdsmc_ros/control", "pdsmc_ros/sim",
         "pdsmc_ros/config.py", "pdsmc_ros/errors.py", "pdsmc_ros/metrics.py",
         "pdsmc_ros/presets.py", "pdsmc_ros/trajectories", "pdsmc_ros/urdf.py",
-        "pdsmc_ros/engine.py", "pdsmc_ros/live_view.py",
-        "pdsmc_ros/kernel_cache.py", "pdsmc_ros/settings.py", "pdsmc_ros/runtime",
+        "pdsmc_ros/engine.py", "pdsmc_ros/viewer/live_view.py",
+        "pdsmc_ros/kernel_cache.py", "pdsmc_ros/settings.py",
+        # the components' ROS-free decisions
+        *(f"pdsmc_ros/controller/{m}.py" for m in ("core", "commanding", "goals", "joint_trajectory", "hold",
+                                                   "joints", "joint_map", "limits", "warm")),
+        "pdsmc_ros/trajectory/reference_windows.py", "pdsmc_ros/loop/realtime.py", "pdsmc_ros/loop/statistics.py",
         "pdsmc_ros/resources.py", "pdsmc_ros/scores.py", "pdsmc_ros/experiments"]
 
 

@@ -15,9 +15,9 @@ import numpy as np
 import pytest
 
 from pdsmc_ros.bag.reader import read_run
-from pdsmc_ros.live_view import CHANNELS, LiveView
 from pdsmc_ros.presets import make_run
 from pdsmc_ros.sim import simulate
+from pdsmc_ros.viewer.live_view import CHANNELS, LiveView
 
 ROOT = Path(__file__).resolve().parent.parent
 SCRIPT = ROOT / "scripts" / "run_experiment.sh"

@@ -64,7 +64,7 @@ def record(factories: dict[str, Callable[[], Any]], mode: str) -> dict[str, Any]
     from rclpy.node import Node
     from rclpy.parameter import Parameter
 
-    from pdsmc_ros.nodes.realtime_params import loop_reports
+    from pdsmc_ros.loop.realtime_params import loop_reports
 
     notes: dict[str, dict[str, Any]] = {}
     current: list[str] = []
@@ -142,12 +142,12 @@ def record(factories: dict[str, Callable[[], Any]], mode: str) -> dict[str, Any]
 
 def factories() -> dict[str, Callable[[], Any]]:
     """The node wrappers each executable of the package builds (``setup.py``'s console scripts)."""
-    from pdsmc_ros.nodes.controller import ControllerNode
-    from pdsmc_ros.nodes.mujoco_driver import MujocoDriverNode
-    from pdsmc_ros.nodes.plant import PlantNode
-    from pdsmc_ros.nodes.recorder import RecorderNode
-    from pdsmc_ros.nodes.trajectory import TrajectoryNode
-    from pdsmc_ros.nodes.viewer import ViewerNode
+    from pdsmc_ros.controller.node import ControllerNode
+    from pdsmc_ros.mujoco_driver.node import MujocoDriverNode
+    from pdsmc_ros.plant.node import PlantNode
+    from pdsmc_ros.recorder.node import RecorderNode
+    from pdsmc_ros.trajectory.node import TrajectoryNode
+    from pdsmc_ros.viewer.node import ViewerNode
 
     return {"plant": PlantNode, "trajectory": TrajectoryNode, "controller": ControllerNode,
             "recorder": RecorderNode, "viewer": ViewerNode, "mujoco_driver": MujocoDriverNode}

@@ -12,9 +12,10 @@ import argparse
 import sys
 from collections.abc import Callable, Sequence
 
-from .. import __version__, rt_check
+from .. import __version__
 from ..arguments import EXIT_FAILURE, EXIT_USAGE, OneLineParser
 from ..errors import InvalidInputError, PdsmcError
+from ..loop import rt_check
 from . import analyze, check_gains, compare, montecarlo, reproduce, simulate, sweep, tune
 from .options import spec_from_args
 

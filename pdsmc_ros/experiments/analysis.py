@@ -19,13 +19,13 @@ from typing import Any
 import numpy as np
 
 from ..bag.graph import GraphRun, read_graph_run
+from ..bag.loop_statistics import format_loop_statistics, loop_report_lines
 from ..bag.reader import RecordedRun, read_run, run_metrics
 from ..control import LAWS
-from ..control.safety import DivergenceCheck
 from ..errors import BagError, ConfigError, InvalidInputError
 from ..metrics import Metrics
-from ..runtime.statistics import format_loop_statistics, loop_report_lines
 from ..scores import DEFAULT_CUTOFF_HZ
+from ..sim.divergence import DivergenceCheck
 from .goals import DEFAULT_SETTLE_BAND, GoalFigures, late_periods, nominal_period, run_goal_figures
 
 
@@ -331,7 +331,7 @@ def analyze_graph_bag(path: str | Path, *, robot: str | None = None,
     InvalidInputError
         If ``robot`` names no arm or ``settle_band`` is not positive.
     """
-    from ..runtime.statistics import bag_loop_statistics
+    from ..bag.loop_statistics import bag_loop_statistics
 
     path = Path(path)
     run = read_graph_run(path)

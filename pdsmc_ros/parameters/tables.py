@@ -18,13 +18,14 @@ from collections.abc import Collection
 from typing import Any
 
 from ..control.registry import GAINS, law_names
-from ..control.safety import DEFAULT_K_POSITION, MAX_SAFE_DAMPING, MAX_SAFE_STIFFNESS, SAFE_MODES, SOFT_VELOCITY_BAND
+from ..control.soft_limits import DEFAULT_K_POSITION, SOFT_VELOCITY_BAND
 from ..control.stability import MODES
-from ..live_view import DEFAULT_DISPLAY_RATE
-from ..runtime.commanding import DEFAULT_RUNAWAY_POSITION_MARGIN, DEFAULT_RUNAWAY_VELOCITY_FACTOR, RUNAWAY_STOPS
-from ..runtime.goal import STOPPED_VELOCITY_TOLERANCE
-from ..runtime.limits import START_TOLERANCE
-from ..runtime.realtime import AUTO_BUSY_WAIT, DEFAULT_PRIORITY, MAX_PRIORITY, PLANT_PRIORITY, TRAJECTORY_PRIORITY
+from ..controller.commanding import DEFAULT_RUNAWAY_POSITION_MARGIN, DEFAULT_RUNAWAY_VELOCITY_FACTOR, RUNAWAY_STOPS
+from ..controller.goals import STOPPED_VELOCITY_TOLERANCE
+from ..controller.limits import START_TOLERANCE
+from ..loop.realtime import AUTO_BUSY_WAIT, DEFAULT_PRIORITY, MAX_PRIORITY, PLANT_PRIORITY, TRAJECTORY_PRIORITY
+from ..sim.safe_mode import MAX_SAFE_DAMPING, MAX_SAFE_STIFFNESS, SAFE_MODES
+from ..viewer.live_view import DEFAULT_DISPLAY_RATE
 from .declaration import JOINT, ParameterSpec
 
 P = ParameterSpec
@@ -36,7 +37,7 @@ hands the same file to each)."""
 LOOKAHEAD_STEPS = 500
 """The trajectory's ``lookahead_steps`` default (lockstep: 50 ms at 10 kHz)."""
 MAX_LOOKAHEAD_STEPS = 5000
-"""Half the depth of the lockstep streams' queues (:data:`pdsmc_ros.nodes.topics.STREAM_DEPTH`)."""
+"""Half the depth of the lockstep streams' queues (:data:`pdsmc_ros.ros.topics.STREAM_DEPTH`)."""
 
 
 def _scenarios() -> tuple[str, ...]:
@@ -196,7 +197,7 @@ VIEWER = (
 def realtime_parameters(priority: int = DEFAULT_PRIORITY) -> tuple[ParameterSpec, ...]:
     """The real-time settings of a ticking node, named as ros2_control's (applied once, before the
     loop starts: read-only). Their defaults depend on the mode (:meth:`RealtimeSettings.for_mode
-    <pdsmc_ros.runtime.realtime.RealtimeSettings.for_mode>`): the node gives them when it declares."""
+    <pdsmc_ros.loop.realtime.RealtimeSettings.for_mode>`): the node gives them when it declares."""
     return (
         P("thread_priority", "int", 0,
           f"SCHED_FIFO priority of the loop's thread, 1-{MAX_PRIORITY} (0: normal scheduling; default {priority} in "

@@ -17,10 +17,11 @@ from numba import njit
 
 from ..control.dispatch import law_torque
 from ..control.law import ControlLaw
-from ..control.safety import DivergenceCheck, effort_only_table, soft_limit, watch
+from ..control.soft_limits import effort_only_table, soft_limit
 from ..kernel_options import ALLOCATION_FREE
 from ..robots import compiled as robot_compiled
 from ..robots.base import FloatArray, Manipulator
+from .divergence import DivergenceCheck, watch
 from .rk4 import carve, rk4_advance
 
 
@@ -155,8 +156,8 @@ def run_loop(
         Sampling of the outputs, in control steps.
     torque_limit : ndarray, shape (6, n), optional
         The controller's output limits applied to the law's torque at every step
-        (:func:`~pdsmc_ros.control.safety.soft_limit`, the controller node's; a table of
-        :func:`~pdsmc_ros.control.safety.soft_limit_table`); None: not limited.
+        (:func:`~pdsmc_ros.control.soft_limits.soft_limit`, the controller node's; a table of
+        :func:`~pdsmc_ros.control.soft_limits.soft_limit_table`); None: not limited.
     check : DivergenceCheck, optional
         Checks the state at every statistics instant (every ``sample_every``-th step: at every
         step it cost the serial arm's loop about 8 %): the run stops at the first instant whose

@@ -16,7 +16,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ..control.law import ControlLaw
-from ..control.safety import effort_only_table
+from ..control.soft_limits import effort_only_table
 from ..control.stability import check_rate
 from ..metrics import Metrics, RunStatistics, Samples, build_samples
 from ..presets import RunSpec, control_steps
@@ -73,7 +73,7 @@ def simulate(spec: RunSpec, *, check_stability: bool = True, plant: Manipulator 
 
     The law's torque is clamped to the arm's effort limits (``robot.effort_limits``) at every
     step unless ``spec.enforce_limits`` is False; the metrics count the saturated periods. A run
-    whose state diverges (:class:`~pdsmc_ros.control.safety.DivergenceCheck`) stops there: its
+    whose state diverges (:class:`~pdsmc_ros.sim.divergence.DivergenceCheck`) stops there: its
     samples from then on are NaN (so are the statistics) and :attr:`RunResult.diverged` says why.
 
     Raises

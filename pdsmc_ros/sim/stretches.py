@@ -16,11 +16,12 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ..control.law import ControlLaw
-from ..control.safety import DivergenceCheck, effort_only_table
+from ..control.soft_limits import effort_only_table
 from ..metrics import Metrics, RunStatistics, build_samples
 from ..presets import RunSpec, control_steps
 from ..robots.base import Manipulator
 from ..trajectories import JointReference
+from .divergence import DivergenceCheck
 from .loop import LoopOutcome, run_loop
 
 STRETCH_STEPS = 1 << 13

@@ -3,11 +3,11 @@
 The plant node decodes messages, publishes and logs; this class decides. In
 lockstep the plant steps once per effort command of the current step; in real
 time it steps at the control rate with the latest effort. When its controller
-is lost (:class:`~pdsmc_ros.control.safety.Watchdog`) it applies the safe torque
-(:func:`~pdsmc_ros.control.safety.safe_torque`) until a controller answers
+is lost (:class:`~pdsmc_ros.sim.safe_mode.Watchdog`) it applies the safe torque
+(:func:`~pdsmc_ros.sim.safe_mode.safe_torque`) until a controller answers
 again, or ends the run (``on_loss == "end"``). The torque it applies is clamped to the arm's
 effort limits (``limit``: a drive saturates; None opts out). After every step it checks the
-state (:class:`~pdsmc_ros.control.safety.DivergenceCheck`): the first crossing of each joint's
+state (:class:`~pdsmc_ros.sim.divergence.DivergenceCheck`): the first crossing of each joint's
 position and velocity limit is a warning; a non-finite or runaway state ends the run with
 :attr:`SupervisedPlant.failure` set (nothing more is integrated).
 """
@@ -18,9 +18,10 @@ from collections.abc import Callable
 
 import numpy as np
 
-from ..control.safety import DivergenceCheck, SafetyConfig, Watchdog, check_effort, safe_torque
 from ..robots.base import FloatArray
+from .divergence import DivergenceCheck
 from .plant import PlantStepper
+from .safe_mode import SafetyConfig, Watchdog, check_effort, safe_torque
 
 MAX_CATCH_UP = 100  # real time: periods a late tick integrates at most besides its own
 # lockstep: the first state goes out again at this period until a controller answers it. A

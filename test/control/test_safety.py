@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import pytest
 
-from pdsmc_ros.control.safety import Staleness, Watchdog
+from pdsmc_ros.controller.commanding import Staleness
+from pdsmc_ros.sim.safe_mode import Watchdog
 
 RATE = 1000.0
 
@@ -81,7 +82,7 @@ def test_an_old_reference_alone_is_stale() -> None:
 
 
 def test_lockstep_pairing_pairs_by_step_and_drops_skipped_references() -> None:
-    from pdsmc_ros.runtime.commanding import LockstepPairing
+    from pdsmc_ros.controller.commanding import LockstepPairing
 
     pairing = LockstepPairing(rate=100.0, last_step=10)
     for step in range(6):  # the trajectory sends references ahead: nothing to pair yet
@@ -106,7 +107,7 @@ def test_lockstep_pairing_takes_a_window_sent_again_from_before_the_first_refere
     (steps 3.. arrived, 0-2 were sent before): the window sent again when the plant offers its
     first state again pairs step 0 (before, the references before the first received were dropped
     as too late, and the run waited for step 0's effort until it timed out)."""
-    from pdsmc_ros.runtime.commanding import LockstepPairing
+    from pdsmc_ros.controller.commanding import LockstepPairing
 
     pairing = LockstepPairing(rate=100.0, last_step=10)
     for step in range(3, 6):
@@ -121,7 +122,7 @@ def test_lockstep_pairing_takes_a_window_sent_again_from_before_the_first_refere
 
 
 def test_tick_timing_periods_are_between_tick_starts_and_misses_count() -> None:
-    from pdsmc_ros.runtime.commanding import TickTiming
+    from pdsmc_ros.loop.statistics import TickTiming
 
     timing = TickTiming(period=0.001)
     first = timing.start(0.0)

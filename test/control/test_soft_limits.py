@@ -1,6 +1,6 @@
 """The controller's output limits: ros2_control's soft limits of an effort command (issue 37).
 
-The kernel (:func:`pdsmc_ros.control.safety.soft_limit`) against the rule re-stated from
+The kernel (:func:`pdsmc_ros.control.soft_limits.soft_limit`) against the rule re-stated from
 ros2_control's ``joint_limits`` (ROS 1's ``EffortJointSoftLimitsHandle::enforceLimits``), its
 boundary cases, ``np.clip`` where limits are unknown, and a closed loop that it keeps below the
 arm's velocity limit where the bare law drives far past it.
@@ -16,7 +16,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from pdsmc_ros.control import ControlLaw
-from pdsmc_ros.control.safety import (
+from pdsmc_ros.control.soft_limits import (
     SOFT_VELOCITY_BAND,
     effort_only_table,
     robot_soft_limits,

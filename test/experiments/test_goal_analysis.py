@@ -28,7 +28,7 @@ from std_msgs.msg import String  # noqa: E402
 
 from pdsmc_ros.bag.writer import MessageAppender, flush_chunk, open_new_bag  # noqa: E402
 from pdsmc_ros.experiments.analysis import analyze_graph_bag, goal_table  # noqa: E402
-from pdsmc_ros.nodes.graph_types import type_definition  # noqa: E402
+from pdsmc_ros.recorder.graph_types import type_definition  # noqa: E402
 from pdsmc_ros.robots.registry import make_robot  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from pdsmc_ros.control.safety import SafetyConfig, Watchdog
 from pdsmc_ros.robots import Serial3R, make_robot
 from pdsmc_ros.sim import PlantStepper
+from pdsmc_ros.sim.safe_mode import SafetyConfig, Watchdog
 from pdsmc_ros.sim.supervised import FIRST_STATE_RESEND_S, MAX_CATCH_UP, SupervisedPlant
 
 RATE = 1000.0

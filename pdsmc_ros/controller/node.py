@@ -1,0 +1,227 @@
+"""Controller node: PD, SMC or PD-SMC (any registered law), selected with ``-p type:=pdsmc``.
+
+A managed (lifecycle) node, configured and activated at start unless ``autostart:=false``.
+In: ``/joint_states`` and three reference sources, ``/reference`` (one point per step),
+``~/joint_trajectory`` (JointTrajectory, as joint_trajectory_controller) and the action
+``~/follow_joint_trajectory`` (:mod:`.action`, served by a node of its own
+in a thread of its own); whichever spoke last drives. Real time: on activation, and after
+a goal is canceled or aborted, the controller holds the position it measures (through the
+chosen law); a trajectory's time is the node clock (``header.stamp``, or the reception
+time when zero). Joints by name (``joints``, any order, mapped onto the robot's). Out:
+torques on ``/effort_controller/commands`` (``data[i]`` for ``joints[i]``, within the arm's soft
+limits: :mod:`.parameters`), ``~/controller_state``, ``/pdsmc/run_description`` (latched) and
+``/diagnostics``. Real time: a joint running away (beyond its velocity limit by
+``runaway.velocity_factor``, beyond a position limit) aborts the active goal and latches a stop
+until the next activation; the node then exits 1. Lockstep pairs the state and the reference of each step (no hold: the
+plant waits for its command). Stopping (signal, lifecycle, stale inputs) publishes one zero command.
+A law with internal state (an integrator: ``sta``, ``ismc``) starts from zero at each activation
+and integrates it once per command with the nominal period ``1 / rate`` (not the measured one).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import sys
+from collections.abc import Sequence
+
+from rclpy.duration import Duration
+from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
+from rclpy.serialization import deserialize_message
+from sensor_msgs.msg import JointState
+from std_msgs.msg import String
+from trajectory_msgs.msg import JointTrajectory
+
+from ..control import Gains
+from ..control.stability import check_rate
+from ..loop.inputs import Inputs, Times
+from ..loop.lifecycle import EXIT_FAILURE, EXIT_OK, WATCH_GRACE_S, CommandingEntity, end_when_plant_leaves
+from ..loop.log import LoopLog
+from ..loop.process import run_node
+from ..loop.statistics import TickTiming
+from ..parameters.run import declare_node_run, description_json
+from ..ros import topics
+from ..ros.diagnostics import Diagnostics, InputReport
+from ..ros.publishers import EffortOutput, RowBatches
+from .action import FollowJointTrajectoryServer, topic_trajectory
+from .commanding import Paired, TorqueGuard
+from .core import ControllerCore
+from .joints import JointSelector
+from .limits import JointLimits
+from .parameters import GainUpdates, check_gains, declare_controller_parameters, declare_limit_parameters
+
+GOAL_BATCH_S = 0.002  # ~/joint_trajectory is looked at every 2 ms
+STOP_ACK_S = 0.5  # how long a stopping controller waits for its zero command to be acknowledged
+
+
+class ControllerNode(CommandingEntity):
+    """Wiring around :class:`~pdsmc_ros.controller.core.ControllerCore` (the decisions:
+    inputs, holds, goals, the law's torque): parameters, topics, logs and the lifecycle."""
+
+    def __init__(self) -> None:
+        self.node = node = LifecycleNode("controller")
+        run = declare_node_run(node, gains=True)
+        self.mode, self.busy_wait, self.lockstep = run.mode, run.busy_wait, run.mode == "lockstep"
+        robot = run.spec.robot_model()
+        self.params = params = declare_controller_parameters(node, robot)
+        self.joint_map = params.joint_map
+        # the description says whether the clamp runs, so simulate(spec) of the bag repeats the run
+        spec = dataclasses.replace(run.spec, enforce_limits=params.enforce_limits)  # gains in robot order
+        soft_table, runaway = declare_limit_parameters(node, robot, params, 1.0 / spec.rate, self.lockstep,
+                                                       spec.reference().sample([0.0]).q[0])
+        self.guard = TorqueGuard(soft_table)
+        self.limits_report = Diagnostics(node, "controller: limits", spec.robot)
+        self.loop_log = LoopLog(node)  # lines of the loop's thread, written by the executor's
+        self.core = core = ControllerCore(
+            spec, JointSelector(robot.joint_names), self.joint_map,  # the law's vectors stay in robot order
+            JointLimits.of(robot, robot.joint_names) if params.enforce_limits else None, self.guard,
+            params.stale_periods / spec.rate, self.lockstep,
+            lambda why: self.loop_log.info(f"holding the measured position ({why})"),
+            runaway=runaway, on_runaway=self.on_runaway, goal_settings=params.goal_settings)
+        check_gains(lambda new: check_rate(new, core.reference, **run.stability), spec)  # refuse gains unstable here
+        # gains: the on-set callback checks a change is stable at the running rate, the post-set one applies it
+        self.gain_updates = GainUpdates(node, spec, lambda new: check_rate(new, core.reference, **run.stability),
+                                        self.apply_gains, joint_map=self.joint_map)
+        self.active = self.done = False  # commanding; the run is over
+        self.exit_code = EXIT_OK
+
+        self.effort = EffortOutput(node, topics.TOPIC_EFFORT, robot.n, self.guard, log=self.loop_log)
+        self.report_input = InputReport(Diagnostics(node, "controller: inputs", spec.robot,
+                                                    values=lambda: {"joints": ",".join(self.params.joints)}))
+        self.inputs = Inputs(node, self.mode)
+        self.inputs.subscribe(JointState, topics.TOPIC_JOINT_STATES, self.on_state)
+        self.inputs.subscribe(JointTrajectory, topics.TOPIC_REFERENCE, self.on_reference)
+        # off the loop's path: a goal is rare, and an input taken at every pass of the loop costs a take per pass;
+        # real time: taken and validated by the action server's thread, never the loop's
+        goals = self.observed_inputs = Inputs(node, self.mode, batch_s=GOAL_BATCH_S, suffix="_goals")
+        if self.lockstep:
+            goals.subscribe(JointTrajectory, topics.TOPIC_JOINT_TRAJECTORY, self.on_goals, topics.TRAJECTORY_QOS,
+                            with_receipt=True)
+        description = String(data=description_json(spec, self.mode))
+        node.create_publisher(String, topics.TOPIC_DESCRIPTION, topics.LATCHED_QOS).publish(description)
+        if not self.lockstep:
+            self.period = 1.0 / spec.rate  # run_node paces tick() at this period
+            self.timing = TickTiming(self.period)
+            self.timing_rows = RowBatches(node, topics.TOPIC_TIMING, ("tick", "field"), TickTiming.FIELDS, batch=50)
+            self.plant_watch = end_when_plant_leaves(self, lambda: core.states_received)
+        node.add_managed_entity(self)
+        # the action server: a node of its own spun by a thread of its own, never by the loop's executor
+        self.action = FollowJointTrajectoryServer(self)
+        if params.autostart:
+            node.trigger_configure()
+            node.trigger_activate()
+        waiting = "" if params.autostart else "; unconfigured until configure and activate"
+        node.get_logger().info(f"{spec.controller} controller for {spec.robot}/{spec.contour}, {self.mode}, "
+                               f"{spec.rate:g} Hz, joints {list(params.joints)}{waiting}")
+
+    def on_runaway(self, why: str) -> None:
+        """The runaway guard tripped (the loop's thread): reported, and the run fails."""
+        stop = self.core.runaway.stop if self.core.runaway is not None else ""
+        self.limits_report.report("error", f"{why}: active goal aborted, {stop} stop until the controller is "
+                                           "deactivated and activated again")
+        self.exit_code = EXIT_FAILURE
+
+    def configure(self) -> None:
+        self.core.configure()  # the law's kernel and the path from a message to a command, warmed up
+
+    def on_activate(self, state: LifecycleState) -> TransitionCallbackReturn:
+        self.core.activate()
+        return super().on_activate(state)
+
+    def on_deactivate(self, state: LifecycleState) -> TransitionCallbackReturn:
+        self.core.goals.end("Current goal cancelled during deactivate transition.")  # as joint_trajectory_controller
+        return super().on_deactivate(state)
+
+    def cleanup(self) -> None:
+        self.core.law = None
+
+    def apply_gains(self, gains: Gains) -> None:
+        self.core.apply_gains(self.gain_updates.spec)
+        self.node.get_logger().info(f"gains changed: {gains.as_dict()}")
+
+    # -- inputs --------------------------------------------------------------- #
+    def on_state(self, data: bytes) -> None:
+        paired, problem = self.core.add_state(data, topics.TOPIC_JOINT_STATES)
+        if problem is not None or self.report_input.problem is not None:
+            self.report_input(problem)  # a problem, or complete inputs again
+        self.compute(paired)
+
+    def on_reference(self, data: bytes) -> None:
+        paired, problem = self.core.add_reference(data, topics.TOPIC_REFERENCE)
+        if problem:
+            self.report_input(problem)
+        self.compute(paired)
+
+    def now(self) -> float:
+        """The controller's time (s): the lockstep state's sim time, else the node's clock."""
+        return self.core.sim_time() if self.lockstep else self.node.get_clock().now().nanoseconds * 1e-9
+
+    def on_goals(self, batch: list[tuple[bytes, Times]]) -> None:
+        """Lockstep: trajectory goals taken in a batch, each replacing the previous one, in order."""
+        for data, times in batch:
+            try:
+                msg = deserialize_message(data, JointTrajectory)
+            except Exception as exc:  # noqa: BLE001 - any malformed message: refused, never fatal
+                self.action.report.report("error", f"{topics.TOPIC_JOINT_TRAJECTORY}: malformed message ({exc})")
+                continue
+            if topic_trajectory(self, msg, times):
+                self.compute(self.core.pairing.take())
+
+    def compute(self, paired: Paired | None) -> None:
+        """Lockstep: the torque of a state paired with its reference."""
+        if paired is not None:
+            step, q, qd, ref = paired
+            tau = self.core.command(step / self.core.spec.rate, q, qd, ref) if self.active else None
+            if self.core.limit_note:
+                self.node.get_logger().warn(self.core.limit_note)
+            if tau is not None:
+                self.effort.publish(self.joint_map.to_user(tau), step)
+            self.done = self.core.pairing.finished
+
+    def stop_commanding(self, why: str) -> bool:
+        return self.effort.stop(why, self.core.pairing.stop_step if self.lockstep else 0)
+
+    def tick(self, lateness: float) -> None:
+        """Real time: a torque from the latest inputs (a goal checked against its tolerances),
+        its timing recorded; then (rarely) a look at whether the plant is there."""
+        now = self.timing.start(lateness)
+        if self.active:
+            tau, change = self.core.realtime_command(now, self.now)
+            if change == "stale":
+                self.loop_log.error(f"state or reference older than {self.params.stale_periods} periods")
+                self.stop_commanding("inputs stale")
+            elif change == "fresh":
+                self.loop_log.info("fresh state and reference again: output resumed")
+            if self.core.limit_note:
+                self.loop_log.warn(self.core.limit_note)
+            if tau is not None:
+                with self.effort.lock:
+                    if self.active:
+                        self.effort.publish(self.joint_map.to_user(tau), 0)
+                self.timing_rows.add(self.timing.row(now, lateness))
+        self.plant_watch.poll(grace=WATCH_GRACE_S)  # only if the loop had no spare time for it
+
+    def idle(self, until: float) -> None:
+        """Real time, in the loop's spare time after a tick: the action's feedback, the controller
+        state and a look at whether the plant is there."""
+        self.action.publish(until)
+        self.plant_watch.poll()
+
+    def close(self) -> None:
+        """Stopping (signal, end of run): a zero command unless the lockstep run is complete."""
+        self.action.stop()
+        if not self.lockstep:
+            self.timing_rows.flush()
+        if self.guard.clamped:
+            saturated = self.joint_map.to_user(self.guard.joint_saturated).tolist()
+            self.node.get_logger().warn(f"torque limited by the soft limits in {self.guard.clamped} periods (at "
+                                        f"the effort limit, per joint: {dict(zip(self.params.joints, saturated))})")
+        if not self.core.pairing.finished and self.stop_commanding("stopping"):  # complete: the plant has ended
+            self.effort.pub.publisher.wait_for_all_acked(Duration(nanoseconds=int(STOP_ACK_S * 1e9)))
+
+
+def main(args: Sequence[str] | None = None) -> int:
+    return run_node("controller", ControllerNode, args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,199 @@
+"""The controller's own parameters (besides the run's), validated at start, its output limits
+and its gains changed at run time.
+
+* :func:`declare_controller_parameters` -- ``joints`` (by name, any order: the order of the
+  command's ``data``, of gains and torque limits given as parameters and of every per-joint
+  output), ``autostart``, ``torque_limit``, ``enforce_limits``, ``stale_periods``, the action's
+  default tolerances (``constraints.goal_time``, ``constraints.stopped_velocity_tolerance``,
+  ``constraints.<joint>.trajectory`` and ``.goal``) and how trajectories are taken
+  (``cmd_timeout``, ``allow_partial_joints_goal``, ``allow_nonzero_velocity_at_trajectory_end``,
+  ``allowed_start_tolerance``, ``reject_beyond_limits``), as joint_trajectory_controller names
+  them: declared once in :data:`~pdsmc_ros.parameters.CONTROLLER` (read-only: a running
+  controller does not re-read them).
+* :func:`declare_limit_parameters` -- the output limits: ``soft_limits.k_position`` and
+  ``soft_limits.k_velocity`` are ros2_control's soft-limit gains
+  (:func:`pdsmc_ros.control.soft_limits.soft_limit`); ``runaway.velocity_factor``,
+  ``runaway.position_margin`` and ``runaway.stop`` set the runaway guard
+  (:class:`pdsmc_ros.controller.commanding.RunawayGuard`). All are read at start (read-only),
+  and none applies with ``enforce_limits:=false``.
+* :class:`GainUpdates` -- gains changed at run time (``ros2 param set``): the on-set callback
+  validates a change (the run it gives must pass the stability check), the post-set callback
+  applies it.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from rcl_interfaces.msg import SetParametersResult
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+
+from ..control import GAINS, Gains
+from ..control.soft_limits import effort_only_table, robot_soft_limits
+from ..errors import ConfigError, InvalidInputError, PdsmcError
+from ..parameters import CONTROLLER, OUTPUT_LIMITS
+from ..parameters.ros import declare, value_of
+from ..presets import RunSpec, resolve_gains
+from ..robots.base import FloatArray, Manipulator
+from .commanding import RunawayGuard
+from .goals import GoalSettings, Tolerances
+from .joint_map import JointMap
+from .joint_trajectory import TrajectoryRules
+
+
+@dataclass(frozen=True)
+class ControllerParameters:
+    """The controller's own parameters, validated; vectors in ``joints`` order."""
+
+    joint_map: JointMap
+    autostart: bool
+    torque_limit: np.ndarray | None  # the clamp (joints order): torque_limit, else the arm's; None: opt-out
+    enforce_limits: bool
+    stale_periods: int
+    goal_settings: GoalSettings  # trajectories and goals: JTC's parameters, the default tolerances (robot order)
+
+    @property
+    def joints(self) -> tuple[str, ...]:
+        return self.joint_map.joints
+
+
+def declare_controller_parameters(node: Node, robot: Manipulator) -> ControllerParameters:
+    """Declare the controller's parameters (if :func:`~pdsmc_ros.parameters.run.declare_node_run` has not) and return
+    them validated; a ConfigError naming the parameter if bad (an unknown joint name lists the robot's)."""
+    values = declare(node, CONTROLLER, defaults={"joints": list(robot.joint_names)})
+    joint_map = JointMap(robot.joint_names, values["joints"])
+    limit = values["torque_limit"]
+    if limit is not None and len(limit) != robot.n:
+        raise ConfigError(f"parameter torque_limit needs {robot.n} values > 0 (N m), one per joint, got {limit}")
+    limit = None if limit is None else np.asarray(limit, dtype=float)
+    if not values["enforce_limits"]:
+        if limit is not None:
+            node.get_logger().warn("enforce_limits is false: torque_limit is not applied")
+        limit = None
+    elif limit is None:
+        effort = getattr(robot, "effort_limits", None)
+        limit = None if effort is None else joint_map.to_user(np.asarray(effort, dtype=float))
+    per_joint = {kind: joint_map.to_robot([values[f"constraints.{joint}.{kind}"] for joint in joint_map.joints])
+                 for kind in ("trajectory", "goal")}
+    defaults = Tolerances.defaults(robot.n, stopped_velocity=values["constraints.stopped_velocity_tolerance"],
+                                   goal_time=values["constraints.goal_time"], trajectory=per_joint["trajectory"],
+                                   goal=per_joint["goal"])
+    rules = TrajectoryRules(values["allow_partial_joints_goal"], values["allow_nonzero_velocity_at_trajectory_end"])
+    try:
+        settings = GoalSettings(rules, defaults, values["cmd_timeout"], values["allowed_start_tolerance"],
+                                values["reject_beyond_limits"])
+    except ValueError as exc:
+        raise ConfigError(f"parameter {exc}") from None
+    return ControllerParameters(joint_map, values["autostart"], limit, values["enforce_limits"],
+                                values["stale_periods"], settings)
+
+
+def declare_limit_parameters(node: Node, robot: Manipulator, params: ControllerParameters, period: float,
+                             lockstep: bool, start_q: FloatArray) -> tuple[FloatArray | None, RunawayGuard | None]:
+    """Declare the output-limit parameters; the output-limit table (robot order) and the runaway
+    guard, each None with ``enforce_limits:=false``.
+
+    Real time: the soft limits about the run's start configuration ``start_q``
+    (:func:`~pdsmc_ros.control.soft_limits.robot_soft_limits`) and the runaway guard. Lockstep: the
+    effort clamp alone, as the in-process simulator runs (a lockstep run is a simulation whose
+    divergence test must see an unstable law run away: soft limits would hold it at the velocity
+    limit), and no runaway guard.
+
+    Raises
+    ------
+    ConfigError
+        A value out of range or of the wrong type, naming the parameter.
+    """
+    values = declare(node, OUTPUT_LIMITS)  # read-only; each of its type and in its bounds
+    k_position, k_velocity = values["soft_limits.k_position"], values["soft_limits.k_velocity"]
+    factor, margin, stop = values["runaway.velocity_factor"], values["runaway.position_margin"], values["runaway.stop"]
+    if k_velocity is not None and len(k_velocity) != robot.n:
+        raise ConfigError(f"parameter soft_limits.k_velocity must be {robot.n} numbers >= 0 (N m s/rad, joints order) "
+                          f"or empty, got {k_velocity!r}")
+    if not params.enforce_limits:
+        return None, None
+    joint_map = params.joint_map
+    effort = (np.asarray(robot.effort_limits, dtype=float) if params.torque_limit is None
+              else joint_map.to_robot(params.torque_limit))
+    if lockstep:
+        return effort_only_table(effort, robot.n), None
+    gains = None if not k_velocity else joint_map.to_robot([float(v) for v in k_velocity])
+    try:
+        table = robot_soft_limits(robot, start_q, 1.0 / period, k_position=float(k_position),
+                                  k_velocity=gains, effort=effort)
+    except InvalidInputError as exc:
+        raise ConfigError(f"parameter {exc}") from None
+    runaway = RunawayGuard(robot.joint_names, robot.position_limits, robot.velocity_limits, effort,
+                           inertia=lambda q: np.diag(robot.mass_matrix(q)), period=period,
+                           velocity_factor=float(factor), position_margin=float(margin),
+                           stop=str(stop))
+    return table, runaway
+
+
+def check_gains(check: Callable[[RunSpec], object], spec: RunSpec) -> None:
+    """``check(spec)`` (the stability check), anything it raises besides the package's own errors
+    (a ``LinAlgError`` of gains of 1e308) a ConfigError naming the gains: at start-up a one-line
+    error, on a set a refusal."""
+    try:
+        check(spec)
+    except PdsmcError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - numpy's, numba's: what the check could not foresee
+        raise ConfigError(f"gains {spec.gains.as_dict()} cannot be checked for stability "
+                          f"({type(exc).__name__}: {exc})") from None
+
+
+class GainUpdates:
+    """Run-time gain changes, ros2/demos style: the on-set callback validates, the
+    post-set callback applies.
+
+    A change is resolved as at start-up, by the one resolver
+    (:func:`~pdsmc_ros.presets.resolve_gains`: the presets, the gains given as parameters with
+    the change, in ``joints`` order, then the scenario's factors), and passes exactly the checks
+    of start-up (:meth:`Gains.from_mapping`'s and the zero-order-hold stability check at the
+    running rate, ``check``) or is refused with the reason (``ros2 param set`` shows it: for an
+    unstable gain, the lowest stable rate). Whatever the check raises (a ``LinAlgError`` of gains
+    of 1e308) is a refusal, never an exception in the executor. ``apply`` receives the accepted
+    gains only after the parameters are set, from the post-set callback.
+    """
+
+    def __init__(self, node: Node, spec: RunSpec, check: Callable[[RunSpec], object],
+                 apply: Callable[[Gains], None], *, joint_map: JointMap | None = None) -> None:
+        self.spec = spec
+        self.check = check
+        self.apply = apply
+        self.joint_order = None if joint_map is None else joint_map.user_of
+        # the gains given as parameters at start (-p, params files), in joints order
+        self.given: dict[str, Any] = {name: value_of(node, name) for name in GAINS if value_of(node, name) is not None}
+        self.pending: tuple[Gains, dict[str, Any]] | None = None
+        node.add_on_set_parameters_callback(self.validate)
+        node.add_post_set_parameters_callback(self.applied)
+
+    def validate(self, params: Sequence[Parameter]) -> SetParametersResult:
+        self.pending = None
+        changes = {p.name: p.value for p in params if p.name in GAINS}
+        if not changes:
+            return SetParametersResult(successful=True)
+        given = {**self.given, **changes}
+        spec = self.spec
+        try:
+            gains = resolve_gains(spec.robot, spec.contour, spec.controller, scenario=spec.scenario,
+                                  layers=[given], joint_order=self.joint_order)
+            check_gains(self.check, dataclasses.replace(spec, gains=gains))
+        except Exception as exc:  # noqa: BLE001 - a refusal with the reason, never an escape into the executor
+            reason = str(exc) if isinstance(exc, PdsmcError) else f"{', '.join(changes)}: {type(exc).__name__}: {exc}"
+            return SetParametersResult(successful=False, reason=" ".join(reason.split()))
+        self.pending = (gains, given)
+        return SetParametersResult(successful=True)
+
+    def applied(self, params: Sequence[Parameter]) -> None:
+        if self.pending is None or not any(p.name in GAINS for p in params):
+            return
+        (gains, self.given), self.pending = self.pending, None
+        self.spec = dataclasses.replace(self.spec, gains=gains)
+        self.apply(gains)

@@ -1,0 +1,179 @@
+"""The serve loop: one or several nodes in a process, lockstep or paced in real time."""
+
+from __future__ import annotations
+
+import signal
+import sys
+import time
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import rclpy
+from rclpy.duration import Duration
+from rclpy.exceptions import (
+    InvalidParameterTypeException,
+    ParameterException,
+)
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+
+from ..errors import InvalidInputError, PdsmcError
+from ..parameters.overrides import check_overrides, warn_unknown_arguments
+from . import intra
+from .group import NodeGroup
+from .inputs import Inputs
+from .lifecycle import DRAIN_TIMEOUT_S, EXIT_BAD_INPUT, EXIT_FAILURE, EXIT_OK, arm_teardown_watch
+from .realtime_params import LoopReport, loop_reports
+from .serve import LocalInputs, serve_loop
+
+
+def run_node(
+    name: str,
+    factory: Callable[[], Any],
+    args: Sequence[str] | None,
+) -> int:
+    """``main()`` body shared by the nodes (ros2/demos style).
+
+    ``factory`` builds the node after ``rclpy.init``; a ConfigError or
+    InvalidInputError while building it is one line on stderr and exit 2.
+    The node object must offer ``node`` (the rclpy Node), ``done`` and
+    ``exit_code`` attributes and may define ``close()``, ``period`` and ``tick()``.
+    """
+    return run_nodes(name, [factory], args)
+
+
+def run_nodes(
+    name: str,
+    factories: Sequence[Callable[[], Any]],
+    args: Sequence[str] | None,
+    *,
+    intra_process: bool = False,
+) -> int:
+    """Run one or several node wrappers in this process with one executor.
+
+    Several wrappers make the composed mode (the nodes stay separate rclpy
+    nodes, as in a component container). They are closed in reverse order of
+    creation, so a recorder created first is closed last. ``intra_process``
+    hands the loop's messages between them without DDS (:mod:`.intra`).
+    """
+    rclpy.init(args=args)
+    wrappers: list[Any] = []
+    reports: list[LoopReport] = []  # the real-time settings and loop statistics of each loop node
+    executor: SingleThreadedExecutor | None = None
+    domain = intra.IntraProcess(rclpy.get_default_context()) if intra_process else None
+    code = EXIT_OK
+    # our handlers from the start: a signal arriving while rclpy builds a node or the executor
+    # would otherwise interrupt its __init__ (and rclpy's __del__ of the half-built object
+    # prints a traceback); it is noted here and ends the loop as soon as the loop starts
+    signalled = _SignalNote()
+    _install_signal_handlers(signalled)
+    try:
+        try:
+            intra.activate(domain)
+            for factory in factories:
+                wrappers.append(factory())
+                reports += loop_reports(wrappers[-1])
+            check_overrides([w.node for w in wrappers], args)  # undeclared -p: a warning; params files: errors
+            if domain is not None:
+                domain.bind()
+        except (InvalidInputError, ParameterException, InvalidParameterTypeException, ValueError,
+                TypeError) as exc:
+            warn_unknown_arguments(name, args)
+            print(f"{name}: error: {exc}", file=sys.stderr, flush=True)
+            code = EXIT_BAD_INPUT  # also what the teardown watch is armed with
+            return code
+        except PdsmcError as exc:
+            warn_unknown_arguments(name, args)
+            print(f"{name}: error: {exc}", file=sys.stderr, flush=True)
+            code = EXIT_FAILURE
+            return code
+        finally:
+            intra.activate(None)
+        group = NodeGroup(wrappers, reports)
+        period = group.period
+        # The loop's messages go through a hand-driven wait set (Inputs), the rest through
+        # the executor between them. Real-time nodes are paced by the loop, not by rclpy
+        # timers (they fired 35x too often under this wheel's EventsExecutor and wake
+        # late under the default one).
+        executor = SingleThreadedExecutor()
+        for wrapper in wrappers:
+            executor.add_node(wrapper.node)
+        if signalled.stopped_by_signal:
+            group.done, group.stopped_by_signal = True, signalled.stopped_by_signal
+        _install_signal_handlers(group)
+        with_inputs = [inputs for w in wrappers for inputs in _inputs_of(w)]
+        # the loop's own inputs are taken at every pass; observers' (composed or alone) in batches
+        loop_inputs = [item for inputs in with_inputs if not inputs.batch_s for item in inputs.hot]
+        observed = [item for inputs in with_inputs if inputs.batch_s for item in inputs.hot]
+        observe_every = min((inputs.batch_s for inputs in with_inputs if inputs.batch_s), default=0.0)
+        local = LocalInputs(
+            [item for inputs in with_inputs if not inputs.batch_s for item in inputs.local],
+            [item for inputs in with_inputs if inputs.batch_s for item in inputs.local],
+            None if domain is None else domain.guard)
+        serve_loop(executor, group, loop_inputs, period, observed, observe_every, local,
+                    busy_wait=group.busy_wait, reports=reports)
+        code = group.exit_code
+        if not group.stopped_by_signal:
+            _drain(executor, wrappers)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        code = max((getattr(w, "exit_code", EXIT_OK) for w in wrappers), default=EXIT_OK)
+    finally:
+        for wrapper in reversed(wrappers):
+            close = getattr(wrapper, "close", None)
+            if close is not None:
+                close()
+        arm_teardown_watch(code)
+        if executor is not None:
+            executor.shutdown(timeout_sec=1.0)  # before the nodes go (rclpy's order)
+        for wrapper in reversed(wrappers):
+            for inputs in _inputs_of(wrapper):
+                inputs.destroy()
+            wrapper.node.destroy_node()
+        if domain is not None:
+            domain.destroy()
+        rclpy.try_shutdown()
+    return code
+
+
+def _inputs_of(wrapper: Any) -> list[Inputs]:
+    """A wrapper's ``inputs`` and, if it has them, its ``observed_inputs`` (taken in batches)."""
+    return [inputs for inputs in (getattr(wrapper, "inputs", None), getattr(wrapper, "observed_inputs", None))
+            if inputs is not None]
+
+
+def _drain(executor: Any, wrappers: Sequence[Any], timeout: float = DRAIN_TIMEOUT_S) -> None:
+    """After the work is done: let subscribers acknowledge the last messages, then linger.
+
+    A reliable sample lost on the way is repaired only after the writer's next
+    heartbeat; a node that exits at once never repairs it (a real-time
+    trajectory once missed the plant's last state this way). Waits at most
+    ``timeout`` in all (a killed subscriber never acknowledges), then serves
+    the executor briefly for what needs a callback (parameter events, acks).
+    """
+    end = time.perf_counter() + timeout
+    for wrapper in wrappers:
+        for publisher in wrapper.node.publishers:
+            left = end - time.perf_counter()
+            if left <= 0.0:
+                break
+            publisher.wait_for_all_acked(Duration(nanoseconds=int(left * 1e9)))
+    end = time.perf_counter() + 0.1
+    while rclpy.ok() and time.perf_counter() < end:
+        executor.spin_once(timeout_sec=0.02)
+
+
+class _SignalNote:
+    """Where a signal that arrives before the node group exists is noted."""
+
+    done = False
+    stopped_by_signal: str | None = None
+
+
+def _install_signal_handlers(wrapper: Any) -> None:
+    """SIGINT/SIGTERM end the spin loop; the node's close() then runs."""
+
+    def handler(signum: int, frame: object) -> None:  # noqa: ARG001
+        wrapper.done = True
+        wrapper.stopped_by_signal = signal.Signals(signum).name
+
+    signal.signal(signal.SIGINT, handler)
+    signal.signal(signal.SIGTERM, handler)

@@ -1,0 +1,210 @@
+"""The serve loop of a process: its nodes' loop inputs taken with a wait set of their own,
+lockstep or paced in real time, the executor served beside them."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import sys
+import time
+from collections import deque
+from collections.abc import Callable, Sequence
+from typing import Any
+
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy_impl
+
+from .executor_thread import ExecutorThread
+from .inputs import pending, take_all, take_batches, take_local, take_local_batches
+from .log import loop_running
+from .realtime import AUTO_BUSY_WAIT, Collector, raise_helpers, restore
+from .realtime_params import LoopReport, apply_settings, due_reports
+
+
+@dataclasses.dataclass(frozen=True)
+class LocalInputs:
+    """Inputs on the intra-process path (queues filled by publishers of this process)."""
+
+    hot: Sequence[tuple[deque, Callable[[bytes], None]]] = ()
+    observed: Sequence[tuple[deque, Callable[[bytes], None]]] = ()
+    guard: Any = None  # triggered when a message is queued from another thread
+
+
+STATISTICS_EVERY_S = 1.0  # real time: loop statistics on /diagnostics this often
+# real time at FIFO: threads started since the loop began (rclpy's multi-threaded executors start their
+# workers at their first callback) are raised below the loop this often, as those that existed then
+HELPERS_EVERY_S = 1.0
+# real time: spare-time work (the young generation, a window ahead) only with this share of a period to spare
+IDLE_MARGIN = 0.2
+# real time: a loop with no time to spare still runs its nodes' spare-time work (the action's feedback,
+# ~/controller_state) after a tick once it has gone this long without: under a busy CPU every tick may be
+# late, and a goal's client would otherwise get no feedback for the whole goal (JTC: 20 Hz)
+IDLE_STARVED_S = 0.25
+COLD_PERIOD_S = 0.02  # lockstep: the executor's turn (timers, parameters, /clock) this often
+# (one turn costs 0.2-1 ms of Python; every 5 ms it took 15 % of the lockstep rate)
+GIL_SWITCH_S = 0.0001  # real time: longest the executor thread keeps the GIL from the loop
+# real time, from the spin before a tick to its end: the loop keeps the GIL (another thread
+# taking it there could hold it through a long C call, e.g. rclpy converting a message). It is
+# also how long the loop waits for the GIL back once it released it there (a contended lock, a
+# system call): 5 ms made each such release a tick up to 5 ms late while another thread ran
+# (a goal validated, a log line written). 1 ms still covers the spin and a tick (~0.3 ms here).
+HOLD_SWITCH_S = 0.001
+
+
+def serve_loop(executor: SingleThreadedExecutor, group: Any,
+                hot: Sequence[tuple[Any, Callable[[bytes], None]]], period: float | None,
+                observed: Sequence[tuple[Any, Callable[[bytes], None]]] = (),
+                observe_every: float = 0.0, local: LocalInputs | None = None, *,
+                busy_wait: float = AUTO_BUSY_WAIT, reports: Sequence[LoopReport] = ()) -> None:
+    """Take the loop's inputs with a wait set of their own; serve the rest beside them.
+
+    Every ready input of ``hot`` is drained (``take_message`` until empty) and handed to
+    its handler at every pass. Lockstep: every ``COLD_PERIOD_S`` the executor gets one
+    non-blocking turn (timers, parameters, ``/clock``). Real time (a ``period``): the
+    executor spins in a thread of its own (one of its turns took about 1 ms) and
+    ``group.tick(lateness)`` runs on a wall-clock schedule: the loop sleeps in the wait
+    set until ``busy_wait`` before the deadline and spins the rest (at normal priority a
+    wake-up is late by tens of microseconds, on this VM now and then by milliseconds).
+    Late ticks run at once (no catch-up beyond one period). The garbage collector is
+    kept off the path, its young generation collected now and then (real time: right
+    after a tick with time to spare). ``reports``: the nodes' real-time settings (applied
+    to this thread once the executor thread exists) and loop statistics (published every
+    ``STATISTICS_EVERY_S`` right after a tick, and at the end).
+
+    ``observed`` are the inputs of observers (see :class:`Inputs`): once they
+    have given messages, they are left alone for ``observe_every`` seconds, so
+    their messages are taken in batches -- whether the observer runs alone or
+    composed with the loop's nodes, whose inputs are still taken at every pass.
+    ``local`` are the inputs on the intra-process path (composed
+    ``--intra-process``), taken from their queues the same way; their guard
+    condition wakes the loop when the real-time executor thread queues a message.
+    """
+    clock = time.perf_counter
+    local = local or LocalInputs()
+    local_hot, local_observed = list(local.hot), list(local.observed)
+    any_observed = bool(observed or local_observed)
+    guard = local.guard if period else None  # only the real-time executor thread publishes off the loop
+    wait_set = _rclpy_impl.WaitSet(len(hot) + len(observed), 0 if guard is None else 1, 0, 0, 0, 0,
+                                   executor.context.handle)
+    inputs = [(sub.handle, sub.msg_type, handler) for sub, handler in hot]
+    observer_inputs = [(sub.handle, sub.msg_type, handler) for sub, handler in observed]
+    collector = Collector() if period else Collector(young_at=50_000)
+    collector.start()
+    switch_interval = sys.getswitchinterval()
+    if period:
+        # the executor thread (timers, the recorder's flush) must hand the GIL back to the loop
+        # within a fraction of a period, not after CPython's default 5 ms
+        sys.setswitchinterval(GIL_SWITCH_S)
+    first = group.wrappers[0].node  # holds the executor thread's wake-up; logs the settings
+    # real time: timers and services in a thread of their own (one executor turn took about 1 ms)
+    cold_thread = ExecutorThread(executor, first) if period else None
+    # after the executor thread exists (scheduling is per thread); at FIFO, busy_wait may shrink
+    applied, busy_wait = apply_settings(reports, first, period, busy_wait)
+    next_report = next_helpers = clock() + STATISTICS_EVERY_S
+    unpublished: list[LoopReport] = []
+    loop_running(True)  # the nodes' loop log lines: written by the executor from now on
+    holding = False  # real time: the GIL kept through the spin and the tick (HOLD_SWITCH_S)
+    started = False  # real time: the first tick has run
+    last_idle = clock()  # real time: when the nodes' spare-time work last ran
+    try:
+        next_cold = float("inf") if period else 0.0
+        next_tick = clock() + period if period else float("inf")
+        next_observe = 0.0
+        ok = executor.context.ok  # checked at ticks and executor turns, not at every pass
+        while not group.done:
+            took = take_all(inputs)
+            if local_hot and take_local(local_hot):
+                took = True
+            now = clock()
+            if any_observed and now >= next_observe:
+                # real time: a batch must not delay the next tick; what is left waits for the
+                # pass after it (next_observe unchanged)
+                until = next_tick - busy_wait if period else math.inf
+                observed_any = take_batches(observer_inputs, until)
+                if take_local_batches(local_observed, until) or observed_any:
+                    took = True
+                    if clock() < until:
+                        next_observe = now + observe_every
+            if took and group.done:
+                return
+            now = clock()
+            if now >= next_tick:
+                if not ok():
+                    return
+                if not started:  # the schedule starts at the first tick: the passes before it are
+                    started, next_tick = True, now  # start-up (a backlog, first calls), not late periods
+                group.tick(now - next_tick)
+                if holding:
+                    sys.setswitchinterval(GIL_SWITCH_S)
+                    holding = False
+                next_tick += period
+                if now - next_tick > period:  # more than a period behind: resynchronise
+                    next_tick = now + period
+                now = clock()
+                if now >= next_report:  # once a second: one node's statistics after each tick
+                    unpublished = due_reports(reports, collector)
+                    next_report = now + STATISTICS_EVERY_S
+                if next_tick - now <= busy_wait + IDLE_MARGIN * period:
+                    if now - last_idle < IDLE_STARVED_S:
+                        continue  # no time to spare
+                    last_idle = now  # starved: once now, with a period of its own (this tick is late anyway)
+                    for idle in group.idlers:
+                        idle(now + period)
+                    continue
+                if unpublished:
+                    unpublished.pop().publish()
+                elif applied.helpers and now >= next_helpers:
+                    # a thread at normal priority holding the GIL is preempted by the machine's load
+                    # for milliseconds while the loop waits (the action server's validating workers)
+                    applied.helpers += raise_helpers()
+                    next_helpers = now + HELPERS_EVERY_S
+                else:
+                    collector.idle()
+                    last_idle = now
+                    for idle in group.idlers:  # e.g. a state topic at 20 Hz: not in another thread,
+                        idle(next_tick - busy_wait)  # whose message conversion would hold the GIL
+                continue
+            if now >= next_cold:
+                if not ok():
+                    return
+                executor.spin_once(timeout_sec=0.0)
+                next_cold = now + COLD_PERIOD_S
+                continue
+            if not period:
+                collector.idle()
+            if took:
+                continue
+            due = min(next_cold, next_tick - busy_wait, now + 0.1)
+            observing = now >= next_observe
+            if not observing:
+                due = min(due, next_observe)
+            sleep = due - now
+            if sleep <= 0.0:
+                if period and not holding:
+                    sys.setswitchinterval(HOLD_SWITCH_S)
+                    holding = True
+                continue  # busy-wait for the tick
+            if pending(local_hot) or (observing and pending(local_observed)):
+                continue
+            waited = inputs + observer_inputs if observing else inputs
+            if not waited and guard is None:
+                if cold_thread is None and not any_observed:
+                    executor.spin_once(timeout_sec=sleep)  # a node without inputs
+                else:
+                    time.sleep(sleep)
+                continue
+            wait_set.clear_entities()
+            for handle, _, _ in waited:
+                wait_set.add_subscription(handle)
+            if guard is not None:
+                wait_set.add_guard_condition(guard)
+            wait_set.wait(int(sleep * 1e9))
+    finally:
+        restore(applied)
+        for report in due_reports(reports, collector):
+            report.publish()
+        if cold_thread is not None:
+            cold_thread.stop()
+        loop_running(False)
+        sys.setswitchinterval(switch_interval)
+        collector.stop()
