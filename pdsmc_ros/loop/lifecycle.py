@@ -101,7 +101,7 @@ def end_when_plant_leaves(wrapper: Any, received: Callable[[], int]) -> Upstream
 
     ``received()`` gives the number of states the node received, for the log line.
     Composed with the plant in one process, the plant's node stays in the graph
-    until the process ends: :class:`~pdsmc_ros.loop.group.NodeGroup` calls the watch's ``on_gone`` once
+    until the process ends: :class:`~pdsmc_ros.loop.serve.NodeGroup` calls the watch's ``on_gone`` once
     the plant is done instead.
     """
 

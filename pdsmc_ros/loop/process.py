@@ -1,4 +1,5 @@
-"""The serve loop: one or several nodes in a process, lockstep or paced in real time."""
+"""A process's nodes from start to exit: one or several nodes, their parameters checked, the serve
+loop (:mod:`.serve`) run lockstep or paced in real time, then their teardown."""
 
 from __future__ import annotations
 
@@ -19,11 +20,10 @@ from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from ..errors import InvalidInputError, PdsmcError
 from ..parameters.overrides import check_overrides, warn_unknown_arguments
 from . import intra
-from .group import NodeGroup
 from .inputs import Inputs
 from .lifecycle import DRAIN_TIMEOUT_S, EXIT_BAD_INPUT, EXIT_FAILURE, EXIT_OK, arm_teardown_watch
 from .realtime_params import LoopReport, loop_reports
-from .serve import LocalInputs, serve_loop
+from .serve import LocalInputs, NodeGroup, serve_loop
 
 
 def run_node(

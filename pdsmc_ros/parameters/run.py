@@ -69,7 +69,8 @@ def declare_run_parameters(node: Node, *, gains: bool = False) -> dict[str, Any]
     """Declare the run's parameters and the gains (every node: one params file or ``-p kp:=``
     serves all; only the controller uses them, ``gains``, and it also declares
     :data:`~pdsmc_ros.parameters.STABILITY`), guard them (:func:`~pdsmc_ros.parameters.ros.guard`:
-    the gains are the controller's to check, :class:`~pdsmc_ros.controller.parameters.GainUpdates`) and return their values."""
+    the gains are the controller's to check, :class:`~pdsmc_ros.controller.parameters.GainUpdates`)
+    and return their values."""
     values = declare(node, run_parameters())
     gain_specs = gain_parameters(applied=gains and _law_gains(values["type"]))
     specs = (*run_parameters(), *gain_specs, *(STABILITY if gains else ()))
