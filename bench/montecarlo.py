@@ -61,7 +61,7 @@ def profile(tasks: int, specs, spreads) -> None:  # noqa: ANN001
           "a task", flush=True)
     rest = ("simulator.py:_reference_samples", "simulator.py:_task_samples", "metrics.py:build_samples",
             "metrics.py:compute_metrics", "metrics.py:scores", "law.py:from_spec",
-            "registry.py:make_robot", "montecarlo.py:sample_plant", "safety.py:for_robot")
+            "registry.py:make_robot", "montecarlo.py:sample_plant", "divergence.py:for_robot")
     for name in rest:
         if name in by_name:
             share = by_name[name][1] / task

@@ -22,15 +22,18 @@ from __future__ import annotations
 
 import dataclasses
 import sys
+import threading
 from collections.abc import Sequence
 
 from rclpy.duration import Duration
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
+from rclpy.node import Node
 from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
-from std_msgs.msg import String
+from std_msgs.msg import Float64MultiArray, String
 from trajectory_msgs.msg import JointTrajectory
 
+from ..bag.cdr import encode_float64_multi_array
 from ..control import Gains
 from ..control.stability import check_rate
 from ..loop.inputs import Inputs, Times
@@ -39,9 +42,10 @@ from ..loop.log import LoopLog
 from ..loop.process import run_node
 from ..loop.statistics import TickTiming
 from ..parameters.run import declare_node_run, description_json
+from ..robots.base import FloatArray
 from ..ros import topics
 from ..ros.diagnostics import Diagnostics, InputReport
-from ..ros.publishers import EffortOutput, RowBatches
+from ..ros.publishers import GuardedPublisher, RowBatches
 from .action import FollowJointTrajectoryServer, topic_trajectory
 from .commanding import Paired, TorqueGuard
 from .core import ControllerCore
@@ -51,6 +55,43 @@ from .parameters import GainUpdates, check_gains, declare_controller_parameters,
 
 GOAL_BATCH_S = 0.002  # ~/joint_trajectory is looked at every 2 ms
 STOP_ACK_S = 0.5  # how long a stopping controller waits for its zero command to be acknowledged
+
+
+class EffortOutput:
+    """The effort commands of a controller (``Float64MultiArray``, ``data[i]`` for joint ``i``,
+    ``layout.data_offset`` the control step): never a non-finite torque, clamped to the limits,
+    and one zero command when it stops commanding (a forward command controller holds the last
+    command forever). Its lines go to ``log`` (the loop's thread publishes: :class:`~pdsmc_ros.loop.log.LoopLog`)."""
+
+    def __init__(self, node: Node, topic: str, n: int, guard: TorqueGuard, *, log: LoopLog | None = None) -> None:
+        self.node = node
+        self.log = log if log is not None else LoopLog(node)
+        self.pub = GuardedPublisher(node.create_publisher(Float64MultiArray, topic, topics.STREAM_QOS), node)
+        self.n = n
+        self.guard = guard
+        self.commanding = False  # a torque may be the last command on the wire
+        # real time: lifecycle transitions run in the executor's thread; no torque may follow the zero command
+        self.lock = threading.Lock()
+
+    def publish(self, tau: FloatArray, step: int) -> None:
+        values, note = self.guard.check(tau)
+        if note and values is None:
+            self.log.error(note)
+        elif note:
+            self.log.warn(note)
+        if values is not None:
+            self.pub.publish(encode_float64_multi_array(values, step))
+            self.commanding = True
+
+    def stop(self, why: str, step: int) -> bool:
+        """Publish one zero command for ``step`` if a torque may be the last on the wire (whether it did)."""
+        with self.lock:
+            if not self.commanding:
+                return False
+            self.pub.publish(encode_float64_multi_array([0.0] * self.n, step))
+            self.commanding = False
+        self.log.warn(f"{why}: zero effort published, output stopped")
+        return True
 
 
 class ControllerNode(CommandingEntity):

@@ -1,9 +1,8 @@
-"""What the nodes publish: guarded publishers (a failed publish is logged, never fatal), rows
-in batches, and a controller's effort commands."""
+"""What the nodes publish: guarded publishers (a failed publish is logged, never fatal) and rows
+in batches."""
 
 from __future__ import annotations
 
-import threading
 from collections.abc import Sequence
 from typing import Any
 
@@ -12,11 +11,7 @@ from rclpy.node import Node
 from rclpy.serialization import serialize_message
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 
-from ..bag.cdr import encode_float64_multi_array
-from ..controller.commanding import TorqueGuard
 from ..loop import intra
-from ..loop.log import LoopLog
-from ..robots.base import FloatArray
 from .topics import STREAM_QOS
 
 RCLError = _rclpy_impl.RCLError
@@ -31,7 +26,7 @@ class GuardedPublisher:
         self.node = node
         self.failures = 0
         self._handle = publisher.handle
-        # composed with --intra-process: local subscribers get the bytes directly (nodes.intra)
+        # composed with --intra-process: local subscribers get the bytes directly (loop.intra)
         domain = intra.current()
         self._route = None if domain is None else domain.add_publisher(
             publisher, publisher.msg_type, publisher.qos_profile)
@@ -98,40 +93,3 @@ class RowBatches:
         msg.data = self.rows
         self.pub.publish(msg)
         self.rows = []
-
-
-class EffortOutput:
-    """The effort commands of a controller (``Float64MultiArray``, ``data[i]`` for joint ``i``,
-    ``layout.data_offset`` the control step): never a non-finite torque, clamped to the limits,
-    and one zero command when it stops commanding (a forward command controller holds the last
-    command forever). Its lines go to ``log`` (the loop's thread publishes: :class:`~pdsmc_ros.loop.log.LoopLog`)."""
-
-    def __init__(self, node: Node, topic: str, n: int, guard: TorqueGuard, *, log: LoopLog | None = None) -> None:
-        self.node = node
-        self.log = log if log is not None else LoopLog(node)
-        self.pub = GuardedPublisher(node.create_publisher(Float64MultiArray, topic, STREAM_QOS), node)
-        self.n = n
-        self.guard = guard
-        self.commanding = False  # a torque may be the last command on the wire
-        # real time: lifecycle transitions run in the executor's thread; no torque may follow the zero command
-        self.lock = threading.Lock()
-
-    def publish(self, tau: FloatArray, step: int) -> None:
-        values, note = self.guard.check(tau)
-        if note and values is None:
-            self.log.error(note)
-        elif note:
-            self.log.warn(note)
-        if values is not None:
-            self.pub.publish(encode_float64_multi_array(values, step))
-            self.commanding = True
-
-    def stop(self, why: str, step: int) -> bool:
-        """Publish one zero command for ``step`` if a torque may be the last on the wire (whether it did)."""
-        with self.lock:
-            if not self.commanding:
-                return False
-            self.pub.publish(encode_float64_multi_array([0.0] * self.n, step))
-            self.commanding = False
-        self.log.warn(f"{why}: zero effort published, output stopped")
-        return True
