@@ -17,6 +17,7 @@ import subprocess
 import time
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -72,7 +73,7 @@ class Driver:
         self.reference: Callable[[], object] | None = None
         self.node.create_timer(0.005, self.publish)
 
-    def on_diagnostics(self, msg: DiagnosticArray) -> None:
+    def on_diagnostics(self, msg: Any) -> None:  # diagnostic_msgs/DiagnosticArray
         for status in msg.status:
             level = status.level[0] if isinstance(status.level, bytes) else status.level
             self.diagnostics.append((level, status.message))

@@ -214,6 +214,8 @@ def test_a_stand_in_run_driven_through_the_action_is_recorded_and_analysed_per_g
     # the desired state from the goal's feedback or, where the controller sent none, its controller_state
     assert not report["diverged"] and first["reference"].split(" (")[0] in ("feedback", "controller_state"), first
     assert "joint1" in second["error_string"]
+    # each goal's own trajectory, from the controller's send_goal events (action_introspection)
+    assert [g["trajectory"] for g in report["goals"]] == ["2 points over 1.500 s", "2 points over 0.600 s"]
     # the first goal: tracked closely, settled within its goal time, moved, below the limits
     metrics = first["metrics"]
     if metrics is None:  # a loaded machine: the controller's state came too sparsely to draw the desired curve
