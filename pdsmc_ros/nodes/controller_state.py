@@ -3,7 +3,9 @@ diagnostic, at :data:`FEEDBACK_HZ` (joint_trajectory_controller's action monitor
 
 Real time: :meth:`StatePublisher.publish` is called by the control loop in its spare time
 (``idle``), never from a thread of its own, whose message conversions would hold the GIL while
-a tick is due; lockstep (no deadlines): by a timer of the action server's thread
+a tick is due; a loop with no spare time (a busy machine) still calls it after a tick every
+:data:`~pdsmc_ros.nodes.serve_loop.IDLE_STARVED_S`, so a goal's client is never left without
+feedback; lockstep (no deadlines): by a timer of the action server's thread
 (:mod:`.follow_joint_trajectory`).
 """
 
