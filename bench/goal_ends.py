@@ -82,6 +82,7 @@ class Client:
         rclpy.init(context=self.context, domain_id=domain)
         self.node = rclpy.create_node("goal_ends_bench", context=self.context)
         self.lock = threading.Lock()
+        self.foreign = 0  # /joint_states without this arm's joints (another run on the domain)
         self.states: list[tuple[float, np.ndarray, np.ndarray]] = []  # (stamp, q, qd) in ``names`` order
         self.node.create_subscription(JointState, "/joint_states", self.on_state, 10)  # the latest
         self.action = ActionClient(self.node, FollowJointTrajectory, "/controller/follow_joint_trajectory")
@@ -99,6 +100,9 @@ class Client:
             time.sleep(0)
 
     def on_state(self, msg: JointState) -> None:
+        if not set(self.names) <= set(msg.name):  # another arm's, on the same domain
+            self.foreign += 1
+            return
         index = [list(msg.name).index(n) for n in self.names]
         stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
         with self.lock:
@@ -202,6 +206,8 @@ def recorded_states(bag: Path, names: list[str]) -> tuple[np.ndarray, np.ndarray
         connections = [c for c in reader.connections if c.topic == "/joint_states"]
         for _, _, raw in reader.messages(connections=connections):
             order, sec, nanosec, position, velocity, _ = decode_joint_state_named(raw)
+            if not set(names) <= set(order):  # another arm's, on the same domain
+                continue
             index = [list(order).index(n) for n in names]
             stamps.append(sec + nanosec * 1e-9)
             q.append(np.asarray(position)[index])
