@@ -12,6 +12,11 @@ first pair and after the last (each after ``--settle`` s): the mean measured
 position over 0.2 s. Printed per law: the drift per joint (mrad; target: every joint under 5 mrad,
 the issue's "repeated holds do not creep"), how the goals ended, and the load average.
 
+What to expect: the holds start from the commanded position (``ControllerCore.start_state``), so
+goals from the reference leave the arm where it was; goals from the measured position move the
+reference each time to where the arm sags to, by the law's steady-state error under gravity (PD
+on the UR5's elbow: 5.3 mrad), and the arm creeps by up to that much per pair, whatever the holds.
+
 Last line: ``worst_drift_mrad=D`` (the largest over every law and joint).
 
 Usage: python bench/hold_drift.py [--laws pd,smc,pdsmc] [--pairs 200] [--busy]   (inside the venv,
