@@ -108,6 +108,41 @@ def test_check_gains_fails_below_the_margin() -> None:
     assert "zero-order hold + 1 period of delay" in delayed.stdout and "margin x0.59" in delayed.stdout
 
 
+@pytest.mark.parametrize(("controller", "gain", "message"), [
+    ("pd", "kp=1e308", "pd gains for serial_3r: kp=[1e+308, 1e+308, 1e+308] too large to analyse"),
+    ("pd", "kd=1e308", "pd gains for serial_3r: kd=[1e+308, 1e+308, 1e+308] too large to analyse"),
+    ("pd", "kp=1e300,1,1", "kp=[1e+300, 1.0, 1.0] too large to analyse"),  # finite M^-1 Kp, beyond 1e150
+    ("pdsmc", "ks=1e308", "pdsmc gains for serial_3r: ks=[1e+308, 1e+308, 1e+308] too large"),
+    ("pdsmc", "phi=1e-300", "phi=[1e-300, 1e-300, 1e-300] too large to analyse"),  # ks / phi overflows
+    ("pd", "kp=nan", "argument --gain: gain kp: expected finite numbers, got 'nan'"),
+    ("pd", "kd=inf", "argument --gain: gain kd: expected finite numbers, got 'inf'"),
+    ("pd", "kp=-1", "gain kp of pd must be finite and >= 0, got [-1.0, -1.0, -1.0]"),
+])
+def test_check_gains_refuses_absurd_gains_in_one_line(controller: str, gain: str, message: str) -> None:
+    """Issue 37: ``--gain kp=1e308`` (inside the declared bounds) raised numpy's LinAlgError from the
+    stability analysis; every absurd gain is one line naming it and what is allowed, exit 2."""
+    proc = pdsmc("check-gains", "--robot", "serial_3r", "--contour", "circle", "--controller", controller,
+                 "--gain", gain, timeout=300)
+    assert proc.returncode == 2, proc.stdout + proc.stderr
+    assert len(proc.stderr.strip().splitlines()) == 1 and message in proc.stderr, proc.stderr
+    assert "Traceback" not in proc.stderr and "Warning" not in proc.stderr
+    if "too large" in message:
+        assert "must be finite and at most 1e+150" in proc.stderr
+
+
+def test_the_stability_analysis_refuses_a_non_finite_loop() -> None:
+    import numpy as np
+
+    from pdsmc_ros.control.stability import spectral_radius
+    from pdsmc_ros.errors import InvalidInputError
+
+    mass, big = np.eye(2) * 0.05, np.eye(2) * 1e308
+    with pytest.raises(InvalidInputError, match="the loop matrix is not finite"):
+        spectral_radius(mass, np.eye(2), big, 1e-3, 2)
+    with pytest.raises(InvalidInputError, match="the loop matrix is not finite"):
+        spectral_radius(mass, np.eye(2) * np.nan, np.eye(2), 1e-3)
+
+
 @pytest.mark.timeout(900)
 def test_tune_output_passes_check_gains_and_runs_in_simulate(tmp_path: Path) -> None:
     out = tmp_path / "five_bar.yaml"

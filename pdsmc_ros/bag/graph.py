@@ -2,7 +2,9 @@
 
 A real arm's run: a driver's ``sensor_msgs/JointState`` topic, a controller's
 ``control_msgs/JointTrajectoryControllerState``, a ``FollowJointTrajectory`` action's status,
-feedback and results (the latter as ``get_result`` service events), ``/robot_description``.
+feedback and results (the latter as ``get_result`` service events), its accepted goals'
+trajectories (``send_goal`` service events, which the project's controller publishes),
+``/robot_description``.
 Topics are found by their types, not their names (a driver may publish on
 ``/joint_states`` or elsewhere; a controller has a name of its own). ROS-free: the bag's own
 message definitions decode it (rosbags); the joint states, by far the most messages, with
@@ -32,6 +34,7 @@ CONTROLLER_STATE_TYPE = "control_msgs/msg/JointTrajectoryControllerState"
 STATUS_TYPE = "action_msgs/msg/GoalStatusArray"
 FEEDBACK_SUFFIX = "FollowJointTrajectory_FeedbackMessage"
 RESULT_EVENT_SUFFIX = "FollowJointTrajectory_GetResult_Event"
+GOAL_EVENT_SUFFIX = "FollowJointTrajectory_SendGoal_Event"
 STATUS_NAMES = {0: "UNKNOWN", 1: "ACCEPTED", 2: "EXECUTING", 3: "CANCELING", 4: "SUCCEEDED", 5: "CANCELED",
                 6: "ABORTED"}
 TERMINAL = (4, 5, 6)
@@ -65,6 +68,8 @@ class GoalRecord:
     error_code: int | None = None  # from the recorded result, if any
     error_string: str = ""
     desired: ReferenceSamples | None = None  # the feedback's desired states
+    trajectory: ReferenceSamples | None = None  # the goal's points (from its send_goal event), times from acceptance
+    trajectory_points: int | None = None  # how many points the goal's trajectory has, if recorded
 
     @property
     def status_name(self) -> str:
@@ -194,10 +199,11 @@ def _read(path: Path, reader: Any, joints: Sequence[str] | None) -> GraphRun:
     status_msgs: list[tuple[str, int, Any]] = []
     feedback: list[tuple[str, Any]] = []
     results: list[tuple[str, Any]] = []
+    sent_goals: list[tuple[str, Any]] = []
     reference_rows: list[tuple[int, tuple[str, ...], Any, Any]] = []
     wanted = [c for c in reader.connections if c.topic == state_topic or c.topic == "/robot_description"
               or c.msgtype in (CONTROLLER_STATE_TYPE, STATUS_TYPE) or c.msgtype.endswith(FEEDBACK_SUFFIX)
-              or c.msgtype.endswith(RESULT_EVENT_SUFFIX)]
+              or c.msgtype.endswith(RESULT_EVENT_SUFFIX) or c.msgtype.endswith(GOAL_EVENT_SUFFIX)]
     for conn, log_ns, raw in reader.messages(connections=wanted):
         data = bytes(raw)
         try:
@@ -222,6 +228,8 @@ def _read(path: Path, reader: Any, joints: Sequence[str] | None) -> GraphRun:
             status_msgs.append((action, log_ns, msg))
         elif conn.msgtype.endswith(FEEDBACK_SUFFIX):
             feedback.append((action, msg))
+        elif conn.msgtype.endswith(GOAL_EVENT_SUFFIX):
+            sent_goals.append((action, msg))
         else:
             results.append((action, msg))
     if not rows:
@@ -237,8 +245,30 @@ def _read(path: Path, reader: Any, joints: Sequence[str] | None) -> GraphRun:
     offset = int(np.median(np.array([r[1] - r[0] for r in rows])))
     reference = _samples([((s - origin) * 1e-9, names, p, v) for s, names, p, v in reference_rows], order)
     goals = _goals(status_msgs, feedback, results, order, origin, offset)
+    _goal_trajectories(goals, sent_goals, order)
     return GraphRun(path, topics, counts, state_topic, order, t, q, qd, effort, reference, goals, urdf,
                     origin=origin * 1e-9)
+
+
+def _goal_trajectories(goals: Sequence[GoalRecord], events: Sequence[tuple[str, Any]],
+                       order: Sequence[str]) -> None:
+    """Each goal's trajectory from its ``send_goal`` request event: its points' positions and
+    velocities at their ``time_from_start`` (from the goal's acceptance; a trajectory stamped 0
+    starts there). Joints the goal does not name are NaN."""
+    by_key = {(g.action, g.goal_id): g for g in goals}
+    for action, event in events:
+        if not len(event.request):
+            continue
+        request = event.request[0]
+        goal = by_key.get((action, bytes(request.goal_id.uuid).hex()))
+        if goal is None:
+            continue
+        trajectory = request.goal.trajectory
+        names = tuple(trajectory.joint_names)
+        rows = [(goal.accepted + p.time_from_start.sec + p.time_from_start.nanosec * 1e-9, names, p.positions,
+                 p.velocities) for p in trajectory.points]
+        goal.trajectory_points = len(rows)
+        goal.trajectory = _samples(rows, order)
 
 
 def _samples(rows: Sequence[tuple[float, Sequence[str], Any, Any]], order: Sequence[str]) -> ReferenceSamples:

@@ -96,9 +96,19 @@ def spectral_radius(
     Works on one configuration (``mass``, ``kp``, ``kd`` of shape ``(n, n)``,
     scalar ``h``) or on a stack of them (leading axis ``m``, ``h`` scalar or of
     shape ``(m,)``); returns the radii and the 1-based joints, of the stack's shape.
+
+    Raises
+    ------
+    InvalidInputError
+        If the loop matrix is not finite (gains, inertia or period of infinite or NaN entries, or
+        so large that the map overflows): there is no radius to give.
     """
     n = np.shape(mass)[-1]
-    a = loop_matrix(mass, kp, kd, h, delay)
+    with np.errstate(over="ignore", invalid="ignore"):
+        a = loop_matrix(mass, kp, kd, h, delay)
+    if not np.all(np.isfinite(a)):
+        raise InvalidInputError("the loop matrix is not finite (gains, inertia or period infinite, NaN or so large "
+                                "that it overflows): no stability to analyse")
     h = np.asarray(h, dtype=float)[..., None]
     values, vectors = np.linalg.eig(a)
     k = np.argmax(np.abs(values), axis=-1)
@@ -106,6 +116,44 @@ def spectral_radius(
     vec = np.take_along_axis(vectors, k[..., None, None], axis=-1)[..., 0]
     mode = np.abs(vec[..., :n]) + np.abs(vec[..., n:2 * n]) * h
     return radius, np.argmax(mode, axis=-1) + 1
+
+
+LARGEST_ANALYSED = 1e150
+"""Largest entry of ``Mbar^{-1} Kp_eff`` (s^-2) and ``Mbar^{-1} Kd_eff`` (s^-1) the analysis takes: the
+loop map multiplies them by the period (up to 1 s in :func:`_lowest_rates`' search) and its
+eigen-solver by each other, which overflows double precision near 1e308. No arm comes near it
+(the shipped gains: below 1e6); beyond it, gains are refused, not judged."""
+
+
+def analysable_gains(spec: LawRun, masses: FloatArray, kp: FloatArray, kd: FloatArray) -> None:
+    """Refuse, naming the law's gains, effective gains the analysis cannot judge.
+
+    ``kp``, ``kd``: the law's linear gains (:func:`effective_gains`) at the configurations whose
+    inertia ``masses`` holds (stacked alike). Gains inside their declared bounds can still be so
+    large (``--gain kp=1e308``) that ``Mbar^{-1} K`` overflows; numpy would then raise a
+    ``LinAlgError`` deep in the eigen-solver.
+
+    Raises
+    ------
+    InvalidInputError
+        Naming the gains above 1e100 or below 1e-100 (all of the law's if none is) and what is allowed:
+        ``Mbar^{-1} Kp_eff`` and ``Mbar^{-1} Kd_eff`` finite and at most :data:`LARGEST_ANALYSED`.
+    """
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        finite = bool(np.all(np.isfinite(kp)) and np.all(np.isfinite(kd)))
+        if finite:
+            scaled = np.concatenate([np.linalg.solve(masses, kp), np.linalg.solve(masses, kd)], axis=-1)
+            finite = bool(np.all(np.isfinite(scaled)) and np.max(np.abs(scaled)) <= LARGEST_ANALYSED)
+    if finite:
+        return
+    gains = spec.gains.as_dict()
+    huge = [name for name, values in gains.items()  # the absurd ones: beyond 1e100, or a divisor below 1e-100
+            if np.max(np.abs(values)) > 1e100 or 0.0 < np.min(np.abs(values)) < 1e-100] or list(gains)
+    named = ", ".join(f"{name}={gains[name]}" for name in huge)
+    raise InvalidInputError(
+        f"{spec.controller} gains for {spec.robot}: {named} too large to analyse (the effective stiffness and "
+        f"damping over the arm's inertia must be finite and at most {LARGEST_ANALYSED:g} s^-2 and s^-1; no arm "
+        f"needs gains near it); give finite, realistic gains")
 
 
 def _lowest_rates(mass: FloatArray, kp: FloatArray, kd: FloatArray, delay: int) -> FloatArray:
@@ -214,11 +262,13 @@ def tolerated_delay(spec: LawRun, reference: JointReference, *, points: int = 13
     robot = spec.robot_model()
     q = reference.sample(np.linspace(0.0, reference.duration, points)).q
     masses = robot._mass_matrix(q)
-    linear = [effective_gains(spec, mass) for mass in masses]
+    with np.errstate(over="ignore", invalid="ignore"):  # overflows: refused by analysable_gains
+        linear = [effective_gains(spec, mass) for mass in masses]
     if any(pair is None for pair in linear):
         return None
     kp = np.stack([p[0] for p in linear])  # type: ignore[index]
     kd = np.stack([p[1] for p in linear])  # type: ignore[index]
+    analysable_gains(spec, masses, kp, kd)
 
     def stable(d: int) -> bool:
         return bool(np.all(spectral_radius(masses, kp, kd, 1.0 / spec.rate, d)[0] < 1.0))
@@ -335,12 +385,14 @@ def rate_margin(spec: LawRun, reference: JointReference, *, points: int = 13, mo
     masses = robot._mass_matrix(q)
     plant = plant_step(robot, q, spec.rate)
     names = tuple(robot.joint_names)
-    linear = [effective_gains(spec, mass) for mass in masses]
+    with np.errstate(over="ignore", invalid="ignore"):  # overflows: refused by analysable_gains
+        linear = [effective_gains(spec, mass) for mass in masses]
     pairs = [pair for pair in linear if pair is not None]
     if len(pairs) < len(linear):  # a law without linear gains: not checked
         return RateCheck(spec.rate, float("nan"), float("nan"), 0, True, mode, delay, required, plant, names)
     kp = np.stack([p[0] for p in pairs])
     kd = np.stack([p[1] for p in pairs])
+    analysable_gains(spec, masses, kp, kd)
     lowest = float(np.max(_lowest_rates(masses, kp, kd, delay)))
     radii, joints = spectral_radius(masses, kp, kd, 1.0 / spec.rate, delay)
     worst = int(np.argmax(radii))

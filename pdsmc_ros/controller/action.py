@@ -10,7 +10,10 @@ preempts the active one (``handle_accepted_callback``) and is then watched until
 (``execute_callback``). ``~/joint_trajectory`` messages go through the same checks; a refused
 one is logged and dropped, the running motion untouched. ``~/query_state``
 (``control_msgs/srv/QueryTrajectoryState``) answers the reference at a given time of the
-running trajectory.
+running trajectory. Accepted goals are published as the ``send_goal`` service's events
+(``<action>/_action/send_goal/_service_event``, ``action_introspection``) -- the topic ROS 2's
+service introspection uses, which Jazzy's rcl_action does not offer for actions -- so a recorder
+that did not send them still has each goal's trajectory.
 
 The server lives on a node of its own (``<controller>_action``, no parameter services or
 rosout) spun by a thread of its own with a small multi-threaded executor: a controller with
@@ -26,7 +29,9 @@ loop, which computes the waiting step at once.
 saturation diagnostic at :data:`FEEDBACK_HZ` (joint_trajectory_controller's action monitor
 rate). Real time: :meth:`StatePublisher.publish` is called by the control loop in its spare
 time (``idle``), never from a thread of its own, whose message conversions would hold the GIL
-while a tick is due; lockstep (no deadlines): by a timer of the action server's thread.
+while a tick is due; a loop with no spare time (a busy machine) still calls it after a tick every
+:data:`~pdsmc_ros.loop.serve.IDLE_STARVED_S`, so a goal's client is never left without feedback;
+lockstep (no deadlines): by a timer of the action server's thread.
 
 Both read the controller through :class:`ControllerView` (what they use of the controller
 node), never the node's module: the node imports this one, not the other way round.
@@ -47,6 +52,7 @@ from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
+from service_msgs.msg import ServiceEventInfo
 from std_msgs.msg import Header
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
@@ -229,6 +235,12 @@ class FollowJointTrajectoryServer:
                 lambda msg, info: topic_trajectory(controller, msg, _times(info), self.report), topics.TRAJECTORY_QOS,
                 callback_group=group)
         self.state = StatePublisher(self.node, controller)
+        introspection = controller.params.action_introspection
+        self.goal_events = None if introspection == "disabled" else self.node.create_publisher(
+            FollowJointTrajectory.Impl.SendGoalService.Event, f"{base}/follow_joint_trajectory/_action/send_goal/"
+            "_service_event", 10)
+        self.goal_contents = introspection == "contents"
+        self.goal_event_count = 0
         self.pending: dict[int, tuple[Any, GoalExecution]] = {}  # validated, not yet accepted: by id(request)
         self.goals: dict[bytes, tuple[Any, GoalExecution]] = {}  # active goals: (handle, execution)
         if controller.lockstep:  # no deadlines: a timer here; real time: the loop's spare time (idle)
@@ -285,7 +297,26 @@ class FollowJointTrajectoryServer:
             if execution.outcome is None:
                 log.info(f"action goal accepted: {len(execution.reference.times)} points until "
                          f"t = {execution.reference.end_time:.3f} s")
+        self.publish_goal_events(goal_handle)
         goal_handle.execute()
+
+    def publish_goal_events(self, goal_handle: Any) -> None:
+        """An accepted goal as the ``send_goal`` service's REQUEST_RECEIVED and RESPONSE_SENT
+        events (``action_introspection``: with the goal and the answer if ``contents``)."""
+        if self.goal_events is None:
+            return
+        service = FollowJointTrajectory.Impl.SendGoalService
+        stamp = self.node.get_clock().now().to_msg()
+        request = service.Request(goal_id=goal_handle.goal_id, goal=goal_handle.request)
+        response = service.Response(accepted=True, stamp=stamp)
+        for kind, field, value in ((ServiceEventInfo.REQUEST_RECEIVED, "request", request),
+                                   (ServiceEventInfo.RESPONSE_SENT, "response", response)):
+            event = service.Event(info=ServiceEventInfo(event_type=kind, stamp=stamp,
+                                                        sequence_number=self.goal_event_count))
+            if self.goal_contents:
+                setattr(event, field, [value])
+            self.goal_events.publish(event)
+        self.goal_event_count += 1
 
     def on_cancel(self, goal_handle: Any) -> CancelResponse:
         found = self.goals.get(bytes(goal_handle.goal_id.uuid))

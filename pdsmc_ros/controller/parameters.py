@@ -56,6 +56,7 @@ class ControllerParameters:
     enforce_limits: bool
     stale_periods: int
     goal_settings: GoalSettings  # trajectories and goals: JTC's parameters, the default tolerances (robot order)
+    action_introspection: str  # accepted goals as SendGoal service events: disabled, metadata or contents
 
     @property
     def joints(self) -> tuple[str, ...]:
@@ -90,7 +91,7 @@ def declare_controller_parameters(node: Node, robot: Manipulator) -> ControllerP
     except ValueError as exc:
         raise ConfigError(f"parameter {exc}") from None
     return ControllerParameters(joint_map, values["autostart"], limit, values["enforce_limits"],
-                                values["stale_periods"], settings)
+                                values["stale_periods"], settings, values["action_introspection"])
 
 
 def declare_limit_parameters(node: Node, robot: Manipulator, params: ControllerParameters, period: float,

@@ -376,6 +376,7 @@ def goal_table(bag: AnalyzedGraphBag) -> str:
     row("result", [f"{g.status} ({g.result})" for g in goals])
     row("start (s)", [_fmt(g.start, "{:.3f}") for g in goals])
     row("duration (s)", [_fmt(None if g.end is None else g.end - g.start, "{:.3f}") for g in goals])
+    row("goal trajectory", [g.trajectory for g in goals])
     row("desired state from", [g.reference.split(" (")[0] + (" (sparse)" if "too sparse" in g.reference else "")
                                for g in goals])
     for i in range(len(run.names)):

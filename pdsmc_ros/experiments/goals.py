@@ -98,6 +98,7 @@ class GoalFigures:
     velocity_max: list[float]
     velocity_limit: list[float]
     late_periods: int
+    trajectory: str = "not recorded"  # the goal's own trajectory (its send_goal event): points and duration
 
     @property
     def label(self) -> str:
@@ -148,6 +149,10 @@ def goal_figures(run: GraphRun, goal: GoalRecord, index: int, window_end: float,
     source = "controller_state"
     if goal.desired is not None and len(goal.desired.t) >= max(2, len(reference.t)):
         reference, source = goal.desired, "feedback"
+    planned = goal.trajectory
+    if planned is not None and len(reference.t) < 2 <= len(planned.t):
+        # neither feedback nor controller state recorded: the goal's points, as the client sent them
+        reference, source = planned, "goal trajectory"
     whole = _window(run.t, goal.accepted, window_end)
     velocity_max = (np.nanmax(np.abs(run.qd[whole]), axis=0) if len(whole) else np.full(n, np.nan))
     late = late_periods(run.t[whole], period) if len(whole) else 0
@@ -192,7 +197,17 @@ def goal_figures(run: GraphRun, goal: GoalRecord, index: int, window_end: float,
     return GoalFigures(index, goal.action, goal.goal_id, goal.status_name, goal.result_name, goal.error_string,
                        goal.accepted - t0, None if goal.ended is None else goal.ended - t0, source, metrics,
                        [float(v) for v in error_max], reference_end, settle,
-                       [float(v) for v in velocity_max], velocity_limit.tolist(), late)
+                       [float(v) for v in velocity_max], velocity_limit.tolist(), late, _trajectory_line(goal))
+
+
+def _trajectory_line(goal: GoalRecord) -> str:
+    """The goal's own trajectory in a few words (its send_goal event), or "not recorded"."""
+    planned = goal.trajectory
+    if planned is None or goal.trajectory_points is None:
+        return "not recorded"
+    span = float(planned.t[-1] - goal.accepted) if len(planned.t) else 0.0
+    return f"{goal.trajectory_points} points over {span:.3f} s"
+
 
 
 def run_goal_figures(run: GraphRun, *, velocity_limits: Sequence[float] | FloatArray,

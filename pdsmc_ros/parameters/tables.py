@@ -30,6 +30,9 @@ from .declaration import JOINT, ParameterSpec
 
 P = ParameterSpec
 
+INTROSPECTION_STATES = ("disabled", "metadata", "contents")
+"""rcl's service introspection states (``RCL_SERVICE_INTROSPECTION_OFF``, ``_METADATA``, ``_CONTENTS``)."""
+
 NODES = ("controller", "plant", "trajectory", "recorder", "mujoco_driver", "viewer")
 """The package's nodes: one params file may configure several of them (``run_experiment.sh``
 hands the same file to each)."""
@@ -134,6 +137,10 @@ CONTROLLER = (
     P("allow_nonzero_velocity_at_trajectory_end", "bool", False, "accept trajectories whose last point moves"),
     P("reject_beyond_limits", "bool", True,
       "beyond JTC: reject trajectories beyond the arm's limits or with a step"),
+    P("action_introspection", "string", "contents",
+      "accepted action goals published as SendGoal service events on <action>/_action/send_goal/_service_event "
+      "(as ROS 2 service introspection does; a recorder records them): disabled, metadata (no trajectory) or "
+      "contents", choices=INTROSPECTION_STATES),
 )
 """The controller's own (besides the run's, the gains and the stability check's)."""
 

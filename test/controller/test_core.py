@@ -146,3 +146,24 @@ def test_a_gain_change_keeps_a_stateful_law_integrating() -> None:
     before = ctl.law
     ctl.apply_gains(spec)
     assert ctl.law is not before and np.all(ctl.law.state == 0.25)
+
+
+@pytest.mark.parametrize(("stamp", "start"), [
+    (0.0, 100.3),  # JTC's Trajectory::sample: stamped 0, the loop's first sample is its start
+    (100.1, 100.0),  # stamped: its times count from the stamp (kept relative to receipt at 100.0)
+])
+def test_an_action_goal_stamped_zero_starts_at_the_loops_first_sample(stamp: float, start: float) -> None:
+    ctl = core(lockstep=False)
+    q0 = ctl.reference.sample([0.0]).q[0]
+    ctl.add_state(state(0, q0, np.zeros(len(NAMES))), "joint_states")
+    points = [((q0 + 0.1).tolist(), [], [], 2, 0)]
+    started = ctl.check_goal(stamp, NAMES, points, (), 100.0, [], [], 0.0)
+    assert isinstance(started.goal, g.GoalExecution)
+    reference = started.goal.reference
+    ctl.start_goal(started.goal)
+    tau, _ = ctl.realtime_command(ctl.latest.state_time, lambda: 100.3)  # the loop takes it 0.3 s later
+    assert tau is not None
+    assert reference.start_time == start and reference.end_time == start + float(reference.times[-1])
+    assert reference.end_time == pytest.approx(stamp + 2.0 if stamp else 102.3, abs=1e-12)
+    ctl.realtime_command(ctl.latest.state_time, lambda: 100.4)  # later samples move it no more
+    assert reference.start_time == start

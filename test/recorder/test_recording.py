@@ -5,7 +5,8 @@ can while another process keeps a core busy: the bag holds every one, in order. 
 shape of a real arm's run: the MuJoCo stand-in (``mujoco_driver``), the controller in real
 time and a plain rclpy action client sending two goals (one that succeeds, one that breaks
 its path tolerance), recorded by ``ros2 run pdsmc_ros recorder`` in graph mode and analysed
-per goal. Each test runs its processes in a ROS domain of its own and stops them by PID.
+per goal; and the same graph started by ``scripts/run_experiment.sh --stand-in``, with a goal
+sent from outside it. Each test runs its processes in a ROS domain of its own and stops them by PID.
 """
 
 from __future__ import annotations
@@ -214,6 +215,8 @@ def test_a_stand_in_run_driven_through_the_action_is_recorded_and_analysed_per_g
     # the desired state from the goal's feedback or, where the controller sent none, its controller_state
     assert not report["diverged"] and first["reference"].split(" (")[0] in ("feedback", "controller_state"), first
     assert "joint1" in second["error_string"]
+    # each goal's own trajectory, from the controller's send_goal events (action_introspection)
+    assert [g["trajectory"] for g in report["goals"]] == ["2 points over 1.500 s", "2 points over 0.600 s"]
     # the first goal: tracked closely, settled within its goal time, moved, below the limits
     metrics = first["metrics"]
     if metrics is None:  # a loaded machine: the controller's state came too sparsely to draw the desired curve
@@ -229,3 +232,45 @@ def test_a_stand_in_run_driven_through_the_action_is_recorded_and_analysed_per_g
     assert second["settle_time"] is None
     assert second["start"] > first["end"] > first["start"] >= 0.0
     assert os.path.isdir(bag)
+
+
+@pytest.mark.timeout(240)
+def test_run_experiment_stand_in_records_a_goal_sent_from_outside(ros_env: dict, tmp_path: Path) -> None:
+    """``scripts/run_experiment.sh --stand-in``: the stand-in, the controller and the recorder for
+    ``--seconds``; a goal sent meanwhile by a client the script did not start is in the bag."""
+    pytest.importorskip("mujoco")
+    domain = next_domain()
+    env = dict(ros_env, ROS_DOMAIN_ID=str(domain))
+    bag = tmp_path / "bag"
+    script = subprocess.Popen(
+        ["bash", str(Path(__file__).resolve().parents[2] / "scripts" / "run_experiment.sh"), "--stand-in",
+         "serial_3r", "--controller", "pd", "--param", "kp:=[800.0, 800.0, 160.0]", "--param",
+         "kd:=[40.0, 40.0, 8.0]", "--param", "thread_priority:=0", "--seconds", "25", "--out", str(bag)],
+        env=env, stdout=(tmp_path / "script.log").open("w"), stderr=subprocess.STDOUT, start_new_session=True)
+    client = Node(domain, "client")
+    states: list[np.ndarray] = []
+    client.node.create_subscription(JointState, "/joint_states", lambda m: states.append(
+        np.array([m.position[list(m.name).index(n)] for n in NAMES])), 1)
+    action = ActionClient(client.node, FollowJointTrajectory, "/controller/follow_joint_trajectory")
+    try:
+        assert action.wait_for_server(timeout_sec=60), logs(tmp_path)
+        assert wait(lambda: len(states) > 100, 30), logs(tmp_path)
+        time.sleep(1.0)  # the recorder's discovery of the goal topics
+        q0 = states[-1].copy()
+        handle = client.call(lambda: action.send_goal_async(quintic_goal(q0, q0 + [0.1, 0.1, 0.1], 1.0)))
+        assert handle.accepted  # type: ignore[attr-defined]
+        answer = client.call(handle.get_result_async)  # type: ignore[attr-defined]
+        assert answer.result.error_code == FollowJointTrajectory.Result.SUCCESSFUL  # type: ignore[attr-defined]
+        code = script.wait(timeout=90)
+    finally:
+        action.destroy()
+        client.close()
+        if script.poll() is None:
+            stop_process(script)
+    log = (tmp_path / "script.log").read_text()
+    assert code == 0, log + logs(bag.parent / "bag.logs")
+    out = subprocess.run([sys.executable, "-m", "pdsmc_ros.cli", "analyze", str(bag), "--robot", "serial_3r",
+                          "--json"], env=env, capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    (goal,) = json.loads(out.stdout)[0]["goals"]
+    assert (goal["status"], goal["result"], goal["trajectory"]) == ("SUCCEEDED", "SUCCESSFUL", "2 points over 1.000 s")
