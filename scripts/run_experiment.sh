@@ -7,7 +7,7 @@
 #                          [--param NAME:=VALUE ...] [--params-file FILE] [--composed | --compose NODES] [--keep-going]
 #                          [--respawn controller] [--nice N] [--intra-process] [--from-description]
 #                          [--viewer [--viewer-port PORT]]
-#        run_experiment.sh --stand-in ROBOT --controller K --out bags/NAME [--seconds S] [--rate HZ]
+#        run_experiment.sh --stand-in ROBOT --controller K --out bags/NAME [--seconds S] [--rate HZ (1000)]
 #                          [--param NAME:=VALUE ...] [--params-file FILE] [--timeout SECONDS]
 #
 # Starts the four nodes (each with `ros2 run pdsmc_ros ...`; with --composed, all four in one
@@ -230,8 +230,9 @@ wait_for_loops() {
 
 # --stand-in: the driver, the controller and the recorder in graph mode, for --seconds or until stopped
 if [[ -n "$STAND_IN" ]]; then
-  RATE_PARAM=()
-  [[ -n "$RATE" ]] && RATE_PARAM=(-p "rate:=$RATE")
+  # one rate for the driver and the controller: the driver's 1 kHz unless --rate (the controller's
+  # own default, the thesis preset's 10 kHz, would find every state of a 1 kHz driver stale)
+  RATE_PARAM=(-p "rate:=${RATE:-1000.0}")
   start_own() {
     local name="$1"; shift
     "${ROS2[@]}" run pdsmc_ros "$name" --ros-args "$@" >>"$LOGS/$name.log" 2>&1 &
