@@ -245,7 +245,8 @@ def test_run_experiment_stand_in_records_a_goal_sent_from_outside(ros_env: dict,
     script = subprocess.Popen(
         ["bash", str(Path(__file__).resolve().parents[2] / "scripts" / "run_experiment.sh"), "--stand-in",
          "serial_3r", "--controller", "pd", "--param", "kp:=[800.0, 800.0, 160.0]", "--param",
-         "kd:=[40.0, 40.0, 8.0]", "--param", "thread_priority:=0", "--param", "stale_periods:=200", "--seconds", "25", "--out", str(bag)],
+         "kd:=[40.0, 40.0, 8.0]", "--param", "thread_priority:=0", "--param",
+         "stale_periods:=200", "--seconds", "25", "--out", str(bag)],
         env=env, stdout=(tmp_path / "script.log").open("w"), stderr=subprocess.STDOUT, start_new_session=True)
     client = Node(domain, "client")
     states: list[np.ndarray] = []
