@@ -175,10 +175,14 @@ start_node() {
 }
 
 declare -A KILLED=()
+# the order stop_all stops nodes in: the plant first, the recorder last so it loses nothing; a
+# stand-in run stops the controller before the arm's driver, as on a real arm (the driver takes
+# the controller's last zero command, and the controller is not left to find its plant gone)
+STOP_ORDER=(plant trajectory controller composed viewer mujoco_driver recorder)
 stop_all() {
-  # stop what we started, by PID: the plant first, the recorder last so it loses nothing
+  # stop what we started, by PID, in STOP_ORDER
   local name pid
-  for name in mujoco_driver plant trajectory controller composed viewer recorder; do
+  for name in "${STOP_ORDER[@]}"; do
     pid="${PIDS[$name]:-}"
     [[ -n "$pid" ]] && kill -0 "$pid" 2>/dev/null || continue
     kill -INT "$pid" 2>/dev/null
@@ -233,6 +237,7 @@ if [[ -n "$STAND_IN" ]]; then
   # one rate for the driver and the controller: the driver's 1 kHz unless --rate (the controller's
   # own default, the thesis preset's 10 kHz, would find every state of a 1 kHz driver stale)
   RATE_PARAM=(-p "rate:=${RATE:-1000.0}")
+  STOP_ORDER=(controller mujoco_driver recorder)
   start_own() {
     local name="$1"; shift
     "${ROS2[@]}" run pdsmc_ros "$name" --ros-args "$@" >>"$LOGS/$name.log" 2>&1 &

@@ -287,7 +287,8 @@ def test_follow_joint_trajectory_action(setup) -> None:  # noqa: ANN001
 
     make, tmp_path = setup
     client = make()
-    assert client.wait(lambda: len(client.commands) > 100, 30), logs(tmp_path)  # holding on activation
+    # holding on activation
+    assert client.wait(lambda: len(client.commands) > 100 and len(client.states) > 0, 30), logs(tmp_path)
 
     # success: within the goal tolerance at the end; then the last point is held
     q0 = client.q()
@@ -354,7 +355,7 @@ def test_follow_joint_trajectory_action(setup) -> None:  # noqa: ANN001
 def test_joints_in_another_order_than_the_urdf_track_as_well(setup) -> None:  # noqa: ANN001
     make, tmp_path = setup
     client = make(joints=["joint3", "joint1", "joint2"])
-    assert client.wait(lambda: len(client.commands) > 100, 30), logs(tmp_path)
+    assert client.wait(lambda: len(client.commands) > 100 and len(client.states) > 0, 30), logs(tmp_path)
     q0 = client.q()
     q1 = q0 + [0.4, 0.2, 0.0]
     span, begin = 2.0, time.time() + 0.3
@@ -391,7 +392,7 @@ def test_a_runaway_aborts_the_goal_stops_the_arm_and_fails_the_run(ros_env: dict
         lambda m: errors.extend(s.message for s in m.status if s.level == s.ERROR and s.name == "controller: limits"),
         10)
     try:
-        assert client.wait(lambda: len(client.commands) > 100, 90), logs(tmp_path)
+        assert client.wait(lambda: len(client.commands) > 100 and len(client.states) > 0, 90), logs(tmp_path)
         q0 = client.q()
         handle = client.send_goal(goal_to(q0, q0 + [0.5, 0.0, 0.0], 1.0))  # 0.94 rad/s at its fastest
         status, code, text = result_of(client, handle)
