@@ -94,7 +94,32 @@ STEPPED = (TOPIC_JOINT_STATES, TOPIC_REFERENCE, TOPIC_EFFORT, TOPIC_EE_DESIRED, 
 """Topics with one message per control step; the run is complete when each has its last."""
 
 
-class RecorderNode:
+class BagOutput:
+    """What both recorders share: the bag they write, its periodic flush, and how a failed write
+    ends the recording (an error logged, exit status 1)."""
+
+    node: Node
+    path: Path
+    lock: threading.Lock
+    writer: Any
+    exit_code: int
+    done: bool
+
+    def write_failed(self, exc: OSError) -> None:
+        self.node.get_logger().error(f"write to {self.path} failed: {exc}")
+        self.exit_code = EXIT_FAILURE
+        self.done = True
+
+    def flush(self) -> None:
+        """Write the pending chunk to disk (reaches the OS: survives SIGKILL)."""
+        try:
+            with self.lock:
+                flush_chunk(self.writer)
+        except OSError as exc:
+            self.write_failed(exc)
+
+
+class RecorderNode(BagOutput):
     """Thin wrapper: raw subscriptions into a rosbags MCAP writer."""
 
     observer = True  # takes the real-time parameters with normal scheduling by default (cpu_affinity)
@@ -154,9 +179,7 @@ class RecorderNode:
                     if topic == TOPIC_JOINT_STATES and (frames := self.tf.messages(batch)):
                         self.tf_append.append_many(time.time_ns(), frames)
             except OSError as exc:
-                self.node.get_logger().error(f"write to {self.path} failed: {exc}")
-                self.exit_code = EXIT_FAILURE
-                self.done = True
+                self.write_failed(exc)
                 return
             first = not self.counts[topic]
             self.counts[topic] += len(batch)
@@ -171,16 +194,6 @@ class RecorderNode:
                 self.done = True
 
         return callback
-
-    def flush(self) -> None:
-        """Write the pending chunk to disk (reaches the OS: survives SIGKILL)."""
-        try:
-            with self.lock:
-                flush_chunk(self.writer)
-        except OSError as exc:
-            self.node.get_logger().error(f"write to {self.path} failed: {exc}")
-            self.exit_code = EXIT_FAILURE
-            self.done = True
 
     def close(self) -> None:
         """Finish the bag (metadata and MCAP summary); idempotent."""
@@ -320,7 +333,7 @@ class ActionResults:
     answered: int = 0
 
 
-class GraphRecorder:
+class GraphRecorder(BagOutput):
     """Records the topics of a graph it did not start, as ``ros2 bag record`` does (graph mode).
 
     Topics are taken up as the graph shows them (every ``discovery_period``), each with the
@@ -468,9 +481,7 @@ class GraphRecorder:
                     if frames:
                         self.tf_append.append_many(time.time_ns(), frames)
         except OSError as exc:
-            self.node.get_logger().error(f"write to {self.path} failed: {exc}")
-            self.exit_code = EXIT_FAILURE
-            self.done = True
+            self.write_failed(exc)
             return
         if entry.topic.endswith("/_action/status"):
             self._statuses(entry.topic[: -len("/_action/status")], batch[-1][0])
@@ -551,9 +562,7 @@ class GraphRecorder:
                 if self.writer is not None:
                     watch.append([(data, now, now)])
         except OSError as exc:
-            self.node.get_logger().error(f"write to {self.path} failed: {exc}")
-            self.exit_code = EXIT_FAILURE
-            self.done = True
+            self.write_failed(exc)
 
     # -- /tf from the joint states ------------------------------------------ #
     def _start_tf(self) -> None:
@@ -576,16 +585,6 @@ class GraphRecorder:
             MessageAppender(self.writer, static).append_many(time.time_ns(), [tf.static_message()])
             self.tf = tf
         self.node.get_logger().info("recording /tf of the arm's links from /joint_states and /robot_description")
-
-    def flush(self) -> None:
-        """Write the pending chunk to disk (reaches the OS: survives SIGKILL)."""
-        try:
-            with self.lock:
-                flush_chunk(self.writer)
-        except OSError as exc:
-            self.node.get_logger().error(f"write to {self.path} failed: {exc}")
-            self.exit_code = EXIT_FAILURE
-            self.done = True
 
     def close(self) -> None:
         """Take what has arrived, then finish the bag; idempotent."""
