@@ -177,7 +177,8 @@ def test_a_stand_in_run_driven_through_the_action_is_recorded_and_analysed_per_g
     action = ActionClient(client.node, FollowJointTrajectory, "/controller/follow_joint_trajectory")
     seen = []
     try:
-        assert wait(lambda: len(commands) > 100, 120), logs(tmp_path)  # the controller holds the arm
+        # the controller holds the arm, and this client has the arm's state
+        assert wait(lambda: len(commands) > 100 and len(states) > 0, 120), logs(tmp_path)
         assert action.wait_for_server(timeout_sec=30)
         q0 = states[-1].copy()
         goals = [quintic_goal(q0, q0 + [0.2, 0.1, 0.1], 1.5, goal=dict.fromkeys(NAMES, 0.03), goal_time=2.0)]
