@@ -28,7 +28,7 @@ import numpy as np
 from numba import njit
 
 from pdsmc_ros.control import ControlLaw
-from pdsmc_ros.control.dispatch import law_torque
+from pdsmc_ros.control.law import law_torque
 from pdsmc_ros.control.soft_limits import effort_only_table
 from pdsmc_ros.presets import make_run
 from pdsmc_ros.robots import compiled as robot_compiled

@@ -305,6 +305,11 @@ def resolve_gains(robot: str, contour: str, controller: str, *, scenario: str = 
     the law declares as needed must come from some layer; when ``needs_gains`` is False (the nodes
     other than the controller, which never use them) the missing ones hold their neutral values.
 
+    Where they go: the run's :class:`RunSpec` (``gains``); the controller's core
+    (:class:`~pdsmc_ros.controller.core.ControllerCore`) builds its law from it at start-up and on
+    a set (:meth:`~pdsmc_ros.control.law.ControlLaw.from_spec`), whose compiled call hands the rows
+    ``kp, kd, ...`` to the law's formula (:mod:`pdsmc_ros.control.laws` for the thesis's).
+
     Raises
     ------
     ConfigError

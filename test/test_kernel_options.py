@@ -50,12 +50,12 @@ def test_every_kernel_compiled_on_its_own_names_its_runtime_option() -> None:
 
 
 def test_the_hot_path_is_compiled_without_the_runtime_and_the_python_bridges_with_it() -> None:
-    from pdsmc_ros.control import dispatch
     from pdsmc_ros.control import python_form as law_bridge
+    from pdsmc_ros.control.law import compiled_torque
     from pdsmc_ros.robots import python_form as robot_bridge
     from pdsmc_ros.sim import loop, rk4
 
-    for kernel in (*loop._CLOSED_LOOPS.values(), *rk4._STEPS.values(), rk4.rk4_advance, dispatch.compiled_torque):
+    for kernel in (*loop._CLOSED_LOOPS.values(), *rk4._STEPS.values(), rk4.rk4_advance, compiled_torque):
         assert kernel.targetoptions["_nrt"] is kernel_options.ALLOCATION_FREE["_nrt"] is False
     for kernel in (law_bridge.torque, robot_bridge.accelerations, robot_bridge.outputs):
         assert kernel.targetoptions["_nrt"] is True

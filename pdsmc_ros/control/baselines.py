@@ -1,6 +1,6 @@
 """The model-based baselines beside the thesis's laws: PD with gravity compensation and computed torque.
 
-Written once, compiled (:func:`pdsmc_ros.control.dispatch.law_torque` calls them). Errors
+Written once, compiled (:func:`pdsmc_ros.control.law.law_torque` calls them). Errors
 are the thesis's, ``e = q_d - q``, ``edot = qd_d - qd`` (Eq. 3.2). The model estimate is the
 SMC's (:attr:`LawSetup.smc_model`: ``Mhat = s_M Mbar``, ``Chat = s_C C``, ``Ghat = s_G G``,
 ``Bhat = s_B B`` of the nominal robot; ``--smc-reading``), so the three model-based laws

@@ -7,7 +7,7 @@ since ``s' = -s`` the signs below are its Eq. (3.15) rewritten.
 
 Each law is one compiled function (numba, scalar loops, no allocation), callable from Python
 too; the simulator, the nodes and every robot run it through
-:func:`pdsmc_ros.control.dispatch.law_torque`. The tests hold it against the equations read
+:func:`pdsmc_ros.control.law.law_torque`. The tests hold it against the equations read
 in numpy (test/control/test_laws.py). :func:`model_part` (the SMC's model terms) is shared
 with the model-based laws of :mod:`.baselines` and :mod:`.sliding`.
 """
@@ -39,7 +39,7 @@ from .registry import (
 PD = 0
 SMC = 1
 PDSMC = 2
-"""Codes of the compiled forms (:func:`pdsmc_ros.control.dispatch.law_torque`)."""
+"""Codes of the compiled forms (:func:`pdsmc_ros.control.law.law_torque`)."""
 
 # --------------------------------------------------------------------------- #
 # The thesis's gains (Tables 4.16 / 4.33), one spec each

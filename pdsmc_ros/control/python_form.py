@@ -3,7 +3,7 @@
 A law registered with a Python torque and no compiled form (:attr:`LawEntry.code` None: a
 user's law, a test's own) runs through the same closed loop and the same controller as the
 compiled laws: :class:`~pdsmc_ros.control.law.ControlLaw` gives it a code from
-:data:`PYTHON_LAW` up, a handle to itself, and :func:`~pdsmc_ros.control.dispatch.law_torque`
+:data:`PYTHON_LAW` up, a handle to itself, and :func:`~pdsmc_ros.control.law.law_torque`
 calls back into its Python torque for that code (about 3 us a call besides the law's own cost).
 """
 

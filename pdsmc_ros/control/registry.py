@@ -180,7 +180,7 @@ class LawEntry:
     equation : str
         Where it is written (thesis equation).
     code : int or None
-        The code of its compiled form in :func:`pdsmc_ros.control.dispatch.law_torque`
+        The code of its compiled form in :func:`pdsmc_ros.control.law.law_torque`
         (None: written in Python, ``torque``).
     linear_gains : callable or None
         Its linear part, for the discrete stability check

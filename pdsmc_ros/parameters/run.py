@@ -43,7 +43,11 @@ def declare_node_run(node: Node, *, gains: bool = False) -> NodeRun:
     declares its stability and own parameters, :data:`~pdsmc_ros.parameters.STABILITY` and
     :data:`~pdsmc_ros.parameters.CONTROLLER`, and its gains given as parameters follow its
     ``joints``); the other nodes take them read-only and run without. Every parameter of the
-    tables is read-only but the controller's gains (:func:`~pdsmc_ros.parameters.ros.guard`)."""
+    tables is read-only but the controller's gains (:func:`~pdsmc_ros.parameters.ros.guard`).
+
+    The gains (``-p kp:=``, a params file) go through :func:`spec_from_values` to the one resolver
+    (:func:`~pdsmc_ros.presets.resolve_gains`) into ``spec``; the controller node hands ``spec`` to
+    its core (:class:`~pdsmc_ros.controller.core.ControllerCore`), which runs the law with them."""
     values = declare_run_parameters(node, gains=gains)
     values.update(declare(node, (BUSY_WAIT,)))  # used in real time
     if values["robot"] == ROBOT_DESCRIPTION:

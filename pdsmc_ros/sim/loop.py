@@ -15,8 +15,7 @@ from typing import Any
 import numpy as np
 from numba import njit
 
-from ..control.dispatch import law_torque
-from ..control.law import ControlLaw
+from ..control.law import ControlLaw, law_torque
 from ..control.soft_limits import effort_only_table, soft_limit
 from ..kernel_options import ALLOCATION_FREE
 from ..robots import compiled as robot_compiled
