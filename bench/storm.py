@@ -3,7 +3,7 @@
 The UR5 in the MuJoCo stand-in (``ros2 run pdsmc_ros mujoco_driver robot:=ur5 rate:=1000.0``) and
 the controller in real time (``type:=pd robot:=ur5 mode:=realtime rate:=1000.0``), in a ROS
 domain of their own. The loop's timing comes from its ``/pdsmc/controller_timing`` rows
-(:class:`~pdsmc_ros.loop.statistics.TickTiming`: each commanding tick's wall time and its
+(:meth:`~pdsmc_ros.loop.statistics.LoopStatistics.row`: each commanding tick's wall time and its
 lateness after its deadline), taken by a subscription in this process.
 
 Windows of ``--duration`` seconds alternate, ``--rounds`` times: an idle window (the storm's
@@ -337,10 +337,10 @@ class TimingRows:
         import rclpy.executors
         from std_msgs.msg import Float64MultiArray
 
-        from pdsmc_ros.loop.statistics import TickTiming
+        from pdsmc_ros.loop.statistics import LoopStatistics
         from pdsmc_ros.ros.topics import STREAM_QOS, TOPIC_TIMING
 
-        self.width = TickTiming.FIELDS
+        self.width = LoopStatistics.ROW_FIELDS
         self.rclpy = rclpy
         self.context = rclpy.Context()
         rclpy.init(context=self.context, domain_id=domain)

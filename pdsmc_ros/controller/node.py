@@ -23,6 +23,7 @@ from __future__ import annotations
 import dataclasses
 import sys
 import threading
+import time
 from collections.abc import Sequence
 
 from rclpy.duration import Duration
@@ -40,7 +41,7 @@ from ..loop.inputs import Inputs, Times
 from ..loop.lifecycle import EXIT_FAILURE, EXIT_OK, WATCH_GRACE_S, CommandingEntity, end_when_plant_leaves
 from ..loop.log import LoopLog
 from ..loop.process import run_node
-from ..loop.statistics import TickTiming
+from ..loop.statistics import LoopStatistics
 from ..parameters.run import declare_node_run, description_json
 from ..robots.base import FloatArray
 from ..ros import topics
@@ -141,8 +142,11 @@ class ControllerNode(CommandingEntity):
         node.create_publisher(String, topics.TOPIC_DESCRIPTION, topics.LATCHED_QOS).publish(description)
         if not self.lockstep:
             self.period = 1.0 / spec.rate  # run_node paces tick() at this period
-            self.timing = TickTiming(self.period)
-            self.timing_rows = RowBatches(node, topics.TOPIC_TIMING, ("tick", "field"), TickTiming.FIELDS, batch=50)
+            # the loop's one statistics object: the serve loop records each tick in it (and publishes
+            # it on /diagnostics), the timing rows read it
+            self.loop_statistics = LoopStatistics(self.period)
+            self.timing_rows = RowBatches(node, topics.TOPIC_TIMING, ("tick", "field"), LoopStatistics.ROW_FIELDS,
+                                          batch=50)
             self.plant_watch = end_when_plant_leaves(self, lambda: core.states_received)
         node.add_managed_entity(self)
         # the action server: a node of its own spun by a thread of its own, never by the loop's executor
@@ -224,7 +228,8 @@ class ControllerNode(CommandingEntity):
     def tick(self, lateness: float) -> None:
         """Real time: a torque from the latest inputs (a goal checked against its tolerances),
         its timing recorded; then (rarely) a look at whether the plant is there."""
-        now = self.timing.start(lateness)
+        stats = self.loop_statistics
+        now = stats.last_start if stats.last_start is not None else time.perf_counter()
         if self.active:
             tau, change = self.core.realtime_command(now, self.now)
             if change == "stale":
@@ -238,7 +243,7 @@ class ControllerNode(CommandingEntity):
                 with self.effort.lock:
                     if self.active:
                         self.effort.publish(self.joint_map.to_user(tau), 0)
-                self.timing_rows.add(self.timing.row(now, lateness))
+                self.timing_rows.add(stats.row(now, lateness))
         self.plant_watch.poll(grace=WATCH_GRACE_S)  # only if the loop had no spare time for it
 
     def idle(self, until: float) -> None:

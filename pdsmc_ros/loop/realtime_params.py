@@ -59,7 +59,9 @@ class LoopReport:
         node: Node = wrapper.node
         self.settings = declare_realtime_parameters(node, mode, getattr(wrapper, "realtime_priority", DEFAULT_PRIORITY))
         period = getattr(wrapper, "period", None)
-        self.stats = LoopStatistics(period) if period else None
+        # a node that reads its loop's statistics in its tick (the controller's timing rows) owns them
+        owned = getattr(wrapper, "loop_statistics", None)
+        self.stats: LoopStatistics | None = owned if owned is not None else LoopStatistics(period) if period else None
         self.diagnostics = None if self.stats is None else Diagnostics(
             node, status_name(node.get_name()), "pdsmc_ros/loop", values=self.stats.values)
 

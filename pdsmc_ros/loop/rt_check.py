@@ -44,7 +44,7 @@ from .realtime import (
     minor_faults,
     restore,
 )
-from .statistics import missed as is_missed
+from .statistics import LoopStatistics
 
 BUCKETS_US = (10, 20, 50, 100, 200, 500, 1000)
 WARM_UP_S = 1.0
@@ -153,9 +153,11 @@ def _can_fifo() -> bool:
     return True
 
 
-def paced_loop(period: float, duration: float, busy_wait: float) -> tuple[np.ndarray, np.ndarray, int]:
+def paced_loop(period: float, duration: float, busy_wait: float) -> tuple[np.ndarray, np.ndarray, LoopStatistics]:
     """Tick at ``period`` for ``duration`` s: the lateness of each tick start and each achieved
-    period (seconds, after ``WARM_UP_S``), and the minor page faults after the warm-up.
+    period (seconds, after ``WARM_UP_S``), and the loop's statistics (the nodes' own
+    :class:`~pdsmc_ros.loop.statistics.LoopStatistics`, warmed up for ``WARM_UP_S``: missed
+    ticks, page faults).
 
     Paced as the serve loop paces the nodes: sleep until ``busy_wait`` before the deadline,
     spin the rest; a tick more than a period behind resynchronises.
@@ -164,8 +166,8 @@ def paced_loop(period: float, duration: float, busy_wait: float) -> tuple[np.nda
     n = int(duration / period) + 1
     late = np.zeros(n)
     starts = np.zeros(n)
-    warm = int(WARM_UP_S / period)
-    faults_at = 0
+    warm = max(min(int(WARM_UP_S / period), n - 2), 0)
+    stats = LoopStatistics(period, warm_up=warm)
     deadline = clock() + period
     for k in range(n):
         left = deadline - busy_wait - clock()
@@ -176,14 +178,14 @@ def paced_loop(period: float, duration: float, busy_wait: float) -> tuple[np.nda
         start = clock()
         late[k] = start - deadline
         starts[k] = start
-        if k == warm:
-            faults_at = minor_faults()
+        stats.start(late[k], start)
+        if k == warm - 1:
+            stats.page_faults(minor_faults())  # the warm-up's end
         deadline += period
         if start - deadline > period:
             deadline = start + period
-    faults = minor_faults() - faults_at if n > warm else 0
-    keep = slice(min(warm, n - 2), None)
-    return late[keep], np.diff(starts[keep]), faults
+    stats.page_faults(minor_faults())
+    return late[warm:], np.diff(starts[warm:]), stats
 
 
 def histogram(late_us: np.ndarray) -> str:
@@ -201,7 +203,8 @@ def run(args: argparse.Namespace) -> int:
     collector.start()
     applied = apply(settings)
     try:
-        late, periods, faults = paced_loop(period, duration, busy_wait)
+        late, periods, stats = paced_loop(period, duration, busy_wait)
+        faults = stats.faults
         summary = applied.summary()
     finally:
         restore(applied)
@@ -223,9 +226,9 @@ def run(args: argparse.Namespace) -> int:
         print(f"{label}: p50 {p50:.1f} us, p99 {p99:.1f} us, p99.9 {p999:.1f} us, max {values.max():.1f} us, "
               f"mean {values.mean():.1f} us")
     print(f"histogram of lateness: {histogram(late_us)}")
-    missed = int(np.count_nonzero(is_missed(late, period)))
-    print(f"missed periods (a tick more than a period late): {missed} of {len(late)} "
-          f"({100.0 * missed / max(len(late), 1):.3f} %); mean lateness {100 * late.mean() / period:.2f} % of the "
+    missed = stats.missed
+    print(f"missed periods (a tick more than a period late): {missed} of {stats.ticks} "
+          f"({100.0 * missed / max(stats.ticks, 1):.3f} %); mean lateness {100 * late.mean() / period:.2f} % of the "
           "period (ROS 2's real-time demo asks for < 3 %)")
     return 0
 

@@ -258,10 +258,13 @@ class NodeGroup:
         deadline = clock() - lateness
         for w, stats in self.ticking:
             if not w.done:
-                start = clock()
+                if stats is None:
+                    w.tick(lateness)
+                    continue
+                start = clock()  # ros2_control's overrun accounting, per node
+                stats.start(start - deadline, start)
                 w.tick(lateness)
-                if stats is not None:  # ros2_control's overrun accounting, per node
-                    stats.record(start, start - deadline, clock())
+                stats.end(start, clock())
         if self.watchers and self.state_sources and all(w.done for w in self.state_sources):
             for watch in self.watchers:
                 if not watch.gone:

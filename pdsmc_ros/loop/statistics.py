@@ -1,17 +1,17 @@
 """Overrun accounting of a ticking node's loop, as ros2_control's controller manager keeps it:
-the one place a missed deadline is defined (:func:`missed`) and counted.
+the one place a missed deadline is defined (:func:`missed`) and counted (:class:`LoopStatistics`).
 
 ros2_control's controller manager counts the periods its update loop overran ("Overrun
 detected! The controller manager missed its desired rate") and keeps statistics of the
 loop's periodicity and execution time. :class:`LoopStatistics` keeps the same for one of
 our real-time loops: ticks, periods missed (a tick later than a whole period), how late
 the ticks were, the worst (longest) period between two ticks, the longest tick and the
-loop thread's minor page faults after warm-up. The serve loop publishes
-:meth:`LoopStatistics.values` once a second on ``/diagnostics`` (status
-``<node>: loop statistics``, :mod:`pdsmc_ros.bag.loop_statistics`), so the bag records them.
-:class:`TickTiming` is the controller's row per tick (``/pdsmc/controller_timing``), its
-missed count from the first tick; ``pdsmc rt-check`` (:mod:`.rt_check`) counts its ticks'
-misses by the same rule.
+loop thread's minor page faults after warm-up. One object per loop feeds everything that
+reports it: the serve loop records each tick in it and publishes :meth:`LoopStatistics.values`
+once a second on ``/diagnostics`` (status ``<node>: loop statistics``,
+:mod:`pdsmc_ros.bag.loop_statistics`), so the bag records them; the controller writes its
+:meth:`LoopStatistics.row` per tick on ``/pdsmc/controller_timing``; ``pdsmc rt-check``
+(:mod:`.rt_check`) records its ticks in one too.
 """
 
 from __future__ import annotations
@@ -33,16 +33,22 @@ class LoopStatistics:
     A tick is *missed* when it starts more than one period after its deadline (the
     deadline passed and the next one too: ros2_control's overrun); ``late`` is how long
     after its deadline a tick started; the *period* is the time between two tick starts.
-    Everything counts from the end of the first ``warm_up`` ticks (start-up: discovery,
-    the nodes waiting for each other, kernels loaded); ``seen`` counts those too.
+    Every tick is counted in :attr:`missed_total` (from the first: the timing rows' "missed so
+    far"); the statistics count from the end of the first ``warm_up`` ticks (start-up:
+    discovery, the nodes waiting for each other, kernels loaded), :attr:`missed` among them;
+    ``seen`` counts every tick.
     """
+
+    ROW_FIELDS = 5
+    """:meth:`row`'s length."""
 
     def __init__(self, period: float, *, warm_up: int = 1000) -> None:
         self.period = period
         self.warm_up = warm_up
         self.seen = 0
         self.ticks = 0
-        self.missed = 0
+        self.missed_total = 0  # every missed tick, from the first
+        self.missed_at_warm_up = 0  # those among the warm-up ticks
         self.late_sum = 0.0
         self.late_max = 0.0
         self.period_worst = 0.0
@@ -50,25 +56,47 @@ class LoopStatistics:
         self.faults_at_warm_up: int | None = None
         self.faults = 0
         self.collections = 0
-        self._last_start: float | None = None
+        self.last_start: float | None = None  # the latest tick's start (``perf_counter``)
+        self.achieved = 0.0  # the latest tick's start minus the one before (0 for the first)
 
-    def record(self, start: float, lateness: float, end: float) -> None:
-        """A tick that started at ``start`` (``lateness`` s after its deadline), ended at ``end``."""
+    @property
+    def missed(self) -> int:
+        """Ticks missed after the warm-up."""
+        return self.missed_total - self.missed_at_warm_up
+
+    def start(self, lateness: float, start: float | None = None) -> float:
+        """A tick starts ``lateness`` s after its deadline, at ``start`` (``perf_counter``; now
+        if None); returns its start."""
+        if start is None:
+            start = time.perf_counter()
         self.seen += 1
+        self.missed_total += missed(lateness, self.period)
+        last, self.last_start = self.last_start, start
+        self.achieved = 0.0 if last is None else start - last
         if self.seen <= self.warm_up:
-            self._last_start = start
-            return
+            self.missed_at_warm_up = self.missed_total
+            return start
         self.ticks += 1
-        if missed(lateness, self.period):
-            self.missed += 1
         self.late_sum += lateness
         if lateness > self.late_max:
             self.late_max = lateness
-        if self._last_start is not None and start - self._last_start > self.period_worst:
-            self.period_worst = start - self._last_start
-        self._last_start = start
-        if end - start > self.tick_max:
+        if self.achieved > self.period_worst:
+            self.period_worst = self.achieved
+        return start
+
+    def end(self, start: float, end: float) -> None:
+        """The tick that started at ``start`` ended at ``end``."""
+        if self.seen > self.warm_up and end - start > self.tick_max:
             self.tick_max = end - start
+
+    def record(self, start: float, lateness: float, end: float) -> None:
+        """A whole tick: started at ``start`` (``lateness`` s after its deadline), ended at ``end``."""
+        self.end(self.start(lateness, start), end)
+
+    def row(self, start: float, lateness: float) -> list[float]:
+        """The controller's timing row of the tick started at ``start``, at its end: ``[wall time,
+        achieved period, compute time, lateness, missed so far]`` (``/pdsmc/controller_timing``)."""
+        return [time.time(), self.achieved, time.perf_counter() - start, lateness, float(self.missed_total)]
 
     def page_faults(self, total: int) -> None:
         """The loop thread's minor-fault count now; counted from the end of the warm-up."""
@@ -92,27 +120,3 @@ class LoopStatistics:
             "minor_faults": str(self.faults) if self.faults_at_warm_up is not None else "warming up",
             "collections": str(self.collections),
         }
-
-
-class TickTiming:
-    """Real time: each tick's ``[wall time, achieved period, compute time, lateness, missed so far]``."""
-
-    FIELDS = 5
-
-    def __init__(self, period: float) -> None:
-        self.period = period
-        self.missed = 0
-        self.last: float | None = None  # the start of the latest tick
-        self.achieved = 0.0  # the latest tick's start minus the one before (0 for the first)
-
-    def start(self, lateness: float) -> float:
-        """A tick starts ``lateness`` s after its deadline; its start time (``perf_counter``)."""
-        self.missed += missed(lateness, self.period)
-        now = time.perf_counter()
-        self.achieved = 0.0 if self.last is None else now - self.last
-        self.last = now
-        return now
-
-    def row(self, start: float, lateness: float) -> list[float]:
-        """The row of a tick that commanded, at its end."""
-        return [time.time(), self.achieved, time.perf_counter() - start, lateness, float(self.missed)]

@@ -122,12 +122,24 @@ def test_lockstep_pairing_takes_a_window_sent_again_from_before_the_first_refere
 
 
 def test_tick_timing_periods_are_between_tick_starts_and_misses_count() -> None:
-    from pdsmc_ros.loop.statistics import TickTiming
+    from pdsmc_ros.loop.statistics import LoopStatistics
 
-    timing = TickTiming(period=0.001)
-    first = timing.start(0.0)
-    assert timing.row(first, 0.0)[1] == 0.0 and timing.missed == 0  # no tick before the first
-    second = timing.start(0.002)  # two periods late: a missed deadline
-    row = timing.row(second, 0.002)
+    stats = LoopStatistics(period=0.001, warm_up=1)
+    first = stats.start(0.0)
+    assert stats.row(first, 0.0)[1] == 0.0 and stats.missed_total == 0  # no tick before the first
+    second = stats.start(0.002)  # two periods late: a missed deadline
+    row = stats.row(second, 0.002)
     assert row[1] == second - first and row[3] == 0.002 and row[4] == 1.0
-    assert len(row) == TickTiming.FIELDS
+    assert len(row) == LoopStatistics.ROW_FIELDS
+    assert stats.missed == 1 and stats.ticks == 1  # one object: the same miss in the statistics
+
+
+def test_missed_ticks_are_counted_once_from_the_first_and_reported_after_the_warm_up() -> None:
+    from pdsmc_ros.loop.statistics import LoopStatistics
+
+    stats = LoopStatistics(period=0.001, warm_up=3)
+    for k, lateness in enumerate((0.005, 0.0, 0.0, 0.002, 0.0, 0.0015)):  # misses at ticks 0, 3 and 5
+        stats.record(k * 0.001, lateness, k * 0.001 + 1e-4)
+    assert stats.missed_total == 3  # the timing rows' "missed so far": every tick
+    assert stats.missed == 2 and stats.ticks == 3  # /diagnostics: after the three warm-up ticks
+    assert stats.values()["missed"] == "2"
