@@ -49,8 +49,6 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-import rclpy  # noqa: E402
-import rclpy.executors  # noqa: E402
 from builtin_interfaces.msg import Duration  # noqa: E402
 from control_msgs.action import FollowJointTrajectory  # noqa: E402
 from control_msgs.msg import JointTolerance  # noqa: E402
@@ -60,6 +58,7 @@ from trajectory_msgs.msg import JointTrajectoryPoint  # noqa: E402
 
 from pdsmc_ros.robots.catalog import resolve_robot  # noqa: E402
 from pdsmc_ros.robots.registry import make_robot  # noqa: E402
+from pdsmc_ros.ros.spun_node import SpunNode  # noqa: E402
 
 ENDINGS = ("success", "goal_tolerance", "path_tolerance", "cancel", "preemption", "step")
 MOVE = 0.3  # rad, every joint
@@ -73,31 +72,17 @@ def duration(seconds: float) -> Duration:
     return Duration(sec=int(seconds), nanosec=int(round((seconds % 1.0) * 1e9)))
 
 
-class Client:
+class Client(SpunNode):
     """An rclpy node spun by a thread of its own: the stand-in's states and an action client."""
 
     def __init__(self, domain: int, names: list[str]) -> None:
+        super().__init__(domain, "goal_ends_bench")
         self.names = names
-        self.context = rclpy.Context()
-        rclpy.init(context=self.context, domain_id=domain)
-        self.node = rclpy.create_node("goal_ends_bench", context=self.context)
         self.lock = threading.Lock()
         self.foreign = 0  # /joint_states without this arm's joints (another run on the domain)
         self.states: list[tuple[float, np.ndarray, np.ndarray]] = []  # (stamp, q, qd) in ``names`` order
         self.node.create_subscription(JointState, "/joint_states", self.on_state, 10)  # the latest
         self.action = ActionClient(self.node, FollowJointTrajectory, "/controller/follow_joint_trajectory")
-        self.executor = rclpy.executors.SingleThreadedExecutor(context=self.context)
-        self.executor.add_node(self.node)
-        self.stop = threading.Event()
-        self.spinning = threading.Lock()
-        self.thread = threading.Thread(target=self.spin, daemon=True)
-        self.thread.start()
-
-    def spin(self) -> None:
-        while not self.stop.is_set():
-            with self.spinning:
-                self.executor.spin_once(timeout_sec=0.005)
-            time.sleep(0)
 
     def on_state(self, msg: JointState) -> None:
         if not set(self.names) <= set(msg.name):  # another arm's, on the same domain
@@ -118,20 +103,18 @@ class Client:
             rows = [q if position else qd for t, q, qd in self.states if start <= t <= end]
         return np.array(rows) if rows else np.zeros((0, len(self.names)))
 
-    def call(self, make: Callable[[], Any], seconds: float = 30.0) -> Any:  # noqa: ANN401
-        with self.spinning:  # rclpy files an action request's future only after sending it
-            future = make()
-        end = time.monotonic() + seconds
-        while not future.done() and time.monotonic() < end:
-            time.sleep(0.002)
-        return future.result() if future.done() else None
+    def call(self, make: Callable[[], Any], seconds: float = 30.0, why: Callable[[], str] = str) -> Any:  # noqa: ANN401
+        """The answer, or None if none came within ``seconds`` (the bench reports it)."""
+        try:
+            return super().call(make, seconds, why)
+        except TimeoutError:
+            return None
 
     def close(self) -> None:
         self.stop.set()
         self.thread.join(timeout=2)
         self.action.destroy()
-        self.node.destroy_node()
-        rclpy.try_shutdown(context=self.context)
+        super().close()
 
 
 def goal(names: list[str], start: np.ndarray | None, target: np.ndarray, *, step: bool = False,

@@ -34,6 +34,8 @@ from sensor_msgs.msg import JointState  # noqa: E402
 from std_msgs.msg import Float64MultiArray  # noqa: E402
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint  # noqa: E402
 
+from pdsmc_ros.ros.spun_node import SpunNode, wait_until  # noqa: E402
+
 NAMES = ["joint1", "joint2", "joint3"]
 KP = [1200.0, 1200.0, 240.0]  # stable at 1 kHz with the real-time loop's two periods of delay (margin x2.1)
 KD = [60.0, 60.0, 12.0]
@@ -50,13 +52,11 @@ def wall_time(seconds: float) -> Time:
     return Time(sec=int(seconds), nanosec=int((seconds % 1.0) * 1e9))
 
 
-class Client:
+class Client(SpunNode):
     """A plain rclpy node spun by a thread: records states, commands and controller states."""
 
     def __init__(self, domain: int) -> None:
-        self.context = rclpy.Context()
-        rclpy.init(context=self.context, domain_id=domain)
-        self.node = rclpy.create_node("client", context=self.context)
+        super().__init__(domain, "client")
         self.lock = threading.Lock()
         self.states: list[tuple[float, np.ndarray, np.ndarray]] = []  # (stamp s, q, qd) by NAMES
         self.commands: list[tuple[float, tuple[float, ...]]] = []
@@ -72,26 +72,6 @@ class Client:
         self.trajectory = self.node.create_publisher(JointTrajectory, "/controller/joint_trajectory", 10)
         self.action = ActionClient(self.node, FollowJointTrajectory, "/controller/follow_joint_trajectory")
         self.feedback: list[FollowJointTrajectory.Feedback] = []
-        self.executor = rclpy.executors.SingleThreadedExecutor(context=self.context)
-        self.executor.add_node(self.node)
-        self.stop = threading.Event()
-        self.spinning = threading.Lock()
-        self.thread = threading.Thread(target=self._spin, daemon=True)
-        self.thread.start()
-
-    def _spin(self) -> None:
-        while not self.stop.is_set():
-            with self.spinning:
-                self.executor.spin_once(timeout_sec=0.005)
-            time.sleep(0)
-
-    def call(self, make: Callable[[], rclpy.task.Future], seconds: float = 30.0) -> object:
-        """Send a request (goal, result, cancel, service) and wait for its answer. Sent while the
-        executor thread is not spinning: rclpy's ActionClient files the request's future only
-        after sending it, and a response handled in between is dropped as unexpected."""
-        with self.spinning:
-            future = make()
-        return self.future(future, seconds)
 
     def on_state(self, msg: JointState) -> None:
         index = [list(msg.name).index(n) for n in NAMES]
@@ -107,17 +87,12 @@ class Client:
         with self.lock:
             return [s for s in self.states if start <= s[0] <= end]
 
-    def wait(self, condition: Callable[[], bool], seconds: float) -> bool:
-        end = time.monotonic() + seconds
-        while time.monotonic() < end:
-            if condition():
-                return True
-            time.sleep(0.01)
-        return condition()
+    @staticmethod
+    def wait(condition: Callable[[], bool], seconds: float) -> bool:
+        return wait_until(condition, seconds)
 
     def future(self, future: rclpy.task.Future, seconds: float = 30.0) -> object:
-        assert self.wait(future.done, seconds), "no answer"
-        return future.result()
+        return self.wait_for(future, seconds)
 
     def transition(self, transition: int) -> None:
         client = self.node.create_client(ChangeState, "/controller/change_state")
@@ -136,8 +111,7 @@ class Client:
         self.stop.set()
         self.thread.join(timeout=2)
         self.action.destroy()
-        self.node.destroy_node()
-        rclpy.try_shutdown(context=self.context)
+        super().close()
 
 
 def start(ros_env: dict, domain: int, log: Path, executable: str, *params: str) -> subprocess.Popen:

@@ -27,8 +27,6 @@ from conftest import next_domain, stop_process
 pytest.importorskip("rclpy")
 pytest.importorskip("mujoco")
 pytest.importorskip("control_msgs")
-import rclpy  # noqa: E402
-import rclpy.executors  # noqa: E402
 from action_msgs.msg import GoalStatus  # noqa: E402
 from builtin_interfaces.msg import Duration, Time  # noqa: E402
 from control_msgs.action import FollowJointTrajectory  # noqa: E402
@@ -39,6 +37,8 @@ from lifecycle_msgs.srv import ChangeState  # noqa: E402
 from rclpy.action import ActionClient  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint  # noqa: E402
+
+from pdsmc_ros.ros.spun_node import SpunNode, wait_until  # noqa: E402
 
 JOINTS = ["joint1", "joint2", "joint3"]
 # PD gains stable at 1 kHz with the real-time loop's two periods of delay (test_controller_mujoco.py)
@@ -61,7 +61,7 @@ def stamp(seconds: float) -> Time:
     return Time(sec=int(seconds), nanosec=int((seconds % 1.0) * 1e9))
 
 
-class Arm:
+class Arm(SpunNode):
     """The driver and the controller (processes) and a plain rclpy client of them."""
 
     def __init__(self, ros_env: dict, log_dir: Path, params: tuple[str, ...]) -> None:
@@ -79,9 +79,7 @@ class Arm:
                               "-p", "stale_periods:=200", *GAINS, *params],
                              env=env, stdout=(log_dir / "controller.log").open("w"), stderr=subprocess.STDOUT,
                              start_new_session=True)]
-        self.context = rclpy.Context()
-        rclpy.init(context=self.context, domain_id=self.domain)
-        self.node = rclpy.create_node("jtc_client", context=self.context)
+        super().__init__(self.domain, "jtc_client")
         self.lock = threading.Lock()
         self.states: list[tuple[float, np.ndarray]] = []
         self.node.create_subscription(JointState, "/joint_states", self.on_state, 1)
@@ -92,18 +90,6 @@ class Arm:
         self.action = ActionClient(self.node, FollowJointTrajectory, "/controller/follow_joint_trajectory")
         self.query = self.node.create_client(QueryTrajectoryState, "/controller/query_state")
         self.lifecycle = self.node.create_client(ChangeState, "/controller/change_state")
-        self.executor = rclpy.executors.SingleThreadedExecutor(context=self.context)
-        self.executor.add_node(self.node)
-        self.stop = threading.Event()
-        self.spinning = threading.Lock()
-        self.thread = threading.Thread(target=self._spin, daemon=True)
-        self.thread.start()
-
-    def _spin(self) -> None:
-        while not self.stop.is_set():
-            with self.spinning:
-                self.executor.spin_once(timeout_sec=0.005)
-            time.sleep(0)
 
     def on_state(self, msg: JointState) -> None:
         names = list(msg.name)
@@ -122,21 +108,13 @@ class Arm:
     def logs(self) -> str:
         return "\n".join(f"--- {p.name}\n{p.read_text()[-4000:]}" for p in sorted(self.log_dir.glob("*.log")))
 
-    def wait(self, condition: Callable[[], bool], seconds: float) -> bool:
-        end = time.monotonic() + seconds
-        while time.monotonic() < end:
-            if condition():
-                return True
-            time.sleep(0.01)
-        return condition()
+    @staticmethod
+    def wait(condition: Callable[[], bool], seconds: float) -> bool:
+        return wait_until(condition, seconds)
 
-    def call(self, make: Callable[[], object], seconds: float = 30.0) -> object:
-        """A request sent while the spin thread is paused (rclpy files an action request's future
-        only after sending it: an answer handled in between would be dropped)."""
-        with self.spinning:
-            future = make()
-        assert self.wait(future.done, seconds), f"no answer\n{self.logs()}"  # type: ignore[attr-defined]
-        return future.result()  # type: ignore[attr-defined]
+    def call(self, make: Callable[[], object], seconds: float = 30.0, why: Callable[[], str] | None = None) -> object:
+        """A request sent while the spin thread is paused; no answer fails with the nodes' logs."""
+        return super().call(make, seconds, why or self.logs)
 
     def send(self, goal: FollowJointTrajectory.Goal, feedback: list | None = None) -> object:
         """The goal handle (``accepted`` False for a rejected goal)."""
@@ -166,8 +144,7 @@ class Arm:
         self.stop.set()
         self.thread.join(timeout=2)
         self.action.destroy()
-        self.node.destroy_node()
-        rclpy.try_shutdown(context=self.context)
+        super().close()
         for proc in reversed(self.procs):
             stop_process(proc)
 

@@ -16,7 +16,6 @@ import os
 import signal
 import subprocess
 import sys
-import threading
 import time
 from pathlib import Path
 
@@ -41,6 +40,7 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint  # noqa: E
 from pdsmc_ros.bag.cdr import decode_float64_multi_array  # noqa: E402
 from pdsmc_ros.bag.mcapscan import scan  # noqa: E402
 from pdsmc_ros.loop.lifecycle import EXIT_OK, EXIT_TEARDOWN_HUNG  # noqa: E402
+from pdsmc_ros.ros.spun_node import SpunNode, wait_until  # noqa: E402
 
 # a node whose work was done and saved may hang in Fast DDS's teardown and be ended by its watch's
 # SIGALRM (scripts/run_experiment.sh counts that a warning, not a failure; Popen sees -SIGALRM)
@@ -60,50 +60,6 @@ def logs(tmp_path: Path) -> str:
     return "\n".join(f"--- {p.name}\n{p.read_text(errors='replace')[-3000:]}" for p in sorted(tmp_path.glob("*.log")))
 
 
-def wait(condition, seconds: float) -> bool:  # noqa: ANN001
-    end = time.monotonic() + seconds
-    while time.monotonic() < end:
-        if condition():
-            return True
-        time.sleep(0.02)
-    return bool(condition())
-
-
-class Node:
-    """A plain rclpy node in a context of its own, spun by a thread."""
-
-    def __init__(self, domain: int, name: str) -> None:
-        self.context = rclpy.Context()
-        rclpy.init(context=self.context, domain_id=domain)
-        self.node = rclpy.create_node(name, context=self.context)
-        self.executor = rclpy.executors.SingleThreadedExecutor(context=self.context)
-        self.executor.add_node(self.node)
-        self.stop = threading.Event()
-        self.spinning = threading.Lock()
-        self.thread = threading.Thread(target=self._spin, daemon=True)
-        self.thread.start()
-
-    def _spin(self) -> None:
-        while not self.stop.is_set():
-            with self.spinning:
-                self.executor.spin_once(timeout_sec=0.005)
-            time.sleep(0)
-
-    def call(self, make, seconds: float = 30.0) -> object:  # noqa: ANN001
-        """Send a request and wait for its answer (sent while the executor is not spinning:
-        rclpy's ActionClient files a request's future only after sending it)."""
-        with self.spinning:
-            future = make()
-        assert wait(future.done, seconds), "no answer"
-        return future.result()
-
-    def close(self) -> None:
-        self.stop.set()
-        self.thread.join(timeout=2)
-        self.node.destroy_node()
-        rclpy.try_shutdown(context=self.context)
-
-
 @pytest.mark.timeout(180)
 def test_the_recorder_keeps_every_message_of_a_fast_publisher_on_a_busy_machine(ros_env: dict,
                                                                                    tmp_path: Path) -> None:
@@ -112,14 +68,14 @@ def test_the_recorder_keeps_every_message_of_a_fast_publisher_on_a_busy_machine(
     bag = tmp_path / "bag"
     recorder = start(env, tmp_path / "recorder.log", "recorder", "-p", f"output:={bag}", "-p", "topics:=[/burst]")
     busy = subprocess.Popen([sys.executable, "-c", "while True: pass"])
-    publisher = Node(int(env["ROS_DOMAIN_ID"]), "burst")
+    publisher = SpunNode(int(env["ROS_DOMAIN_ID"]), "burst")
     try:
         # reliable, with a history as deep as the burst: the publisher never blocks and drops nothing
         # (a keep-all writer's publish() fails once its reader is 100 ms behind), so a loss would be the recorder's
         qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=count, reliability=ReliabilityPolicy.RELIABLE)
         pub = publisher.node.create_publisher(Float64MultiArray, "/burst", qos)
         # the recorder subscribes once it sees the publisher in the graph
-        assert wait(lambda: pub.get_subscription_count() >= 1, 90), logs(tmp_path)
+        assert wait_until(lambda: pub.get_subscription_count() >= 1, 90), logs(tmp_path)
         began = time.monotonic()
         for i in range(count):
             pub.publish(Float64MultiArray(data=[float(i), 1.0, 2.0]))
@@ -167,7 +123,7 @@ def test_a_stand_in_run_driven_through_the_action_is_recorded_and_analysed_per_g
                        "-p", "mode:=realtime", "-p", "rate:=1000.0", "-p", "sample_rate:=1000.0",
                        "-p", "kp:=[800.0, 800.0, 160.0]", "-p", "kd:=[40.0, 40.0, 8.0]",
                        "-p", "stale_periods:=200"))
-    client = Node(domain, "client")
+    client = SpunNode(domain, "client")
     states: list[np.ndarray] = []
     client.node.create_subscription(JointState, "/joint_states", lambda m: states.append(
         np.array([m.position[list(m.name).index(n)] for n in NAMES])), 1)
@@ -178,7 +134,7 @@ def test_a_stand_in_run_driven_through_the_action_is_recorded_and_analysed_per_g
     seen = []
     try:
         # the controller holds the arm, and this client has the arm's state
-        assert wait(lambda: len(commands) > 100 and len(states) > 0, 120), logs(tmp_path)
+        assert wait_until(lambda: len(commands) > 100 and len(states) > 0, 120), logs(tmp_path)
         assert action.wait_for_server(timeout_sec=30)
         q0 = states[-1].copy()
         goals = [quintic_goal(q0, q0 + [0.2, 0.1, 0.1], 1.5, goal=dict.fromkeys(NAMES, 0.03), goal_time=2.0)]
@@ -249,14 +205,14 @@ def test_run_experiment_stand_in_records_a_goal_sent_from_outside(ros_env: dict,
          "kd:=[40.0, 40.0, 8.0]", "--param", "thread_priority:=0", "--param",
          "stale_periods:=200", "--seconds", "25", "--out", str(bag)],
         env=env, stdout=(tmp_path / "script.log").open("w"), stderr=subprocess.STDOUT, start_new_session=True)
-    client = Node(domain, "client")
+    client = SpunNode(domain, "client")
     states: list[np.ndarray] = []
     client.node.create_subscription(JointState, "/joint_states", lambda m: states.append(
         np.array([m.position[list(m.name).index(n)] for n in NAMES])), 1)
     action = ActionClient(client.node, FollowJointTrajectory, "/controller/follow_joint_trajectory")
     try:
         assert action.wait_for_server(timeout_sec=60), logs(tmp_path)
-        assert wait(lambda: len(states) > 100, 30), logs(tmp_path)
+        assert wait_until(lambda: len(states) > 100, 30), logs(tmp_path)
         time.sleep(1.0)  # the recorder's discovery of the goal topics
         q0 = states[-1].copy()
         handle = client.call(lambda: action.send_goal_async(quintic_goal(q0, q0 + [0.1, 0.1, 0.1], 1.0)))
