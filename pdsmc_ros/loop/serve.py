@@ -118,6 +118,7 @@ def serve_loop(executor: SingleThreadedExecutor, group: Any,
         next_observe = 0.0
         ok = executor.context.ok  # checked at ticks and executor turns, not at every pass
         while not group.done:
+            taken = clock()  # when this pass took the loop's inputs
             took = take_all(inputs)
             if local_hot and take_local(local_hot):
                 took = True
@@ -139,6 +140,13 @@ def serve_loop(executor: SingleThreadedExecutor, group: Any,
                     return
                 if not started:  # the schedule starts at the first tick: the passes before it are
                     started, next_tick = True, now  # start-up (a backlog, first calls), not late periods
+                if period and now - taken > period:
+                    # this thread stalled since it took the inputs (the GIL held elsewhere, the CPU
+                    # taken): newer ones wait in the queues. Taken again, a stall of the loop is a late
+                    # tick, not an outage of its inputs (which would end the active goal)
+                    take_all(inputs)
+                    if local_hot:
+                        take_local(local_hot)
                 group.tick(now - next_tick)
                 if holding:
                     sys.setswitchinterval(GIL_SWITCH_S)
