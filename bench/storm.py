@@ -33,7 +33,8 @@ Last line: ``idle_p99_us=A storm_p99_us=B ratio_p99=C idle_worst_us=D storm_wors
 (each window kind pooled over the rounds).
 
 Usage: python bench/storm.py [--duration 10] [--rounds 1] [--busy] [--large-points 20000]
-       [--domain N] [--law pd]   (inside the venv, the venv's bin first on PATH)
+       [--domain N] [--law pd] [--roles goals,params,large,connections]
+       (inside the venv, the venv's bin first on PATH)
 """
 
 from __future__ import annotations
@@ -77,10 +78,11 @@ START_TIMEOUT_S = 300.0  # a loaded machine, numba kernels compiled on a first r
 # --------------------------------------------------------------------------- #
 # The storm (processes of their own: ``--worker ROLE``)
 # --------------------------------------------------------------------------- #
-ROLES = ("goals", "large", "connections")
-"""The storm's processes: goals, cancels, preemptions and parameter sets; the large goals; the
+ROLES = ("goals", "params", "large", "connections")
+"""The storm's processes: goals, cancels and preemptions; parameter sets; the large goals; the
 connections. Each paces itself; apart, none waits for another's slow calls (building a
-20,000-point goal, creating a participant take seconds on a loaded machine)."""
+20,000-point goal, creating a participant take seconds on a loaded machine). ``--roles`` runs
+some of them only: which of them delays the loop."""
 
 
 class Storm:
@@ -270,7 +272,7 @@ class Storm:
         self.counts = {}
         start = time.monotonic()
         end = start + seconds
-        every = {"goals": (("goal", GOAL_EVERY_S), ("param", PARAM_EVERY_S)),
+        every = {"goals": (("goal", GOAL_EVERY_S),), "params": (("param", PARAM_EVERY_S),),
                  "large": (("large", LARGE_EVERY_S),),
                  "connections": (("node", NODE_EVERY_S), ("participant", PARTICIPANT_EVERY_S))}[self.role]
         due = {what: start for what, _ in every}
@@ -433,6 +435,8 @@ def main() -> int:
     parser.add_argument("--domain", type=int, default=os.getpid() % 150 + 60)
     parser.add_argument("--param", action="append", default=[],
                         help="an extra controller parameter, e.g. --param thread_priority:=0")
+    parser.add_argument("--roles", default=",".join(ROLES),
+                        help=f"the storm's processes, comma-separated, of {', '.join(ROLES)} (default all)")
     parser.add_argument("--worker", choices=ROLES, help=argparse.SUPPRESS)
     parser.add_argument("--seed", type=int, default=37, help=argparse.SUPPRESS)
     args = parser.parse_args()
@@ -442,6 +446,9 @@ def main() -> int:
         parser.error(f"--rounds must be in [1, 20], got {args.rounds}")
     if not 2 <= args.large_points <= 1_000_000:
         parser.error(f"--large-points must be in [2, 1000000], got {args.large_points}")
+    roles = [r.strip() for r in args.roles.split(",") if r.strip()]
+    if not roles or any(r not in ROLES for r in roles):
+        parser.error(f"--roles must name some of {', '.join(ROLES)}, got {args.roles!r}")
     if args.worker:
         return worker(args.worker, args.domain, args.large_points, args.seed)
 
@@ -470,7 +477,7 @@ def main() -> int:
         if len(timing.all()) < 1000:
             print(f"bench/storm.py: error: the controller did not command (logs in {logs})", file=sys.stderr)
             return 1
-        for role in ROLES:  # one after the other: participants created at the same instant hung here
+        for role in roles:  # one after the other: participants created at the same instant hung here
             storms.append(subprocess.Popen(
                 [sys.executable, __file__, "--worker", role, "--domain", str(args.domain),
                  "--large-points", str(args.large_points), "--seed", str(args.seed)],
