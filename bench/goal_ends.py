@@ -110,11 +110,6 @@ class Client(SpunNode):
         except TimeoutError:
             return None
 
-    def close(self) -> None:
-        self.stop.set()
-        self.thread.join(timeout=2)
-        self.action.destroy()
-        super().close()
 
 
 def goal(names: list[str], start: np.ndarray | None, target: np.ndarray, *, step: bool = False,

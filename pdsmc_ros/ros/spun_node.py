@@ -70,9 +70,16 @@ class SpunNode:
             raise TimeoutError(f"no answer within {seconds:g} s\n{why()}".rstrip())
         return future.result()
 
+    wait = staticmethod(wait_until)
+
     def close(self) -> None:
-        """Stop the spin thread, destroy the node and shut its context down."""
+        """Stop the spin thread, destroy the node's action clients (``destroy_node`` leaves them)
+        and the node, and shut its context down."""
         self.stop.set()
         self.thread.join(timeout=2)
+        for waitable in list(self.node.waitables):
+            destroy = getattr(waitable, "destroy", None)
+            if destroy is not None:
+                destroy()
         self.node.destroy_node()
         rclpy.try_shutdown(context=self.context)

@@ -12,7 +12,6 @@ from __future__ import annotations
 import subprocess
 import threading
 import time
-from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -34,7 +33,7 @@ from sensor_msgs.msg import JointState  # noqa: E402
 from std_msgs.msg import Float64MultiArray  # noqa: E402
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint  # noqa: E402
 
-from pdsmc_ros.ros.spun_node import SpunNode, wait_until  # noqa: E402
+from pdsmc_ros.ros.spun_node import SpunNode  # noqa: E402
 
 NAMES = ["joint1", "joint2", "joint3"]
 KP = [1200.0, 1200.0, 240.0]  # stable at 1 kHz with the real-time loop's two periods of delay (margin x2.1)
@@ -87,10 +86,6 @@ class Client(SpunNode):
         with self.lock:
             return [s for s in self.states if start <= s[0] <= end]
 
-    @staticmethod
-    def wait(condition: Callable[[], bool], seconds: float) -> bool:
-        return wait_until(condition, seconds)
-
     def future(self, future: rclpy.task.Future, seconds: float = 30.0) -> object:
         return self.wait_for(future, seconds)
 
@@ -107,11 +102,6 @@ class Client(SpunNode):
         assert handle.accepted  # type: ignore[attr-defined]
         return handle
 
-    def close(self) -> None:
-        self.stop.set()
-        self.thread.join(timeout=2)
-        self.action.destroy()
-        super().close()
 
 
 def start(ros_env: dict, domain: int, log: Path, executable: str, *params: str) -> subprocess.Popen:

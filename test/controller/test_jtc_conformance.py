@@ -38,7 +38,7 @@ from rclpy.action import ActionClient  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint  # noqa: E402
 
-from pdsmc_ros.ros.spun_node import SpunNode, wait_until  # noqa: E402
+from pdsmc_ros.ros.spun_node import SpunNode  # noqa: E402
 
 JOINTS = ["joint1", "joint2", "joint3"]
 # PD gains stable at 1 kHz with the real-time loop's two periods of delay (test_controller_mujoco.py)
@@ -108,10 +108,6 @@ class Arm(SpunNode):
     def logs(self) -> str:
         return "\n".join(f"--- {p.name}\n{p.read_text()[-4000:]}" for p in sorted(self.log_dir.glob("*.log")))
 
-    @staticmethod
-    def wait(condition: Callable[[], bool], seconds: float) -> bool:
-        return wait_until(condition, seconds)
-
     def call(self, make: Callable[[], object], seconds: float = 30.0, why: Callable[[], str] | None = None) -> object:
         """A request sent while the spin thread is paused; no answer fails with the nodes' logs."""
         return super().call(make, seconds, why or self.logs)
@@ -141,9 +137,6 @@ class Arm(SpunNode):
         assert answer.success  # type: ignore[attr-defined]
 
     def close(self) -> None:
-        self.stop.set()
-        self.thread.join(timeout=2)
-        self.action.destroy()
         super().close()
         for proc in reversed(self.procs):
             stop_process(proc)
