@@ -60,8 +60,9 @@ class LoopReport:
         self.settings = declare_realtime_parameters(node, mode, getattr(wrapper, "realtime_priority", DEFAULT_PRIORITY))
         period = getattr(wrapper, "period", None)
         # a node that reads its loop's statistics in its tick (the controller's timing rows) owns them
-        owned = getattr(wrapper, "loop_statistics", None)
-        self.stats: LoopStatistics | None = owned if owned is not None else LoopStatistics(period) if period else None
+        self.stats: LoopStatistics | None = getattr(wrapper, "loop_statistics", None)
+        if self.stats is None and period:
+            self.stats = LoopStatistics(period)
         self.diagnostics = None if self.stats is None else Diagnostics(
             node, status_name(node.get_name()), "pdsmc_ros/loop", values=self.stats.values)
 
