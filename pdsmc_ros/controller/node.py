@@ -126,18 +126,6 @@ class ControllerNode(CommandingEntity):
         self.active = self.done = False  # commanding; the run is over
         self.exit_code = EXIT_OK
 
-        self.effort = EffortOutput(node, topics.TOPIC_EFFORT, robot.n, self.guard, log=self.loop_log)
-        self.report_input = InputReport(Diagnostics(node, "controller: inputs", spec.robot,
-                                                    values=lambda: {"joints": ",".join(self.params.joints)}))
-        self.inputs = Inputs(node, self.mode)
-        self.inputs.subscribe(JointState, topics.TOPIC_JOINT_STATES, self.on_state)
-        self.inputs.subscribe(JointTrajectory, topics.TOPIC_REFERENCE, self.on_reference)
-        # off the loop's path: a goal is rare, and an input taken at every pass of the loop costs a take per pass;
-        # real time: taken and validated by the action server's thread, never the loop's
-        goals = self.observed_inputs = Inputs(node, self.mode, batch_s=GOAL_BATCH_S, suffix="_goals")
-        if self.lockstep:
-            goals.subscribe(JointTrajectory, topics.TOPIC_JOINT_TRAJECTORY, self.on_goals, topics.TRAJECTORY_QOS,
-                            with_receipt=True)
         description = String(data=description_json(spec, self.mode))
         node.create_publisher(String, topics.TOPIC_DESCRIPTION, topics.LATCHED_QOS).publish(description)
         if not self.lockstep:
@@ -152,7 +140,23 @@ class ControllerNode(CommandingEntity):
         # the action server: a node of its own spun by a thread of its own, never by the loop's executor
         self.action = FollowJointTrajectoryServer(self)
         if params.autostart:
+            # configured (the law's kernel loaded, the path from a message to a command warmed up) before
+            # the robot's topics exist: a plant that starts once it sees them is answered at once, and a
+            # lockstep plant never sends its first state again to a controller that is only slow to start
             node.trigger_configure()
+        self.effort = EffortOutput(node, topics.TOPIC_EFFORT, robot.n, self.guard, log=self.loop_log)
+        self.report_input = InputReport(Diagnostics(node, "controller: inputs", spec.robot,
+                                                    values=lambda: {"joints": ",".join(self.params.joints)}))
+        self.inputs = Inputs(node, self.mode)
+        self.inputs.subscribe(JointState, topics.TOPIC_JOINT_STATES, self.on_state)
+        self.inputs.subscribe(JointTrajectory, topics.TOPIC_REFERENCE, self.on_reference)
+        # off the loop's path: a goal is rare, and an input taken at every pass of the loop costs a take per pass;
+        # real time: taken and validated by the action server's thread, never the loop's
+        goals = self.observed_inputs = Inputs(node, self.mode, batch_s=GOAL_BATCH_S, suffix="_goals")
+        if self.lockstep:
+            goals.subscribe(JointTrajectory, topics.TOPIC_JOINT_TRAJECTORY, self.on_goals, topics.TRAJECTORY_QOS,
+                            with_receipt=True)
+        if params.autostart:
             node.trigger_activate()
         waiting = "" if params.autostart else "; unconfigured until configure and activate"
         node.get_logger().info(f"{spec.controller} controller for {spec.robot}/{spec.contour}, {self.mode}, "
