@@ -9,6 +9,7 @@ runs its processes in a DDS domain of its own and stops them by PID.
 
 from __future__ import annotations
 
+import re
 import subprocess
 import threading
 import time
@@ -96,7 +97,9 @@ class Client(SpunNode):
         assert result.success  # type: ignore[attr-defined]
 
     def send_goal(self, goal: FollowJointTrajectory.Goal) -> object:
-        assert self.action.wait_for_server(timeout_sec=30)
+        began = time.monotonic()
+        ready = self.action.wait_for_server(timeout_sec=30)
+        assert ready, f"no action server after {time.monotonic() - began:.2f} s (context ok: {self.context.ok()})"
         handle = self.call(lambda: self.action.send_goal_async(
             goal, feedback_callback=lambda f: self.feedback.append(f.feedback)))
         assert handle.accepted  # type: ignore[attr-defined]
@@ -340,7 +343,7 @@ def test_joints_in_another_order_than_the_urdf_track_as_well(setup) -> None:  # 
 
 @pytest.mark.timeout(240)
 def test_a_runaway_aborts_the_goal_stops_the_arm_and_fails_the_run(ros_env: dict, tmp_path: Path) -> None:
-    """The runaway guard (issue 37), made to trip by a factor of 2 % of the velocity limits: the
+    """The runaway guard (issue 37), made to trip by a factor of 5 % of the velocity limits: the
     active goal aborted naming the joint, the error on the log and /diagnostics, the damping stop
     slowing the arm, and the controller's exit status 1."""
     from action_msgs.msg import GoalStatus
@@ -348,7 +351,7 @@ def test_a_runaway_aborts_the_goal_stops_the_arm_and_fails_the_run(ros_env: dict
 
     domain = next_domain()
     driver = start(ros_env, domain, tmp_path / "driver.log", "mujoco_driver", "-p", "robot:=serial_3r")
-    ctl = controller(ros_env, domain, tmp_path / "controller.log", NAMES, "-p", "runaway.velocity_factor:=0.02")
+    ctl = controller(ros_env, domain, tmp_path / "controller.log", NAMES, "-p", "runaway.velocity_factor:=0.05")
     client = Client(domain)
     errors: list[str] = []
     client.node.create_subscription(
@@ -358,13 +361,23 @@ def test_a_runaway_aborts_the_goal_stops_the_arm_and_fails_the_run(ros_env: dict
     try:
         assert client.wait(lambda: len(client.commands) > 100 and len(client.states) > 0, 90), logs(tmp_path)
         q0 = client.q()
-        handle = client.send_goal(goal_to(q0, q0 + [0.5, 0.0, 0.0], 1.0))  # 0.94 rad/s at its fastest
+        # joint 1 at 1.9 rad/s at its fastest, beyond 5 % of its limit (1.25); the other joints' 5 % (0.5
+        # rad/s) is far above how they shake under load (2 % tripped at 0.22 rad/s, at times before the goal)
+        handle = client.send_goal(goal_to(q0, q0 + [0.5, 0.0, 0.0], 0.5))
         status, code, text = result_of(client, handle)
-        assert (status, code) == (GoalStatus.STATUS_ABORTED, FollowJointTrajectory.Result.PATH_TOLERANCE_VIOLATED)
-        assert text.startswith("runaway stop") and "'joint1'" in text, text
+        assert (status, code) == (GoalStatus.STATUS_ABORTED, FollowJointTrajectory.Result.PATH_TOLERANCE_VIOLATED), text
+        # joint 1 moves; under load the coupling can take another joint past 5 % of its limit first: the
+        # reason names the joint that tripped and a rate really beyond the factor times its limit
+        tripped = re.search(r"joint '(\w+)' rate (-?[\d.]+) rad/s is beyond 0.05 x its velocity limit ([\d.]+) rad/s",
+                            text)
+        assert text.startswith("runaway stop") and tripped and tripped[1] in NAMES, text
+        assert abs(float(tripped[2])) > 0.05 * float(tripped[3]), text
         assert client.wait(lambda: bool(errors), 5) and errors[0].startswith("runaway stop"), errors
-        time.sleep(1.0)
-        settled = client.window(time.time() - 0.3, time.time())
+        # the states of 0.3 s, 1 s after the stop (waited for: a loaded machine delivers them late)
+        since = time.time() + 1.0
+        assert client.wait(lambda: bool(client.window(since + 0.3, float("inf"))), 30), logs(tmp_path)
+        settled = client.window(since, since + 0.3)
+        assert settled, f"no state between 1 and 1.3 s after the stop\n{logs(tmp_path)}"
         # damped, not driven: the vertical arm sinks under gravity at about G / D (D = 60, 45, 25
         # N m s/rad here: a few tenths of a rad/s), far below the rates a drive could give it
         assert max(float(np.max(np.abs(s[2]))) for s in settled) < 0.5, logs(tmp_path)
