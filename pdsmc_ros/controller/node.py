@@ -50,9 +50,10 @@ from ..ros.publishers import GuardedPublisher, RowBatches
 from .action import FollowJointTrajectoryServer, topic_trajectory
 from .commanding import Paired, TorqueGuard
 from .core import ControllerCore
+from .gain_check import CheckProcess, checked
 from .joints import JointSelector
 from .limits import JointLimits
-from .parameters import GainUpdates, check_gains, declare_controller_parameters, declare_limit_parameters
+from .parameters import GainUpdates, declare_controller_parameters, declare_limit_parameters
 
 GOAL_BATCH_S = 0.002  # ~/joint_trajectory is looked at every 2 ms
 STOP_ACK_S = 0.5  # how long a stopping controller waits for its zero command to be acknowledged
@@ -119,10 +120,13 @@ class ControllerNode(CommandingEntity):
             params.stale_periods / spec.rate, self.lockstep,
             lambda why: self.loop_log.info(f"holding the measured position ({why})"),
             runaway=runaway, on_runaway=self.on_runaway, goal_settings=params.goal_settings)
-        check_gains(lambda new: check_rate(new, core.reference, **run.stability), spec)  # refuse gains unstable here
-        # gains: the on-set callback checks a change is stable at the running rate, the post-set one applies it
-        self.gain_updates = GainUpdates(node, spec, lambda new: check_rate(new, core.reference, **run.stability),
-                                        self.apply_gains, joint_map=self.joint_map)
+        checked(lambda new: check_rate(new, core.reference, **run.stability), spec)  # refuse gains unstable here
+        # gains: the on-set callback checks a change is stable at the running rate, the post-set one applies
+        # it; real time: the check (50-100 ms of numpy) in a process of its own, never beside the loop
+        self.gain_check = None if self.lockstep else CheckProcess.for_run(spec, run.stability)
+        self.gain_updates = GainUpdates(
+            node, spec, self.gain_check or (lambda new: check_rate(new, core.reference, **run.stability)),
+            self.apply_gains, joint_map=self.joint_map)
         self.active = self.done = False  # commanding; the run is over
         self.exit_code = EXIT_OK
 
@@ -259,6 +263,8 @@ class ControllerNode(CommandingEntity):
     def close(self) -> None:
         """Stopping (signal, end of run): a zero command unless the lockstep run is complete."""
         self.action.stop()
+        if self.gain_check is not None:
+            self.gain_check.close()
         if not self.lockstep:
             self.timing_rows.flush()
         if self.guard.clamped:

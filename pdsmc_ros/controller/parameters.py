@@ -41,6 +41,7 @@ from ..parameters.ros import declare, value_of
 from ..presets import RunSpec, resolve_gains
 from ..robots.base import FloatArray, Manipulator
 from .commanding import RunawayGuard
+from .gain_check import checked
 from .goals import GoalSettings, Tolerances
 from .joint_map import JointMap
 from .joint_trajectory import TrajectoryRules
@@ -136,19 +137,6 @@ def declare_limit_parameters(node: Node, robot: Manipulator, params: ControllerP
     return table, runaway
 
 
-def check_gains(check: Callable[[RunSpec], object], spec: RunSpec) -> None:
-    """``check(spec)`` (the stability check), anything it raises besides the package's own errors
-    (a ``LinAlgError`` of gains of 1e308) a ConfigError naming the gains: at start-up a one-line
-    error, on a set a refusal."""
-    try:
-        check(spec)
-    except PdsmcError:
-        raise
-    except Exception as exc:  # noqa: BLE001 - numpy's, numba's: what the check could not foresee
-        raise ConfigError(f"gains {spec.gains.as_dict()} cannot be checked for stability "
-                          f"({type(exc).__name__}: {exc})") from None
-
-
 class GainUpdates:
     """Run-time gain changes, ros2/demos style: the on-set callback validates, the
     post-set callback applies.
@@ -185,7 +173,7 @@ class GainUpdates:
         try:
             gains = resolve_gains(spec.robot, spec.contour, spec.controller, scenario=spec.scenario,
                                   layers=[given], joint_order=self.joint_order)
-            check_gains(self.check, dataclasses.replace(spec, gains=gains))
+            checked(self.check, dataclasses.replace(spec, gains=gains))
         except Exception as exc:  # noqa: BLE001 - a refusal with the reason, never an escape into the executor
             reason = str(exc) if isinstance(exc, PdsmcError) else f"{', '.join(changes)}: {type(exc).__name__}: {exc}"
             return SetParametersResult(successful=False, reason=" ".join(reason.split()))

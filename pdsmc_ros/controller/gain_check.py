@@ -1,0 +1,180 @@
+"""The stability check of new gains, and where it runs: in the caller, or in a process of its own.
+
+A gain change passes the zero-order-hold stability check of start-up at the running rate
+(:func:`~pdsmc_ros.control.stability.check_rate`) or is refused with the reason. The check is
+50-100 ms of numpy (eigenvalues along the reference). Run in a real-time controller's process, it
+holds the interpreter's lock beside the control loop: ``bench/storm.py --roles params`` measured
+the loop's p99 lateness 4.2 times its idle value, and with a core busy the driver's states went
+stale within 2 ms of a change (the check ran at SCHED_FIFO 1 there; at normal scheduling it held
+the lock while preempted, which was worse). :class:`CheckProcess` runs it in a child process
+instead: a fresh interpreter (``python -m pdsmc_ros.controller.gain_check``: no rclpy, none of
+the parent's threads or locks) at normal scheduling, which builds the run's reference once and
+answers each check over its standard input and output (pickles); the thread that asks waits on
+the pipe, without the lock. Lockstep controllers, which have no deadline, check in
+their own process (:func:`checked`). ROS-free.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import pickle
+import select
+import signal
+import subprocess
+import sys
+import threading
+from collections.abc import Callable
+from typing import Any
+
+from ..control.stability import check_rate
+from ..errors import ConfigError, PdsmcError
+from ..presets import RunSpec
+from ..robots.registry import find_robot, register_robot, robot_config
+
+CHECK_TIMEOUT_S = 30.0
+"""How long a gain change waits for the check process (its first check includes the child's start
+and the reference, ~1-2 s here) before the change is refused and the process replaced."""
+
+
+def checked(check: Callable[[RunSpec], object], spec: RunSpec) -> None:
+    """``check(spec)`` (the stability check); anything it raises besides the package's own errors
+    (a ``LinAlgError`` of gains of 1e308) a ConfigError naming the gains: at start-up a one-line
+    error, on a set a refusal."""
+    try:
+        check(spec)
+    except PdsmcError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - numpy's, numba's: what the check could not foresee
+        raise ConfigError(f"gains {spec.gains.as_dict()} cannot be checked for stability "
+                          f"({type(exc).__name__}: {exc})") from None
+
+
+class CheckProcess:
+    """``check(spec)`` for run-time gain changes, computed in a child process.
+
+    Parameters
+    ----------
+    spec : RunSpec
+        The running run; its reference is the one every check is made along.
+    stability : dict
+        :func:`~pdsmc_ros.control.stability.check_rate`'s keywords (mode, delay, margin, entry).
+    timeout_s : float
+        A check not answered in this time is a refusal; the child is killed and replaced.
+
+    The child starts at the first check (a controller whose gains never change costs nothing)
+    and ends with :meth:`close`, or by itself when its input closes (the parent is gone).
+    """
+
+    def __init__(self, spec: RunSpec, stability: dict[str, Any], *, timeout_s: float = CHECK_TIMEOUT_S) -> None:
+        if not timeout_s > 0:
+            raise ValueError(f"timeout_s must be > 0, got {timeout_s!r}")
+        self.spec = spec
+        self.stability = dict(stability)
+        self.timeout_s = float(timeout_s)
+        # the child's start: the run, the check's keywords and the arm as registered here (a URDF arm
+        # named, given as a path or received on /robot_description is registered in-process)
+        self.start = pickle.dumps((spec, self.stability, find_robot(spec.robot), dict(robot_config(spec.robot))))
+        self.lock = threading.Lock()  # one check at a time on the pipe
+        self.process: subprocess.Popen[bytes] | None = None
+
+    @classmethod
+    def for_run(cls, spec: RunSpec, stability: dict[str, Any]) -> CheckProcess | None:
+        """A check process for the run, or None when its arm cannot be sent to one (a robot class
+        defined where a child cannot import it): the caller then checks in its own process."""
+        try:
+            return cls(spec, stability)
+        except (pickle.PicklingError, AttributeError, TypeError):
+            return None
+
+    def __call__(self, spec: RunSpec) -> None:
+        """Raise :class:`ConfigError` with the reason when ``spec``'s gains are refused."""
+        with self.lock:
+            try:
+                process = self._started()
+                _send(process, spec)
+                reply = _receive(process, self.timeout_s)
+            except (OSError, EOFError, TimeoutError, pickle.UnpicklingError) as exc:
+                self._stop()
+                raise ConfigError(f"gains {spec.gains.as_dict()} refused: the stability check process "
+                                  f"failed ({type(exc).__name__}: {exc})") from None
+        if reply is not None:
+            raise ConfigError(str(reply))
+
+    def _started(self) -> subprocess.Popen[bytes]:
+        if self.process is None or self.process.poll() is not None:
+            self._stop()
+            # stdout is the answers' pipe; the child's stderr is the node's (its log)
+            self.process = subprocess.Popen([sys.executable, "-m", __name__], stdin=subprocess.PIPE,
+                                            stdout=subprocess.PIPE)
+            if self.process.stdin is None:  # pragma: no cover - started with a pipe
+                raise OSError("no pipe to the check process")
+            self.process.stdin.write(self.start)
+            self.process.stdin.flush()
+        return self.process
+
+    def _stop(self) -> None:
+        process, self.process = self.process, None
+        if process is None:
+            return
+        if process.poll() is None:
+            process.kill()
+        for pipe in (process.stdin, process.stdout):
+            if pipe is not None:
+                with contextlib.suppress(OSError):
+                    pipe.close()
+        with contextlib.suppress(subprocess.TimeoutExpired):
+            process.wait(timeout=5.0)
+
+    def close(self) -> None:
+        """End the child, if it started."""
+        with self.lock:
+            self._stop()
+
+
+def _send(process: subprocess.Popen[bytes], obj: object) -> None:
+    if process.stdin is None:  # pragma: no cover - started with a pipe
+        raise OSError("no pipe to the check process")
+    pickle.dump(obj, process.stdin)
+    process.stdin.flush()
+
+
+def _receive(process: subprocess.Popen[bytes], timeout_s: float) -> object:
+    if process.stdout is None:  # pragma: no cover - started with a pipe
+        raise OSError("no pipe from the check process")
+    ready, _, _ = select.select([process.stdout], [], [], timeout_s)  # waits without the interpreter's lock
+    if not ready:
+        raise TimeoutError(f"no answer in {timeout_s:g} s")
+    return pickle.load(process.stdout)
+
+
+def main() -> None:
+    """The child: the run and the check's keywords first, then for each spec received ``None``
+    (stable) or the refusal's text, until its input closes."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # a Ctrl-C to the group is the parent's to handle
+    with contextlib.suppress(OSError, AttributeError):  # never a real-time policy inherited from a loop thread
+        os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
+    requests, answers = sys.stdin.buffer, sys.stdout.buffer
+    try:
+        spec, stability, arm, config = pickle.load(requests)
+    except EOFError:
+        return
+    if arm is not None and find_robot(spec.robot) is None:
+        register_robot(arm, config=config)
+    reference = spec.reference()
+    while True:
+        try:
+            new = pickle.load(requests)
+        except EOFError:
+            return  # the parent is gone
+        try:
+            checked(lambda s: check_rate(s, reference, **stability), new)
+            reply = None
+        except PdsmcError as exc:
+            reply = str(exc)
+        pickle.dump(reply, answers)
+        answers.flush()
+
+
+if __name__ == "__main__":
+    main()
