@@ -124,6 +124,8 @@ class ControllerNode(CommandingEntity):
         # gains: the on-set callback checks a change is stable at the running rate, the post-set one applies
         # it; real time: the check (50-100 ms of numpy) in a process of its own, never beside the loop
         self.gain_check = None if self.lockstep else CheckProcess.for_run(spec, run.stability)
+        if self.gain_check is not None:
+            self.gain_check.start()  # from this thread, at normal scheduling, while the node starts
         self.gain_updates = GainUpdates(
             node, spec, self.gain_check or (lambda new: check_rate(new, core.reference, **run.stability)),
             self.apply_gains, joint_map=self.joint_map)

@@ -12,7 +12,11 @@ and ``sched_setaffinity(0)`` act on the calling thread): they are applied by the
 thread, after the process's other threads (the executor's, Fast DDS's) exist. Those go to
 ``SCHED_FIFO`` priority 1 (:func:`raise_helpers`: below the loop, above the machine's normal
 load, which would otherwise preempt one holding the GIL or a DDS lock the loop waits for) and
-to the same cores (:func:`pin_helpers`). Memory locking is per process.
+to the same cores (:func:`pin_helpers`). Memory locking is per process. Both policies carry
+``SCHED_RESET_ON_FORK``: a process started from a real-time thread (the gain check's,
+:mod:`pdsmc_ros.controller.gain_check`) starts at normal scheduling, never at the loop's
+priorities, where its start-up (a Python interpreter's imports, about a second of CPU) would
+starve the machine's normal processes -- a driver among them.
 
 Python's garbage collector is kept out of the loop (:class:`Collector`): everything alive
 after start-up is frozen (``gc.freeze``: never scanned again), automatic collection is off,
@@ -185,11 +189,20 @@ def unlock_memory() -> None:
     libc().munlockall()
 
 
+FIFO = os.SCHED_FIFO | os.SCHED_RESET_ON_FORK
+"""The loop's and its helpers' policy: SCHED_FIFO, and a child process starts at normal scheduling."""
+
+
+def policy_of(tid: int) -> int:
+    """Thread ``tid``'s scheduling policy (0: the calling thread), without ``SCHED_RESET_ON_FORK``."""
+    return os.sched_getscheduler(tid) & ~os.SCHED_RESET_ON_FORK
+
+
 def set_fifo(priority: int) -> str:
     """The calling thread to ``SCHED_FIFO`` at ``priority`` (0: normal); "" or the refusal."""
     try:
         if priority > 0:
-            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+            os.sched_setscheduler(0, FIFO, os.sched_param(priority))
         else:
             os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
     except OSError as exc:
@@ -217,9 +230,9 @@ def raise_helpers(priority: int = HELPER_PRIORITY) -> list[int]:
         if tid == own:
             continue
         try:
-            if os.sched_getscheduler(tid) != os.SCHED_OTHER:
+            if policy_of(tid) != os.SCHED_OTHER:
                 continue
-            os.sched_setscheduler(tid, os.SCHED_FIFO, os.sched_param(priority))
+            os.sched_setscheduler(tid, FIFO, os.sched_param(priority))
         except OSError:  # refused (as the loop's own) or the thread has ended
             continue
         changed.append(tid)
@@ -293,7 +306,7 @@ def restore(applied: Applied) -> None:
 
 def scheduler_of_thread() -> tuple[str, int]:
     """The calling thread's policy name and priority (read back, e.g. in tests)."""
-    policy = os.sched_getscheduler(0)
+    policy = policy_of(0)
     names = {os.SCHED_OTHER: "SCHED_OTHER", os.SCHED_FIFO: "SCHED_FIFO", os.SCHED_RR: "SCHED_RR",
              os.SCHED_BATCH: "SCHED_BATCH", os.SCHED_IDLE: "SCHED_IDLE"}
     return names.get(policy, str(policy)), os.sched_getparam(0).sched_priority

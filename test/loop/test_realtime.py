@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import gc
 import json
+import os
 import shutil
 import subprocess
 import sys
@@ -34,13 +35,16 @@ from pdsmc_ros.loop.statistics import LoopStatistics
 ROOT = Path(__file__).resolve().parent.parent.parent
 
 CHILD = """
-import json, os
-from pdsmc_ros.loop.realtime import RealtimeSettings, apply, locked_kib, restore, scheduler_of_thread
+import json, os, subprocess, sys
+from pdsmc_ros.loop.realtime import RealtimeSettings, apply, locked_kib, policy_of, restore, scheduler_of_thread
 applied = apply(RealtimeSettings(thread_priority=10, cpu_affinity=(0,), lock_memory=True))
 policy, priority = scheduler_of_thread()
+child = subprocess.run([sys.executable, "-c", "import os; print(os.sched_getscheduler(0))"], capture_output=True,
+                       text=True, check=True).stdout
 read = {"policy": policy, "priority": priority, "affinity": sorted(os.sched_getaffinity(0)),
-        "getscheduler_fifo": os.sched_getscheduler(0) == os.SCHED_FIFO, "vmlck_kib": locked_kib(),
-        "warning": applied.warning}
+        "getscheduler_fifo": policy_of(0) == os.SCHED_FIFO, "vmlck_kib": locked_kib(),
+        "reset_on_fork": bool(os.sched_getscheduler(0) & os.SCHED_RESET_ON_FORK),
+        "child_policy": int(child), "warning": applied.warning}
 restore(applied)
 read["after_policy"] = scheduler_of_thread()[0]
 read["after_vmlck_kib"] = locked_kib()
@@ -66,6 +70,8 @@ def test_settings_are_applied_and_read_back_from_the_kernel() -> None:
         pytest.skip("this user may not set SCHED_FIFO (the refusal test covers it)")
     read = run_child()
     assert read["policy"] == "SCHED_FIFO" and read["priority"] == 10 and read["getscheduler_fifo"]
+    # a process the loop's thread starts runs at normal scheduling (the gain check's)
+    assert read["reset_on_fork"] and read["child_policy"] == os.SCHED_OTHER
     assert read["affinity"] == [0]
     assert read["vmlck_kib"] > 0  # /proc/self/status VmLck: the pages are locked
     assert read["warning"] == ""

@@ -30,7 +30,7 @@ from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.node import Node  # noqa: E402
 
 from pdsmc_ros.bag.loop_statistics import parse_values, status_name  # noqa: E402
-from pdsmc_ros.loop.realtime import locked_kib  # noqa: E402
+from pdsmc_ros.loop.realtime import locked_kib, policy_of  # noqa: E402
 
 NODE_ARGS = ["--ros-args", "-p", "mode:=realtime", "-p", "robot:=parallel_5r", "-p", "rate:=1000",
              "-p", "sample_rate:=500"]
@@ -106,7 +106,7 @@ def test_settings_hold_and_statistics_count_a_stalled_period(listener_env: tuple
         first = listener.wait(time.monotonic() + 60, lambda v: v["ticks"] > 500)
         assert first is not None, "no loop statistics on /diagnostics"
         # the loop thread is the main thread (tid == pid): the kernel's view of it
-        assert os.sched_getscheduler(proc.pid) == os.SCHED_FIFO
+        assert policy_of(proc.pid) == os.SCHED_FIFO
         assert os.sched_getparam(proc.pid).sched_priority == 5
         assert os.sched_getaffinity(proc.pid) == {0}
         assert locked_kib(Path(f"/proc/{proc.pid}/status")) > 0  # lock_memory: on by default in real time
@@ -114,7 +114,7 @@ def test_settings_hold_and_statistics_count_a_stalled_period(listener_env: tuple
         helpers = [int(t) for t in os.listdir(f"/proc/{proc.pid}/task") if int(t) != proc.pid]
         assert helpers
         for tid in helpers:
-            assert os.sched_getscheduler(tid) == os.SCHED_FIFO and os.sched_getparam(tid).sched_priority == 1
+            assert policy_of(tid) == os.SCHED_FIFO and os.sched_getparam(tid).sched_priority == 1
             assert os.sched_getaffinity(tid) == {0}
         before = first["missed"]
         os.kill(proc.pid, signal.SIGSTOP)  # a deliberately stalled period: 0.3 s without a tick
@@ -143,7 +143,7 @@ def test_a_node_without_the_privilege_warns_once_and_runs_on(listener_env: tuple
     try:
         seen = listener.wait(time.monotonic() + 60, lambda v: v["ticks"] > 1000)
         assert seen is not None and seen["ticks"] > 1000, "the node did not run on"
-        assert os.sched_getscheduler(proc.pid) == os.SCHED_OTHER
+        assert policy_of(proc.pid) == os.SCHED_OTHER
     finally:
         out = stop(proc)
     warnings = [line for line in out.splitlines() if "running on without" in line]

@@ -19,6 +19,7 @@ from pdsmc_ros.loop.realtime import (
     FIFO_BUSY_WAIT_S,
     FIFO_COMPOSED_BUSY_WAIT_S,
     RealtimeSettings,
+    policy_of,
     restore,
 )
 from pdsmc_ros.loop.realtime_params import apply_settings  # noqa: E402
@@ -42,7 +43,7 @@ def spin(loops: int, period: float, busy_wait: float = AUTO_BUSY_WAIT) -> tuple[
     reports.append(SimpleNamespace(settings=RealtimeSettings(), stats=None))  # an observer: not a loop
     applied, chosen = apply_settings(reports, node, period, busy_wait)  # type: ignore[arg-type]
     try:
-        return chosen, os.sched_getscheduler(0) == os.SCHED_FIFO, logger.lines
+        return chosen, policy_of(0) == os.SCHED_FIFO, logger.lines
     finally:
         restore(applied)
 
@@ -64,7 +65,7 @@ def test_one_loop_spins_briefly_a_composed_loop_longer_and_a_given_value_is_kept
     # one too large for the period is cut to its share, said in a line
     chosen, _, lines = spin(1, 1e-3, busy_wait=8e-4)
     assert chosen == FIFO_BUSY_SHARE * 1e-3 and any("busy_wait 0.0008 s at SCHED_FIFO" in line for line in lines)
-    assert os.sched_getscheduler(0) == os.SCHED_OTHER  # each call's settings undone
+    assert policy_of(0) == os.SCHED_OTHER  # each call's settings undone
 
 
 def test_the_controller_ticks_at_the_highest_default_priority_the_plant_and_trajectory_below() -> None:
