@@ -209,14 +209,19 @@ def test_run_experiment_stand_in_records_a_goal_sent_from_outside(ros_env: dict,
     states: list[np.ndarray] = []
     client.node.create_subscription(JointState, "/joint_states", lambda m: states.append(
         np.array([m.position[list(m.name).index(n)] for n in NAMES])), 1)
+    commands: list[float] = []
+    client.node.create_subscription(Float64MultiArray, "/effort_controller/commands",
+                                    lambda m: commands.append(time.monotonic()), 1)
     action = ActionClient(client.node, FollowJointTrajectory, "/controller/follow_joint_trajectory")
     try:
         assert action.wait_for_server(timeout_sec=60), logs(tmp_path)
-        assert wait_until(lambda: len(states) > 100, 30), logs(tmp_path)
+        # the driver's states flow from its start; the controller commands once active (as
+        # joint_trajectory_controller, it rejects goals until then, and its server exists before)
+        assert wait_until(lambda: len(states) > 100 and len(commands) > 100, 60), logs(tmp_path)
         time.sleep(1.0)  # the recorder's discovery of the goal topics
         q0 = states[-1].copy()
         handle = client.call(lambda: action.send_goal_async(quintic_goal(q0, q0 + [0.1, 0.1, 0.1], 1.0)))
-        assert handle.accepted  # type: ignore[attr-defined]
+        assert handle.accepted, logs(tmp_path)  # type: ignore[attr-defined]
         answer = client.call(handle.get_result_async)  # type: ignore[attr-defined]
         assert answer.result.error_code == FollowJointTrajectory.Result.SUCCESSFUL  # type: ignore[attr-defined]
         code = script.wait(timeout=90)
