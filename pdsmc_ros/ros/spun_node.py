@@ -49,6 +49,8 @@ class SpunNode:
     def _spin(self) -> None:
         while not self.stop.is_set():
             with self.spinning:
+                if self.stop.is_set():  # closed while this thread waited for the lock: the node is gone
+                    return
                 self.executor.spin_once(timeout_sec=SPIN_TIMEOUT_S)
             time.sleep(0)  # let ``call`` take the lock between two turns
 
@@ -76,10 +78,14 @@ class SpunNode:
         """Stop the spin thread, destroy the node's action clients (``destroy_node`` leaves them)
         and the node, and shut its context down."""
         self.stop.set()
+        # between two turns of the spin thread, which then ends: on a loaded machine a join with a
+        # timeout could return with it still spinning, and a destroyed action client in its wait set
+        # raised in that thread
+        with self.spinning:
+            for waitable in list(self.node.waitables):
+                destroy = getattr(waitable, "destroy", None)
+                if destroy is not None:
+                    destroy()
+            self.node.destroy_node()
         self.thread.join(timeout=2)
-        for waitable in list(self.node.waitables):
-            destroy = getattr(waitable, "destroy", None)
-            if destroy is not None:
-                destroy()
-        self.node.destroy_node()
         rclpy.try_shutdown(context=self.context)
