@@ -120,14 +120,15 @@ class ControllerNode(CommandingEntity):
             params.stale_periods / spec.rate, self.lockstep,
             lambda why: self.loop_log.info(f"holding the measured position ({why})"),
             runaway=runaway, on_runaway=self.on_runaway, goal_settings=params.goal_settings)
-        checked(lambda new: check_rate(new, core.reference, **run.stability), spec)  # refuse gains unstable here
+        in_process = lambda new: check_rate(new, core.reference, **run.stability)  # noqa: E731 - used twice below
+        checked(in_process, spec)  # refuse gains unstable here
         # gains: the on-set callback checks a change is stable at the running rate, the post-set one applies
         # it; real time: the check (50-100 ms of numpy) in a process of its own, never beside the loop
         self.gain_check = None if self.lockstep else CheckProcess.for_run(spec, run.stability)
         if self.gain_check is not None:
             self.gain_check.start()  # from this thread, at normal scheduling, while the node starts
         self.gain_updates = GainUpdates(
-            node, spec, self.gain_check or (lambda new: check_rate(new, core.reference, **run.stability)),
+            node, spec, self.gain_check or in_process,
             self.apply_gains, joint_map=self.joint_map)
         self.active = self.done = False  # commanding; the run is over
         self.exit_code = EXIT_OK
