@@ -18,23 +18,24 @@ that did not send them still has each goal's trajectory.
 The server lives on a node of its own (``<controller>_action``, no parameter services or
 rosout) spun by a thread of its own with a small multi-threaded executor: a controller with
 its action server in the control loop's executor answered 142 of 2,000 states at 1 kHz; with
-the server's waiting in another thread it answered every one. Validation runs in that thread,
-never in the loop's: the loop only checks the active goal every period, and the lock they share
-is held for a few stores. A trajectory longer than
-:data:`~pdsmc_ros.controller.joint_trajectory.MAX_POINTS` is refused before it is looked at.
-Real time: ``~/joint_trajectory`` is taken in this thread too; lockstep (no deadlines): in the
-loop, which computes the waiting step at once.
+the server's waiting in another thread it answered every one. Real time: that node, its thread
+and the validation run in a process of their own (:mod:`.goal_process`), which hands the loop's
+process the goals and trajectories it accepted; lockstep (no deadlines): in the controller's
+process, where ``~/joint_trajectory`` is taken by the loop, which computes the waiting step at
+once. Validation never runs in the loop's thread: the loop only checks the active goal every
+period. A trajectory longer than :data:`~pdsmc_ros.controller.joint_trajectory.MAX_POINTS` is
+refused before it is looked at.
 
 :class:`StatePublisher` sends ``~/controller_state``, the action goals' feedback and the
 saturation diagnostic at :data:`FEEDBACK_HZ` (joint_trajectory_controller's action monitor
-rate). Real time: :meth:`StatePublisher.publish` is called by the control loop in its spare
-time (``idle``), never from a thread of its own, whose message conversions would hold the GIL
-while a tick is due; a loop with no spare time (a busy machine) still calls it after a tick every
-:data:`~pdsmc_ros.loop.serve.IDLE_STARVED_S`, so a goal's client is never left without feedback;
-lockstep (no deadlines): by a timer of the action server's thread.
+rate): real time, when the loop's process sends its latest period (in the loop's spare time, at
+that rate; a loop with no spare time still does after a tick every
+:data:`~pdsmc_ros.loop.serve.IDLE_STARVED_S`, so a goal's client is never left without
+feedback); lockstep, by a timer of the action server's thread. Without a goal process (an arm a
+child cannot rebuild), the loop calls :meth:`StatePublisher.publish` in its spare time.
 
-Both read the controller through :class:`ControllerView` (what they use of the controller
-node), never the node's module: the node imports this one, not the other way round.
+Both read the controller through :class:`ControllerView` (what they use of the controller),
+never the node's module: the node imports this one, not the other way round.
 """
 
 from __future__ import annotations
@@ -50,8 +51,10 @@ from control_msgs.msg import JointTrajectoryControllerState
 from control_msgs.srv import QueryTrajectoryState
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.context import Context
 from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 from service_msgs.msg import ServiceEventInfo
 from std_msgs.msg import Header
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
@@ -60,28 +63,59 @@ from ..loop.executor_thread import ExecutorThread
 from ..loop.inputs import Times
 from ..ros import topics
 from ..ros.diagnostics import Diagnostics
-from .commanding import TorqueGuard
-from .core import ControllerCore
+from .core import GoalStart, Tolerance
 from .goals import INVALID_GOAL, GoalExecution, Outcome
 from .joint_map import JointMap
 from .joint_trajectory import JointTrajectoryReference, RawPoint
-from .parameters import ControllerParameters
 
 
 class ControllerView(Protocol):
-    """What the action server and the state publisher read and call of the controller node."""
+    """What the action server and the state publisher read and call of the controller: the
+    controller node itself in its process (:class:`~pdsmc_ros.controller.node.LocalView`), or its
+    stand-in in the goal process (:class:`~pdsmc_ros.controller.goal_process.RemoteView`)."""
 
-    node: Node  # the controller's (lifecycle) node: names, clock, context, logger, diagnostics
-    core: ControllerCore  # the decisions: goals, trajectories, the latest period
-    guard: TorqueGuard  # the clamp count (saturation diagnostic)
+    name: str  # the controller node's name, namespace and fully qualified name
+    namespace: str
+    base: str
+    context: Context
+    logger: Any  # the controller's logger (its lines carry the controller's name)
+    robot: str  # the diagnostics' hardware id
+    joints: Sequence[str]  # the controlled joints in the user's order
     joint_map: JointMap
-    params: ControllerParameters
+    action_introspection: str
     lockstep: bool
     active: bool  # commanding: only an active controller takes goals and trajectories
-    action: FollowJointTrajectoryServer
 
     def now(self) -> float:
         """The controller's time (s)."""
+
+    def resolve(self, topic: str) -> str:
+        """``topic`` resolved as the controller node resolves it."""
+
+    def check_goal(self, stamp: float, names: Sequence[str], points: Sequence[RawPoint], effort_sizes: Sequence[int],
+                   now: float, path: Sequence[Tolerance], goal: Sequence[Tolerance], goal_time: float) -> GoalStart:
+        """An action goal validated (:func:`~.core.check_goal`)."""
+
+    def check_topic_trajectory(self, stamp: float, names: Sequence[str], points: Sequence[RawPoint],
+                               effort_sizes: Sequence[int], times: Times, now: float
+                               ) -> tuple[JointTrajectoryReference | None, str]:
+        """A ``~/joint_trajectory`` validated (:func:`~.core.check_topic_trajectory`)."""
+
+    def start_goal(self, key: bytes, execution: GoalExecution) -> bool:
+        """Drive an accepted goal from now on; whether it preempts another action goal."""
+
+    def cancel_goal(self, key: bytes, execution: GoalExecution) -> bool:
+        """Cancel ``execution`` if it is the active goal (it ends CANCELED; the arm holds); whether it was."""
+
+    def follow(self, reference: JointTrajectoryReference) -> bool:
+        """A validated topic trajectory drives from now on; whether an action goal goes on against it."""
+
+    def driving(self) -> JointTrajectoryReference | None:
+        """The trajectory driving the controller now (None: a hold, the reference stream, nothing)."""
+
+    def latest(self) -> tuple[tuple[Any, ...] | None, int]:
+        """The latest control period's ``(t, q, qd, reference, torque)`` (robot order; None before
+        the first) and the number of periods the torque was clamped so far."""
 
 
 FEEDBACK_HZ = 20.0  # feedback and ~/controller_state (joint_trajectory_controller's action monitor rate)
@@ -108,23 +142,28 @@ class StatePublisher:
 
     def __init__(self, node: Node, controller: ControllerView) -> None:
         self.controller = controller
-        base = controller.node.get_fully_qualified_name()
-        self.state_pub = node.create_publisher(JointTrajectoryControllerState, f"{base}/controller_state", 10)
-        self.saturation = Diagnostics(controller.node, "controller: torque limits", controller.core.spec.robot,
-                                      values=lambda: {"saturated_periods": str(controller.guard.clamped)})
-        self.saturated_seen, self.ticks, self.next_publish = 0, 0, 0.0
+        self.state_pub = node.create_publisher(JointTrajectoryControllerState, f"{controller.base}/controller_state",
+                                               10)
+        self.saturation = Diagnostics(node, "controller: torque limits", controller.robot, logger=controller.logger,
+                                      values=lambda: {"saturated_periods": str(self.saturated)})
+        self.saturated = self.saturated_seen = self.ticks = 0
+        self.next_publish = 0.0
 
     def publish(self, until: float, goals: Iterable[tuple[Any, GoalExecution]]) -> None:
-        """At :data:`FEEDBACK_HZ`: ``~/controller_state`` from the loop's latest period, the
-        feedback of each active goal (``(handle, execution)``) and (once a second, if the clamp
-        count grew) a saturation diagnostic; it stops once ``time.perf_counter()`` reaches ``until``."""
+        """At :data:`FEEDBACK_HZ` (:meth:`send`); it stops once ``time.perf_counter()`` reaches ``until``."""
         now = time.perf_counter()
         if now < self.next_publish:
             return
         self.next_publish = max(self.next_publish + 1.0 / FEEDBACK_HZ, now)
+        self.send(until, goals)
+
+    def send(self, until: float, goals: Iterable[tuple[Any, GoalExecution]]) -> None:
+        """``~/controller_state`` from the loop's latest period, the feedback of each active goal
+        (``(handle, execution)``) and (once a second, if the clamp count grew) a saturation
+        diagnostic; it stops once ``time.perf_counter()`` reaches ``until``."""
         ctl = self.controller
-        joints, joint_map = list(ctl.params.joints), ctl.joint_map
-        snapshot = ctl.core.snapshot
+        joints, joint_map = list(ctl.joints), ctl.joint_map
+        snapshot, self.saturated = ctl.latest()
         if snapshot is not None:
             t, q, qd, ref, tau = snapshot
             q, qd = np.asarray(q, dtype=float), np.asarray(qd, dtype=float)
@@ -141,10 +180,10 @@ class StatePublisher:
                 header=_header(feedback.time), joint_names=joints, desired=_point(joint_map, *feedback.desired),
                 actual=_point(joint_map, *feedback.actual), error=_point(joint_map, *feedback.error)))
         self.ticks += 1
-        if self.ticks % int(FEEDBACK_HZ * SATURATION_EVERY_S) == 0 and ctl.guard.clamped > self.saturated_seen \
+        if self.ticks % int(FEEDBACK_HZ * SATURATION_EVERY_S) == 0 and self.saturated > self.saturated_seen \
                 and time.perf_counter() < until:
-            self.saturated_seen = ctl.guard.clamped
-            self.saturation.publish("warn", f"torque clamped to the limits in {ctl.guard.clamped} periods so far")
+            self.saturated_seen = self.saturated
+            self.saturation.publish("warn", f"torque clamped to the limits in {self.saturated} periods so far")
 
 
 CANCEL_STATE_WAIT_S = 1.0  # longest wait for rclpy to mark a canceled goal's handle canceling
@@ -186,23 +225,21 @@ def trajectory_fields(msg: JointTrajectory) -> tuple[float, tuple[str, ...], Seq
     return _seconds(msg.header.stamp), tuple(msg.joint_names), _Points(msg.points), _EffortSizes(msg.points)
 
 
-def topic_trajectory(controller: ControllerView, msg: JointTrajectory, times: Times,
-                     report: Diagnostics | None = None) -> bool:
-    """A ``~/joint_trajectory`` message: refused (one log line and ``/diagnostics`` by ``report``,
-    default the action server's) or driving from now on (whether it drives; where it starts:
-    :meth:`~pdsmc_ros.controller.core.ControllerCore.topic_trajectory`)."""
-    topic = controller.node.resolve_topic_name(topics.TOPIC_JOINT_TRAJECTORY)
-    report = report or controller.action.report
+def topic_trajectory(controller: ControllerView, msg: JointTrajectory, times: Times, report: Diagnostics) -> bool:
+    """A ``~/joint_trajectory`` message: refused (one log line and ``/diagnostics`` by ``report``)
+    or driving from now on (whether it drives; where it starts:
+    :func:`~pdsmc_ros.controller.core.check_topic_trajectory`)."""
+    topic = controller.resolve(topics.TOPIC_JOINT_TRAJECTORY)
     if not controller.active:
         report.report("warn", f"{topic}: trajectory refused: the controller is not active")
         return False
-    reference, problem, followed = controller.core.topic_trajectory(*trajectory_fields(msg), times, controller.now())
+    reference, problem = controller.check_topic_trajectory(*trajectory_fields(msg), times, controller.now())
     if reference is None:
         report.report("error", f"{topic}: trajectory refused: {problem}")
         return False
-    goes_on = "; the active action goal goes on against it" if followed else ""
-    controller.node.get_logger().info(f"{topic}: {len(reference.times)} points until t = {reference.end_time:.3f} s; "
-                                      f"driving from it{goes_on}")
+    goes_on = "; the active action goal goes on against it" if controller.follow(reference) else ""
+    controller.logger.info(f"{topic}: {len(reference.times)} points until t = {reference.end_time:.3f} s; "
+                           f"driving from it{goes_on}")
     return True
 
 
@@ -216,13 +253,13 @@ class FollowJointTrajectoryServer:
     """The action server of ``controller``, its topic trajectories, ``~/query_state`` and its
     state publisher, in a thread of their own."""
 
-    def __init__(self, controller: ControllerView) -> None:
+    def __init__(self, controller: ControllerView, *, parameter_overrides: Sequence[Parameter] = ()) -> None:
         self.controller = controller
-        base = controller.node.get_fully_qualified_name()
-        self.node = Node(f"{controller.node.get_name()}_action", namespace=controller.node.get_namespace(),
-                         context=controller.node.context, use_global_arguments=False,
-                         start_parameter_services=False, enable_rosout=False)
-        self.report = Diagnostics(controller.node, "controller: trajectories", controller.core.spec.robot)
+        base = controller.base
+        self.node = Node(f"{controller.name}_action", namespace=controller.namespace, context=controller.context,
+                         use_global_arguments=False, start_parameter_services=False, enable_rosout=False,
+                         parameter_overrides=parameter_overrides)
+        self.report = Diagnostics(self.node, "controller: trajectories", controller.robot, logger=controller.logger)
         group = ReentrantCallbackGroup()
         self.server = ActionServer(self.node, FollowJointTrajectory, f"{base}/follow_joint_trajectory",
                                    execute_callback=self.execute, goal_callback=self.on_goal,
@@ -231,11 +268,11 @@ class FollowJointTrajectoryServer:
         self.node.create_service(QueryTrajectoryState, f"{base}/query_state", self.query_state, callback_group=group)
         if not controller.lockstep:  # lockstep: the loop takes them (it computes the waiting step at once)
             self.node.create_subscription(
-                JointTrajectory, controller.node.resolve_topic_name(topics.TOPIC_JOINT_TRAJECTORY),
+                JointTrajectory, controller.resolve(topics.TOPIC_JOINT_TRAJECTORY),
                 lambda msg, info: topic_trajectory(controller, msg, _times(info), self.report), topics.TRAJECTORY_QOS,
                 callback_group=group)
         self.state = StatePublisher(self.node, controller)
-        introspection = controller.params.action_introspection
+        introspection = controller.action_introspection
         self.goal_events = None if introspection == "disabled" else self.node.create_publisher(
             FollowJointTrajectory.Impl.SendGoalService.Event, f"{base}/follow_joint_trajectory/_action/send_goal/"
             "_service_event", 10)
@@ -245,7 +282,7 @@ class FollowJointTrajectoryServer:
         self.goals: dict[bytes, tuple[Any, GoalExecution]] = {}  # active goals: (handle, execution)
         if controller.lockstep:  # no deadlines: a timer here; real time: the loop's spare time (idle)
             self.node.create_timer(1.0 / FEEDBACK_HZ, lambda: self.publish(float("inf")), callback_group=group)
-        self.executor = MultiThreadedExecutor(num_threads=3, context=controller.node.context)
+        self.executor = MultiThreadedExecutor(num_threads=3, context=controller.context)
         self.executor.add_node(self.node)
         # asleep until there is work (it woke every 0.1 s at first: ~0.2 ms under the GIL, a late
         # control period of a composed process ten times a second)
@@ -268,7 +305,7 @@ class FollowJointTrajectoryServer:
             self.report.report("error", "action goal rejected: the controller is not active")
             return GoalResponse.REJECT
         trajectory = request.trajectory
-        checked = ctl.core.check_goal(
+        checked = ctl.check_goal(
             *trajectory_fields(trajectory), ctl.now(),
             [(t.name, t.position, t.velocity, t.acceleration) for t in request.path_tolerance],
             [(t.name, t.position, t.velocity, t.acceleration) for t in request.goal_tolerance],
@@ -277,7 +314,7 @@ class FollowJointTrajectoryServer:
             self.report.report("error", f"action goal rejected: {checked.goal.error_string}")
             return GoalResponse.REJECT
         if checked.warning:
-            ctl.node.get_logger().warn(checked.warning)
+            ctl.logger.warn(checked.warning)
         if len(self.pending) >= PENDING_KEPT:
             self.pending.clear()
         self.pending[id(request)] = (request, checked.goal)  # rclpy hands this very object to the handle
@@ -287,12 +324,13 @@ class FollowJointTrajectoryServer:
         """An accepted goal drives from now on (JTC's ``goal_accepted_callback``: the active goal is
         preempted), then its execute callback watches it."""
         _, execution = self.pending.pop(id(goal_handle.request), (None, None))
-        ctl, log = self.controller, self.controller.node.get_logger()
+        ctl, log = self.controller, self.controller.logger
         if execution is not None:
-            self.goals[bytes(goal_handle.goal_id.uuid)] = (goal_handle, execution)  # its feedback: publish()
+            key = bytes(goal_handle.goal_id.uuid)
+            self.goals[key] = (goal_handle, execution)  # its feedback: publish()
             if not ctl.active:
                 execution.finish(Outcome("aborted", INVALID_GOAL, "the controller is not active"))
-            elif ctl.core.start_goal(execution):
+            elif ctl.start_goal(key, execution):
                 log.info("the active action goal was preempted by a new one")
             if execution.outcome is None:
                 log.info(f"action goal accepted: {len(execution.reference.times)} points until "
@@ -319,9 +357,10 @@ class FollowJointTrajectoryServer:
         self.goal_event_count += 1
 
     def on_cancel(self, goal_handle: Any) -> CancelResponse:
-        found = self.goals.get(bytes(goal_handle.goal_id.uuid))
-        if found is not None and self.controller.core.goals.cancel(found[1]):
-            self.controller.node.get_logger().info("action goal canceled: holding")
+        key = bytes(goal_handle.goal_id.uuid)
+        found = self.goals.get(key)
+        if found is not None and self.controller.cancel_goal(key, found[1]):
+            self.controller.logger.info("action goal canceled: holding")
         return CancelResponse.ACCEPT
 
     def execute(self, goal_handle: Any) -> FollowJointTrajectory.Result:
@@ -359,12 +398,11 @@ class FollowJointTrajectoryServer:
         ``success`` False when the controller is not active, holds a position, or the time lies
         before the trajectory's start or at or after its last point."""
         ctl = self.controller
-        response.name = list(ctl.params.joints)
+        response.name = list(ctl.joints)
         if not ctl.active:
             response.success, response.message = False, "Can't sample trajectory. Controller is not active."
             return response
-        driving = ctl.core.pairing if ctl.lockstep else ctl.core.latest
-        trajectory = driving.trajectory if driving.source == "trajectory" else None
+        trajectory = ctl.driving()
         t = _seconds(request.time)
         if not isinstance(trajectory, JointTrajectoryReference):
             response.success, response.message = False, "Currently there is no valid trajectory instance."

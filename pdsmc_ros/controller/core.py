@@ -55,6 +55,52 @@ class GoalStart(NamedTuple):
     warning: str  # "" for none (an unknown joint or illegal value in the goal's tolerances)
 
 
+def check_topic_trajectory(settings: GoalSettings, limits: JointLimits | None, joints: tuple[str, ...],
+                           state: tuple[FloatArray, FloatArray] | None, latched: str, lockstep: bool, stamp: float,
+                           names: Sequence[str], points: Sequence[RawPoint], effort_sizes: Sequence[int],
+                           times: tuple[float | None, float | None], now: float
+                           ) -> tuple[JointTrajectoryReference | None, str]:
+    """A ``~/joint_trajectory`` (its stamp, joint names, points and the sizes of their effort
+    fields) at controller time ``now``, from the measured ``state``: ``(reference, "")``, or
+    ``(None, problem)`` (``latched``: why no trajectory may start, "" for none). Validated as an
+    action goal (:func:`~.goals.prepare_trajectory`), in the caller's thread -- or process.
+
+    Real time: a zero ``header.stamp`` starts when the message was sent (``times``: the
+    middleware's source and reception times; the reception time if the source time is
+    implausible, e.g. another machine's clock off by more than :data:`SOURCE_SKEW_S`), so no
+    wait -- the controller still starting, DDS repairing a sample its reader dropped before it
+    knew the writer -- shifts the trajectory."""
+    if not lockstep:
+        sent, received = times
+        if sent is not None and now - SOURCE_SKEW_S <= sent <= now:
+            now = sent
+        elif received is not None and received <= now:
+            now = received
+    if latched:
+        return None, latched
+    return prepare_trajectory(settings, limits, joints, stamp, names, points, now, state, effort_sizes)
+
+
+def check_goal(settings: GoalSettings, limits: JointLimits | None, joints: tuple[str, ...],
+               state: tuple[FloatArray, FloatArray] | None, latched: str, stamp: float, names: Sequence[str],
+               points: Sequence[RawPoint], effort_sizes: Sequence[int], now: float, path: Sequence[Tolerance],
+               goal: Sequence[Tolerance], goal_time: float) -> GoalStart:
+    """An action goal (its trajectory's stamp, joint names, points and effort sizes; its path and
+    goal tolerances and goal time tolerance) arriving at controller time ``now``, from the
+    measured ``state``, validated in the caller's thread (the action server's) or process: its
+    execution, with its tolerances over the defaults, to start once accepted, or the refusal
+    (INVALID_GOAL and the reason; ``latched``: why no trajectory may start, "" for none)."""
+    if latched:
+        return GoalStart(Outcome("aborted", INVALID_GOAL, latched), "")
+    reference, problem = prepare_trajectory(settings, limits, joints, stamp, names, points, now, state, effort_sizes)
+    if reference is None:
+        return GoalStart(Outcome("aborted", INVALID_GOAL, problem), "")
+    reference.starts_at_first_sample = stamp == 0.0  # JTC: "now" is the loop's first sample of it
+    tolerances, warning = resolve_tolerances(settings.tolerances(len(joints)), joints, path, goal, goal_time)
+    return GoalStart(GoalExecution(reference, tolerances, tuple(joints), cmd_timeout=settings.timeout(),
+                                   wrap=settings.wrap), warning)
+
+
 class ControllerCore:
     """The controller node's decisions about one run (gains in robot order).
 
@@ -205,50 +251,37 @@ class ControllerCore:
                          ) -> tuple[JointTrajectoryReference | None, str, bool]:
         """A ``~/joint_trajectory`` (its stamp, joint names, points and the sizes of their effort
         fields) at controller time ``now``: ``(reference, "", whether an action goal goes on
-        against it)`` once it drives, or ``(None, problem, False)`` (the running motion untouched).
-        Validated as an action goal (:func:`~.goals.prepare_trajectory`), in the caller's thread.
-
-        Real time: a zero ``header.stamp`` starts when the message was sent (``times``: the
-        middleware's source and reception times; the reception time if the source time is
-        implausible, e.g. another machine's clock off by more than :data:`SOURCE_SKEW_S`), so no
-        wait -- the controller still starting, DDS repairing a sample its reader dropped before it
-        knew the writer -- shifts the trajectory."""
-        if not self.lockstep:
-            sent, received = times
-            if sent is not None and now - SOURCE_SKEW_S <= sent <= now:
-                now = sent
-            elif received is not None and received <= now:
-                now = received
-        settings, joints = self.goal_settings, self.selector.joints
-        if latched := self.runaway_latched():
-            return None, latched, False
-        state = self.last_state[1:] if self.last_state is not None else None  # JTC: from the measured state
-        reference, problem = prepare_trajectory(settings, self.limits, joints, stamp, names, points, now, state,
-                                                effort_sizes)
+        against it)`` once it drives, or ``(None, problem, False)`` (the running motion untouched):
+        :meth:`check_topic_trajectory`, then :meth:`follow`."""
+        reference, problem = self.check_topic_trajectory(stamp, names, points, effort_sizes, times, now)
         if reference is None:
             return None, problem, False
-        followed = self.goals.follow(reference, settings.tolerances(len(joints)), joints, settings.timeout(),
-                                     settings.wrap)
-        return reference, "", followed
+        return reference, "", self.follow(reference)
+
+    def check_topic_trajectory(self, stamp: float, names: Sequence[str], points: Sequence[RawPoint],
+                               effort_sizes: Sequence[int], times: tuple[float | None, float | None], now: float
+                               ) -> tuple[JointTrajectoryReference | None, str]:
+        """A ``~/joint_trajectory`` validated from the latest measured state (:func:`check_topic_trajectory`)."""
+        return check_topic_trajectory(self.goal_settings, self.limits, self.selector.joints, self.measured(),
+                                      self.runaway_latched(), self.lockstep, stamp, names, points, effort_sizes,
+                                      times, now)
+
+    def follow(self, reference: JointTrajectoryReference) -> bool:
+        """A validated topic trajectory drives from now on; whether an action goal goes on against it."""
+        settings, joints = self.goal_settings, self.selector.joints
+        return self.goals.follow(reference, settings.tolerances(len(joints)), joints, settings.timeout(),
+                                 settings.wrap)
 
     def check_goal(self, stamp: float, names: Sequence[str], points: Sequence[RawPoint], effort_sizes: Sequence[int],
                    now: float, path: Sequence[Tolerance], goal: Sequence[Tolerance], goal_time: float) -> GoalStart:
-        """An action goal (its trajectory's stamp, joint names, points and effort sizes; its path and
-        goal tolerances and goal time tolerance) arriving at controller time ``now``, validated in
-        the caller's thread (the action server's): its execution, with its tolerances over the
-        defaults, to :meth:`start_goal` once accepted, or the refusal (INVALID_GOAL and the reason)."""
-        settings, joints = self.goal_settings, self.selector.joints
-        if latched := self.runaway_latched():
-            return GoalStart(Outcome("aborted", INVALID_GOAL, latched), "")
-        state = self.last_state[1:] if self.last_state is not None else None  # JTC: from the measured state
-        reference, problem = prepare_trajectory(settings, self.limits, joints, stamp, names, points, now, state,
-                                                effort_sizes)
-        if reference is None:
-            return GoalStart(Outcome("aborted", INVALID_GOAL, problem), "")
-        reference.starts_at_first_sample = stamp == 0.0  # JTC: "now" is the loop's first sample of it
-        tolerances, warning = resolve_tolerances(settings.tolerances(len(joints)), joints, path, goal, goal_time)
-        return GoalStart(GoalExecution(reference, tolerances, joints, cmd_timeout=settings.timeout(),
-                                       wrap=settings.wrap), warning)
+        """An action goal validated from the latest measured state (:func:`check_goal`)."""
+        return check_goal(self.goal_settings, self.limits, self.selector.joints, self.measured(),
+                          self.runaway_latched(), stamp, names, points, effort_sizes, now, path, goal, goal_time)
+
+    def measured(self) -> tuple[FloatArray, FloatArray] | None:
+        """The latest complete measured state ``(q, qd)`` (robot order), None before the first:
+        where a trajectory starts (joint_trajectory_controller: from the measured state)."""
+        return self.last_state[1:] if self.last_state is not None else None
 
     def runaway_latched(self) -> str:
         """Why no trajectory may start (the runaway stop is latched), or ""."""

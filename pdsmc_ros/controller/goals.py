@@ -261,6 +261,19 @@ class GoalExecution:
     done: threading.Event = field(default_factory=threading.Event)
     first_sample: bool = True
 
+    def __getstate__(self) -> dict[str, object]:
+        """Pickled without :attr:`done` (an event of this process): a goal validated in the goal
+        process (:mod:`.goal_process`) is sent to the control loop's."""
+        state = dict(self.__dict__)
+        del state["done"]
+        return state
+
+    def __setstate__(self, state: dict[str, object]) -> None:
+        self.__dict__.update(state)
+        self.done = threading.Event()
+        if self.outcome is not None:
+            self.done.set()
+
     def follow(self, reference: JointTrajectoryReference) -> None:
         """A topic trajectory replaces the running one; the goal goes on, judged against it."""
         self.reference = reference

@@ -226,6 +226,26 @@ class JointTrajectoryReference:
             return None, problem
         return cls.from_checked(selector.joints, stamp, names, points, now, q, qd)
 
+    def __getstate__(self) -> dict[str, object]:
+        """Pickled with its points as stacked arrays: a goal validated in another process
+        (:mod:`.goal_process`) reaches the control loop as a few arrays, not 5,000 small ones
+        (unpickled one by one they took milliseconds of the loop's process)."""
+        state = dict(self.__dict__)
+        for name in ("positions", "velocities", "accelerations"):
+            values = state[name]
+            if len(values) and not isinstance(values, np.ndarray) and all(v is not None for v in values):
+                state[name] = np.stack(values)
+            elif not isinstance(values, np.ndarray) and all(v is None for v in values):
+                state[name] = (None, len(values))
+        return state
+
+    def __setstate__(self, state: dict[str, object]) -> None:
+        for name in ("positions", "velocities", "accelerations"):
+            values = state[name]
+            if isinstance(values, tuple) and len(values) == 2 and values[0] is None:
+                state[name] = [None] * int(values[1])
+        self.__dict__.update(state)
+
     def begin(self, t: float) -> None:
         """The control loop is about to sample this trajectory at ``t``: one flagged
         :attr:`starts_at_first_sample` starts there (its times are relative to its start)."""

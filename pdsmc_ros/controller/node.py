@@ -3,8 +3,9 @@
 A managed (lifecycle) node, configured and activated at start unless ``autostart:=false``.
 In: ``/joint_states`` and three reference sources, ``/reference`` (one point per step),
 ``~/joint_trajectory`` (JointTrajectory, as joint_trajectory_controller) and the action
-``~/follow_joint_trajectory`` (:mod:`.action`, served by a node of its own
-in a thread of its own); whichever spoke last drives. Real time: on activation, and after
+``~/follow_joint_trajectory`` (:mod:`.action`, served by a node of its own: real time, in a
+process of its own, :mod:`.goal_process`; lockstep, in a thread of its own); whichever spoke
+last drives. Real time: on activation, and after
 a goal is canceled or aborted, the controller holds the position it measures (through the
 chosen law); a trajectory's time is the node clock (``header.stamp``, or the reception
 time when zero). Joints by name (``joints``, any order, mapped onto the robot's). Out:
@@ -49,8 +50,11 @@ from ..ros.diagnostics import Diagnostics, InputReport
 from ..ros.publishers import GuardedPublisher, RowBatches
 from .action import FollowJointTrajectoryServer, topic_trajectory
 from .commanding import Paired, TorqueGuard
-from .core import ControllerCore
+from .core import ControllerCore, GoalStart, Tolerance
 from .gain_check import CheckProcess, checked
+from .goal_process import GoalProcess, setup_of
+from .goals import GoalExecution
+from .joint_trajectory import JointTrajectoryReference, RawPoint
 from .joints import JointSelector
 from .limits import JointLimits
 from .parameters import GainUpdates, declare_controller_parameters, declare_limit_parameters
@@ -144,8 +148,24 @@ class ControllerNode(CommandingEntity):
                                           batch=50)
             self.plant_watch = end_when_plant_leaves(self, lambda: core.states_received)
         node.add_managed_entity(self)
-        # the action server: a node of its own spun by a thread of its own, never by the loop's executor
-        self.action = FollowJointTrajectoryServer(self)
+        # the action server: real time, in a process of its own (goal_process); else a node of its own spun by
+        # a thread of its own, never by the loop's executor
+        self.goal_process = None if self.lockstep else GoalProcess.for_controller(
+            setup_of(spec=spec, name=node.get_name(), namespace=node.get_namespace(),
+                     base=node.get_fully_qualified_name(), joints=params.joints, joint_map=self.joint_map,
+                     robot_joints=robot.joint_names, limits=core.limits, goal_settings=core.goal_settings,
+                     action_introspection=params.action_introspection,
+                     topics={t: node.resolve_topic_name(t) for t in (topics.TOPIC_JOINT_TRAJECTORY,
+                                                                     topics.TOPIC_JOINT_STATES)},
+                     use_sim_time=bool(node.get_parameter("use_sim_time").value)),
+            core, lambda: self.guard.clamped, lambda why: self.loop_log.error(why))
+        if self.goal_process is not None:
+            self.goal_process.start()  # from this thread, at normal scheduling, while the node starts
+            self.action: FollowJointTrajectoryServer | None = None
+            self.trajectory_report = Diagnostics(node, "controller: trajectories", spec.robot)
+        else:
+            self.action = FollowJointTrajectoryServer(LocalView(self))
+            self.trajectory_report = self.action.report
         if params.autostart:
             # configured (the law's kernel loaded, the path from a message to a command warmed up) before
             # the robot's topics exist: a plant that starts once it sees them is answered at once, and a
@@ -169,9 +189,23 @@ class ControllerNode(CommandingEntity):
         node.get_logger().info(f"{spec.controller} controller for {spec.robot}/{spec.contour}, {self.mode}, "
                                f"{spec.rate:g} Hz, joints {list(params.joints)}{waiting}")
 
+    @property
+    def active(self) -> bool:
+        """Commanding (the lifecycle's active state): told to the goal process as it changes."""
+        return self._active
+
+    @active.setter
+    def active(self, value: bool) -> None:
+        self._active = value
+        goal_process = getattr(self, "goal_process", None)
+        if goal_process is not None:
+            goal_process.set_active(value)
+
     def on_runaway(self, why: str) -> None:
         """The runaway guard tripped (the loop's thread): reported, and the run fails."""
         stop = self.core.runaway.stop if self.core.runaway is not None else ""
+        if self.goal_process is not None:
+            self.goal_process.tell_runaway(why)
         self.limits_report.report("error", f"{why}: active goal aborted, {stop} stop until the controller is "
                                            "deactivated and activated again")
         self.exit_code = EXIT_FAILURE
@@ -181,6 +215,8 @@ class ControllerNode(CommandingEntity):
 
     def on_activate(self, state: LifecycleState) -> TransitionCallbackReturn:
         self.core.activate()
+        if self.goal_process is not None:
+            self.goal_process.tell_runaway("")  # reset by the activation
         return super().on_activate(state)
 
     def on_deactivate(self, state: LifecycleState) -> TransitionCallbackReturn:
@@ -217,9 +253,9 @@ class ControllerNode(CommandingEntity):
             try:
                 msg = deserialize_message(data, JointTrajectory)
             except Exception as exc:  # noqa: BLE001 - any malformed message: refused, never fatal
-                self.action.report.report("error", f"{topics.TOPIC_JOINT_TRAJECTORY}: malformed message ({exc})")
+                self.trajectory_report.report("error", f"{topics.TOPIC_JOINT_TRAJECTORY}: malformed message ({exc})")
                 continue
-            if topic_trajectory(self, msg, times):
+            if topic_trajectory(LocalView(self), msg, times, self.trajectory_report):
                 self.compute(self.core.pairing.take())
 
     def compute(self, paired: Paired | None) -> None:
@@ -258,14 +294,21 @@ class ControllerNode(CommandingEntity):
         self.plant_watch.poll(grace=WATCH_GRACE_S)  # only if the loop had no spare time for it
 
     def idle(self, until: float) -> None:
-        """Real time, in the loop's spare time after a tick: the action's feedback, the controller
-        state and a look at whether the plant is there."""
-        self.action.publish(until)
+        """Real time, in the loop's spare time after a tick: the goal process's requests and news
+        for it (else the action's feedback and the controller state), and a look at whether the
+        plant is there."""
+        if self.goal_process is not None:
+            self.goal_process.poll(time.perf_counter())
+        elif self.action is not None:
+            self.action.publish(until)
         self.plant_watch.poll()
 
     def close(self) -> None:
         """Stopping (signal, end of run): a zero command unless the lockstep run is complete."""
-        self.action.stop()
+        if self.action is not None:
+            self.action.stop()
+        if self.goal_process is not None:
+            self.goal_process.close()
         if self.gain_check is not None:
             self.gain_check.close()
         if not self.lockstep:
@@ -276,6 +319,60 @@ class ControllerNode(CommandingEntity):
                                         f"the effort limit, per joint: {dict(zip(self.params.joints, saturated))})")
         if not self.core.pairing.finished and self.stop_commanding("stopping"):  # complete: the plant has ended
             self.effort.pub.publisher.wait_for_all_acked(Duration(nanoseconds=int(STOP_ACK_S * 1e9)))
+
+
+class LocalView:
+    """The controller node as its action server sees it in the node's own process
+    (:class:`~pdsmc_ros.controller.action.ControllerView`): lockstep, or an arm a goal process cannot rebuild."""
+
+    def __init__(self, controller: ControllerNode) -> None:
+        node = controller.node
+        self.controller = controller
+        self.core = controller.core
+        self.name, self.namespace, self.base = node.get_name(), node.get_namespace(), node.get_fully_qualified_name()
+        self.context = node.context
+        self.logger = node.get_logger()
+        self.robot = controller.core.spec.robot
+        self.joints = controller.params.joints
+        self.joint_map = controller.joint_map
+        self.action_introspection = controller.params.action_introspection
+        self.lockstep = controller.lockstep
+
+    @property
+    def active(self) -> bool:
+        return self.controller.active
+
+    def now(self) -> float:
+        return self.controller.now()
+
+    def resolve(self, topic: str) -> str:
+        return self.controller.node.resolve_topic_name(topic)
+
+    def check_goal(self, stamp: float, names: Sequence[str], points: Sequence[RawPoint], effort_sizes: Sequence[int],
+                   now: float, path: Sequence[Tolerance], goal: Sequence[Tolerance], goal_time: float) -> GoalStart:
+        return self.core.check_goal(stamp, names, points, effort_sizes, now, path, goal, goal_time)
+
+    def check_topic_trajectory(self, stamp: float, names: Sequence[str], points: Sequence[RawPoint],
+                               effort_sizes: Sequence[int], times: Times, now: float
+                               ) -> tuple[JointTrajectoryReference | None, str]:
+        return self.core.check_topic_trajectory(stamp, names, points, effort_sizes, times, now)
+
+    def start_goal(self, key: bytes, execution: GoalExecution) -> bool:
+        return self.core.start_goal(execution)
+
+    def cancel_goal(self, key: bytes, execution: GoalExecution) -> bool:
+        return self.core.goals.cancel(execution)
+
+    def follow(self, reference: JointTrajectoryReference) -> bool:
+        return self.core.follow(reference)
+
+    def driving(self) -> JointTrajectoryReference | None:
+        driving = self.core.pairing if self.lockstep else self.core.latest
+        trajectory = driving.trajectory if driving.source == "trajectory" else None
+        return trajectory if isinstance(trajectory, JointTrajectoryReference) else None
+
+    def latest(self) -> tuple[tuple[object, ...] | None, int]:
+        return self.core.snapshot, self.controller.guard.clamped
 
 
 def main(args: Sequence[str] | None = None) -> int:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import Any
 
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
@@ -14,12 +15,12 @@ from .topics import STREAM_QOS, TOPIC_DIAGNOSTICS
 LEVELS = {"info": DiagnosticStatus.OK, "warn": DiagnosticStatus.WARN, "error": DiagnosticStatus.ERROR}
 
 
-def log(node: Node, level: str, message: str) -> None:
-    """Log ``message`` at ``level`` (``info``, ``warn``, ``error``).
+def log(node: Node, level: str, message: str, logger: Any = None) -> None:
+    """Log ``message`` at ``level`` (``info``, ``warn``, ``error``) with ``logger`` (default the node's).
 
     One call site per severity: rclpy refuses a second severity from the same line of code.
     """
-    logger = node.get_logger()
+    logger = logger if logger is not None else node.get_logger()
     if level == "error":
         logger.error(message)
     elif level == "warn":
@@ -30,11 +31,14 @@ def log(node: Node, level: str, message: str) -> None:
 
 class Diagnostics:
     """Publishes one status (``name``, ``hardware_id``) with the key-values ``values()`` gives,
-    stamped with ``stamp()`` (default: the node's clock), and logs it at its level."""
+    stamped with ``stamp()`` (default: the node's clock), and logs it at its level with ``logger``
+    (default: the node's; a node publishing for another, e.g. the action server's, logs as that one)."""
 
     def __init__(self, node: Node, name: str, hardware_id: str, *,
-                 values: Callable[[], dict[str, str]] = dict, stamp: Callable[[], Time] | None = None) -> None:
+                 values: Callable[[], dict[str, str]] = dict, stamp: Callable[[], Time] | None = None,
+                 logger: Any = None) -> None:
         self.node = node
+        self.logger = logger
         self.name = name
         self.hardware_id = hardware_id
         self.values = values
@@ -51,7 +55,7 @@ class Diagnostics:
 
     def report(self, level: str, message: str) -> None:
         """Log ``message`` at ``level`` and publish it."""
-        log(self.node, level, message)
+        log(self.node, level, message, self.logger)
         self.publish(level, message)
 
 

@@ -382,9 +382,33 @@ def test_a_runaway_aborts_the_goal_stops_the_arm_and_fails_the_run(ros_env: dict
         # N m s/rad here: a few tenths of a rad/s), far below the rates a drive could give it
         assert max(float(np.max(np.abs(s[2]))) for s in settled) < 0.5, logs(tmp_path)
     finally:
+        # the action server ran in the controller's goal process (real time), a child in its session
+        goal_processes = in_session(ctl.pid, "pdsmc_ros.controller.goal_process")
         client.close()
         code, _ = stop_process(ctl)
         stop_process(driver)
     log = (tmp_path / "controller.log").read_text()
     assert "runaway stop" in log
     assert code == 1, (code, log[-2000:])
+    assert len(goal_processes) == 1, goal_processes
+    # it ends with the controller (its input closes): no process left behind
+    deadline = time.monotonic() + 10.0
+    while in_session(ctl.pid, "pdsmc_ros.controller.goal_process") and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert not in_session(ctl.pid, "pdsmc_ros.controller.goal_process")
+
+
+def in_session(session: int, needle: str) -> list[int]:
+    """The processes of ``session`` (a started process's, ``start_new_session``) whose command line has ``needle``."""
+    found = []
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            fields = (entry / "stat").read_text().rsplit(")", 1)[1].split()
+            cmdline = (entry / "cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
+        except OSError:
+            continue
+        if int(fields[3]) == session and needle in cmdline:  # stat: state ppid pgrp session ...
+            found.append(int(entry.name))
+    return found

@@ -1,0 +1,545 @@
+"""Real time: the controller's action server in a process of its own, handing the loop validated goals.
+
+A Python control loop shares its process's interpreter lock with every other thread there. The
+action server -- rclpy's goal, cancel and result services, each goal's status and feedback, the
+conversion of a goal's message (a 5,000-point goal held the lock for 11 ms), the validation --
+is Python beside the loop; ``bench/storm.py`` measured the loop's p99 lateness 4.5 times its
+idle value under a storm of goals alone with the server in the loop's process. ros2_control keeps
+such work off its real-time thread with threads and lock-free buffers; without a free-threaded
+interpreter, the equivalent here is a process.
+
+So a real-time controller runs :class:`~.action.FollowJointTrajectoryServer` (the action,
+``~/joint_trajectory``, ``~/query_state``, ``~/controller_state`` and the goals' feedback) in a
+child (``python -m pdsmc_ros.controller.goal_process``, started with the node at normal
+scheduling), on a stand-in of the controller (:class:`RemoteView`) that validates goals and
+trajectories as the controller would (:func:`~.core.check_goal`,
+:func:`~.core.check_topic_trajectory`, the newest ``/joint_states`` taken when a goal arrives) and
+sends what it accepts to the loop's process over a pipe. The loop (:class:`GoalProcess`, in its
+spare time: :meth:`GoalProcess.poll`) starts, follows and cancels them with the same
+:class:`~.goals.GoalSlot` as ever, and answers with each goal's end, the trajectory that drives,
+its latest period and the goals' feedback at :data:`~.action.FEEDBACK_HZ`. Its pipes are
+non-blocking: the loop never waits for the child. Messages are length-prefixed pickles; a
+trajectory's points travel as stacked arrays
+(:meth:`~.joint_trajectory.JointTrajectoryReference.__getstate__`).
+
+Lockstep controllers, which have no deadline, and arms a child cannot rebuild (a robot class
+defined where it cannot be imported) keep the server in the controller's process.
+"""
+
+from __future__ import annotations
+
+import collections
+import contextlib
+import fcntl
+import os
+import pickle
+import signal
+import struct
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Callable, Sequence
+from typing import Any
+
+from ..robots.registry import find_robot, register_robot, robot_config
+from .goals import INVALID_GOAL, GoalExecution, GoalSettings, Outcome
+from .joint_map import JointMap
+from .joint_trajectory import JointTrajectoryReference, RawPoint
+from .limits import JointLimits
+
+FRAME = struct.Struct("<I")  # a message's length before it
+PIPE_SIZE = 1 << 20  # bytes: a 5,000-point goal in one pipe's buffer (Linux: fs.pipe-max-size, 1 MiB by default)
+READ_CHUNK = 1 << 20
+STATE_BACKLOG = 1 << 16  # bytes: the loop drops a state message while this much waits to be written
+FIRST_STATE_WAIT_S = 2.0  # the child's first goal waits this long for a first joint state
+KEPT_TRAJECTORIES = 64  # trajectories remembered for ~/query_state and the driving one
+NOT_ACTIVE = Outcome("aborted", INVALID_GOAL, "the controller is not active")
+
+
+class FrameReader:
+    """Length-prefixed pickles from a file descriptor (non-blocking in the loop's process)."""
+
+    def __init__(self, fd: int) -> None:
+        self.fd = fd
+        self.buffer = bytearray()
+        self.closed = False
+
+    def read(self) -> list[object]:
+        """Every complete message waiting now (a non-blocking descriptor: never waits)."""
+        while True:
+            try:
+                chunk = os.read(self.fd, READ_CHUNK)
+            except BlockingIOError:
+                break
+            except OSError:
+                self.closed = True
+                break
+            if not chunk:
+                self.closed = True
+                break
+            self.buffer += chunk
+            if len(chunk) < READ_CHUNK:
+                break
+        return self._messages()
+
+    def read_blocking(self) -> list[object]:
+        """At least one message, or [] at the end of the input (a blocking descriptor)."""
+        while not self.closed:
+            messages = self._messages()
+            if messages:
+                return messages
+            try:
+                chunk = os.read(self.fd, READ_CHUNK)
+            except OSError:
+                chunk = b""
+            if not chunk:
+                self.closed = True
+            self.buffer += chunk
+        return self._messages()
+
+    def _messages(self) -> list[object]:
+        messages: list[object] = []
+        buffer, start = self.buffer, 0
+        while len(buffer) - start >= FRAME.size:
+            (size,) = FRAME.unpack_from(buffer, start)
+            end = start + FRAME.size + size
+            if len(buffer) < end:
+                break
+            messages.append(pickle.loads(memoryview(buffer)[start + FRAME.size:end]))
+            start = end
+        if start:
+            del buffer[:start]
+        return messages
+
+
+class FrameWriter:
+    """Length-prefixed pickles to a non-blocking file descriptor: what does not fit waits for :meth:`flush`."""
+
+    def __init__(self, fd: int) -> None:
+        self.fd = fd
+        self.pending = bytearray()
+        self.closed = False
+
+    def send(self, message: object, *, droppable: bool = False) -> None:
+        """Queue ``message`` and write what the pipe takes; a ``droppable`` one is dropped while a
+        backlog waits (the child is slow: the next state message says the same, newer)."""
+        if self.closed or (droppable and len(self.pending) > STATE_BACKLOG):
+            return
+        data = pickle.dumps(message, protocol=pickle.HIGHEST_PROTOCOL)
+        self.pending += FRAME.pack(len(data))
+        self.pending += data
+        self.flush()
+
+    def flush(self) -> None:
+        while self.pending and not self.closed:
+            try:
+                written = os.write(self.fd, self.pending)
+            except BlockingIOError:
+                return
+            except OSError:
+                self.closed = True
+                return
+            del self.pending[:written]
+
+
+def _grow(fd: int) -> None:
+    with contextlib.suppress(OSError, AttributeError):
+        fcntl.fcntl(fd, fcntl.F_SETPIPE_SZ, PIPE_SIZE)
+
+
+class GoalProcess:
+    """The loop's side of the goal process: it starts the child, and in the loop's spare time
+    (:meth:`poll`) drives what the child accepted and tells it how goals end.
+
+    Parameters
+    ----------
+    setup : dict
+        What the child needs to stand in for the controller (:func:`setup_of`).
+    core : ControllerCore
+        The controller's decisions: its goal slot, trajectories and latest period.
+    clamped : callable
+        The number of periods the torque was clamped so far.
+    active : bool
+        Whether the controller commands now (:meth:`set_active` from then on).
+    on_lost : callable
+        ``on_lost(why)``: told once if the child ends before :meth:`close` (the action is gone).
+    """
+
+    def __init__(self, setup: dict[str, Any], core: Any, clamped: Callable[[], int], *, active: bool = False,
+                 on_lost: Callable[[str], None] = lambda why: None) -> None:
+        self.first_message = pickle.dumps(setup, protocol=pickle.HIGHEST_PROTOCOL)
+        self.core = core
+        self.clamped = clamped
+        self.active = active
+        self.on_lost = on_lost
+        self.lost = False
+        self.process: subprocess.Popen[bytes] | None = None
+        self.reader: FrameReader | None = None
+        self.writer: FrameWriter | None = None
+        self.notices: collections.deque[object] = collections.deque()  # from other threads, sent by poll
+        self.goals: dict[bytes, GoalExecution] = {}  # started here, their end not yet told
+        self.ids: collections.OrderedDict[int, tuple[JointTrajectoryReference, object]] = collections.OrderedDict()
+        self.told_driving: object = None
+        self.next_state = 0.0
+        self.period_s = 1.0 / _feedback_hz()
+
+    @classmethod
+    def for_controller(cls, setup: dict[str, Any], core: Any, clamped: Callable[[], int],
+                       on_lost: Callable[[str], None]) -> GoalProcess | None:
+        """A goal process, or None when the arm cannot be sent to one (a robot class defined where a
+        child cannot import it): the caller then serves the action in its own process."""
+        try:
+            return cls(setup, core, clamped, on_lost=on_lost)
+        except (pickle.PicklingError, AttributeError, TypeError):
+            return None
+
+    def start(self) -> None:
+        """Start the child (from the node's thread, at normal scheduling, before the loop runs)."""
+        # stdout is the child's messages; its stderr is the node's (its log lines)
+        self.process = subprocess.Popen([sys.executable, "-m", __name__], stdin=subprocess.PIPE,
+                                        stdout=subprocess.PIPE)
+        if self.process.stdin is None or self.process.stdout is None:  # pragma: no cover - started with pipes
+            raise OSError("no pipes to the goal process")
+        to_child, from_child = self.process.stdin.fileno(), self.process.stdout.fileno()
+        _grow(to_child)
+        _grow(from_child)
+        self.process.stdin.write(FRAME.pack(len(self.first_message)) + self.first_message)
+        self.process.stdin.flush()
+        os.set_blocking(to_child, False)
+        os.set_blocking(from_child, False)
+        self.reader, self.writer = FrameReader(from_child), FrameWriter(to_child)
+
+    def set_active(self, active: bool) -> None:
+        """The controller was activated or deactivated (any thread): told to the child by :meth:`poll`."""
+        self.active = active
+        self.notices.append(("active", active))
+
+    def tell_runaway(self, reason: str) -> None:
+        """The runaway stop latched (``reason``) or was reset (""): told to the child by :meth:`poll`."""
+        self.notices.append(("runaway", reason))
+
+    # -- the loop's side -------------------------------------------------------- #
+    def poll(self, now: float) -> None:
+        """The loop's spare time at ``now`` (``perf_counter``): the child's requests carried out,
+        each goal's end, the driving trajectory and (at the feedback rate) the latest period told."""
+        reader, writer = self.reader, self.writer
+        if reader is None or writer is None:
+            return
+        for message in reader.read():
+            self._carry_out(message)
+        if (reader.closed or writer.closed) and not self.lost:
+            self.lost = True
+            code = self.process.poll() if self.process is not None else None
+            self.on_lost(f"the goal process ended (exit status {code}): no FollowJointTrajectory server, "
+                         "~/joint_trajectory or ~/query_state until the controller restarts")
+        while self.notices:
+            writer.send(self.notices.popleft())
+        for key, execution in list(self.goals.items()):
+            if execution.outcome is not None:
+                writer.send(("ended", key, execution.outcome))
+                del self.goals[key]
+        driving = self._driving()
+        if driving != self.told_driving:
+            self.told_driving = driving
+            writer.send(("driving", *driving) if driving is not None else ("driving", None, 0.0, 0.0))
+        if now >= self.next_state:
+            self.next_state = max(self.next_state + self.period_s, now)
+            feedback = {key: execution.feedback for key, execution in self.goals.items()
+                        if execution.feedback is not None}
+            writer.send(("state", self.core.snapshot, self.clamped(), feedback), droppable=True)
+        writer.flush()
+
+    def _carry_out(self, message: Any) -> None:
+        kind = message[0]
+        core = self.core
+        if kind == "start":
+            _, key, execution = message
+            self.goals[key] = execution
+            if not self.active:
+                execution.finish(NOT_ACTIVE)
+                return
+            self._remember(execution.reference, key)
+            core.start_goal(execution)
+        elif kind == "follow":
+            _, tid, reference = message
+            if self.active:
+                self._remember(reference, tid)
+                core.follow(reference)
+        elif kind == "cancel":
+            execution = self.goals.get(message[1])
+            if execution is not None:
+                core.goals.cancel(execution)
+
+    def _remember(self, reference: JointTrajectoryReference, tid: object) -> None:
+        self.ids[id(reference)] = (reference, tid)  # the reference kept: its id is not reused meanwhile
+        while len(self.ids) > KEPT_TRAJECTORIES:
+            self.ids.popitem(last=False)
+
+    def _driving(self) -> tuple[object, float, float] | None:
+        latest = self.core.latest
+        trajectory = latest.trajectory if latest.source == "trajectory" else None
+        entry = self.ids.get(id(trajectory))
+        if entry is None or entry[0] is not trajectory:
+            return None
+        return entry[1], trajectory.start_time, trajectory.end_time  # type: ignore[union-attr]
+
+    def close(self) -> None:
+        """End the child (it ends its goals: the controller is stopping)."""
+        process, self.process = self.process, None
+        if process is None:
+            return
+        for pipe in (process.stdin, process.stdout):
+            if pipe is not None:
+                with contextlib.suppress(OSError):
+                    pipe.close()
+        try:
+            process.wait(timeout=3.0)
+        except subprocess.TimeoutExpired:
+            process.kill()
+            with contextlib.suppress(subprocess.TimeoutExpired):
+                process.wait(timeout=3.0)
+
+
+def _feedback_hz() -> float:
+    from .action import FEEDBACK_HZ  # the action module imports rclpy: only where a node runs
+
+    return FEEDBACK_HZ
+
+
+def setup_of(*, spec: Any, name: str, namespace: str, base: str, joints: Sequence[str], joint_map: JointMap,
+             robot_joints: Sequence[str], limits: JointLimits | None, goal_settings: GoalSettings,
+             action_introspection: str, topics: dict[str, str], use_sim_time: bool) -> dict[str, Any]:
+    """What the child needs to stand in for the controller: its names, joints, checks and the arm
+    as registered in this process (a URDF arm named, given as a path or received on
+    ``/robot_description`` is registered in-process)."""
+    return {"spec": spec, "arm": find_robot(spec.robot), "config": dict(robot_config(spec.robot)), "name": name,
+            "namespace": namespace, "base": base, "joints": tuple(joints), "joint_map": joint_map,
+            "robot_joints": tuple(robot_joints), "limits": limits, "goal_settings": goal_settings,
+            "action_introspection": action_introspection, "topics": dict(topics), "use_sim_time": use_sim_time}
+
+
+# --------------------------------------------------------------------------- #
+# The child
+# --------------------------------------------------------------------------- #
+class RemoteView:
+    """The controller as the action server sees it in the goal process
+    (:class:`~.action.ControllerView`): goals validated here, carried out by the loop's process."""
+
+    def __init__(self, setup: dict[str, Any], context: Any, send: Callable[[object], None]) -> None:
+        import rclpy.logging
+
+        from ..ros.topics import OBSERVER_QOS, TOPIC_JOINT_STATES
+        from .joints import JointSelector
+
+        self.name, self.namespace, self.base = setup["name"], setup["namespace"], setup["base"]
+        self.context = context
+        self.logger = rclpy.logging.get_logger(self.name)
+        self.robot = setup["spec"].robot
+        self.joints = setup["joints"]
+        self.joint_map = setup["joint_map"]
+        self.action_introspection = setup["action_introspection"]
+        self.lockstep = False
+        self.active = False
+        self.topics = setup["topics"]
+        self.limits: JointLimits | None = setup["limits"]
+        self.settings: GoalSettings = setup["goal_settings"]
+        self.selector = JointSelector(setup["robot_joints"])
+        self.send = send
+        self.latched = ""  # the runaway stop's reason while latched
+        self.snapshot: tuple[Any, ...] | None = None
+        self.clamped = 0
+        self.started: dict[bytes, GoalExecution] = {}  # sent to the loop, their end not yet known
+        self.trajectories: collections.OrderedDict[object, JointTrajectoryReference] = collections.OrderedDict()
+        self.driving_now: tuple[object, float, float] | None = None
+        self.topic_count = 0
+        self.clock: Any = None  # the action server's node's (its use_sim_time is the controller's)
+        self.state: tuple[Any, Any] | None = None
+        # the newest joint state, taken when a goal arrives (a node no executor spins)
+        from rclpy.node import Node
+        from sensor_msgs.msg import JointState
+
+        self.state_node = Node(f"{self.name}_action_state", namespace=self.namespace, context=context,
+                               use_global_arguments=False, start_parameter_services=False, enable_rosout=False)
+        self.state_topic = self.topics[TOPIC_JOINT_STATES]
+        self.state_sub = self.state_node.create_subscription(JointState, self.state_topic, lambda _msg: None,
+                                                             OBSERVER_QOS, raw=True)
+        self.state_type = JointState
+        self.lock = threading.Lock()  # the executor's threads and the reader thread
+
+    def now(self) -> float:
+        return self.clock.now().nanoseconds * 1e-9
+
+    def resolve(self, topic: str) -> str:
+        return self.topics[topic]
+
+    def measured(self) -> tuple[Any, Any] | None:
+        """The newest complete ``/joint_states`` (robot order), or the last one taken; before the
+        first, waited for up to :data:`FIRST_STATE_WAIT_S` (this process's reader may be matched
+        with the driver after its action server is found: a first goal found no state)."""
+        deadline = time.monotonic() + FIRST_STATE_WAIT_S
+        with self.lock:
+            while True:
+                data = None
+                while (taken := self.state_sub.handle.take_message(self.state_type, True)) is not None:
+                    data = taken[0]
+                if data is not None:
+                    _, _, arrays, _ = self.selector.state_message(data, self.state_topic)
+                    if arrays is not None:
+                        self.state = (arrays[0], arrays[1])
+                if self.state is not None or time.monotonic() >= deadline:
+                    return self.state
+                time.sleep(0.002)
+
+    def check_goal(self, stamp: float, names: Sequence[str], points: Sequence[RawPoint], effort_sizes: Sequence[int],
+                   now: float, path: Sequence[Any], goal: Sequence[Any], goal_time: float) -> Any:
+        from .core import check_goal
+
+        return check_goal(self.settings, self.limits, self.selector.joints, self.measured(), self.latched_reason(),
+                          stamp, names, points, effort_sizes, now, path, goal, goal_time)
+
+    def check_topic_trajectory(self, stamp: float, names: Sequence[str], points: Sequence[RawPoint],
+                               effort_sizes: Sequence[int], times: Any, now: float
+                               ) -> tuple[JointTrajectoryReference | None, str]:
+        from .core import check_topic_trajectory
+
+        return check_topic_trajectory(self.settings, self.limits, self.selector.joints, self.measured(),
+                                      self.latched_reason(), False, stamp, names, points, effort_sizes, times, now)
+
+    def latched_reason(self) -> str:
+        if not self.latched:
+            return ""
+        return f"the runaway stop is latched ({self.latched}): deactivate and activate the controller first"
+
+    def _running_goal(self) -> bool:
+        return any(execution.outcome is None for execution in self.started.values())
+
+    def start_goal(self, key: bytes, execution: GoalExecution) -> bool:
+        with self.lock:
+            preempts = self._running_goal()
+            self.started[key] = execution
+            self._remember(key, execution.reference)
+        self.send(("start", key, execution))
+        return preempts
+
+    def cancel_goal(self, key: bytes, execution: GoalExecution) -> bool:
+        if execution.outcome is not None:
+            return False
+        self.send(("cancel", key))
+        return True
+
+    def follow(self, reference: JointTrajectoryReference) -> bool:
+        with self.lock:
+            self.topic_count += 1
+            tid = self.topic_count
+            self._remember(tid, reference)
+            goes_on = self._running_goal()
+        self.send(("follow", tid, reference))
+        return goes_on
+
+    def _remember(self, tid: object, reference: JointTrajectoryReference) -> None:
+        self.trajectories[tid] = reference
+        while len(self.trajectories) > KEPT_TRAJECTORIES:
+            self.trajectories.popitem(last=False)
+
+    def driving(self) -> JointTrajectoryReference | None:
+        with self.lock:
+            if self.driving_now is None:
+                return None
+            tid, start, end = self.driving_now
+            reference = self.trajectories.get(tid)
+            if reference is not None:  # the loop starts a goal stamped 0 at its first sample of it
+                reference.start_time, reference.end_time = start, end
+            return reference
+
+    def latest(self) -> tuple[tuple[Any, ...] | None, int]:
+        return self.snapshot, self.clamped
+
+    def hear(self, message: Any) -> bool:
+        """A message from the loop's process; whether the state publisher has news to send."""
+        kind = message[0]
+        if kind == "active":
+            self.active = bool(message[1])
+        elif kind == "runaway":
+            self.latched = str(message[1])
+        elif kind == "ended":
+            with self.lock:
+                execution = self.started.pop(message[1], None)
+            if execution is not None:
+                execution.finish(message[2])
+        elif kind == "driving":
+            with self.lock:
+                self.driving_now = None if message[1] is None else (message[1], message[2], message[3])
+        elif kind == "state":
+            _, self.snapshot, self.clamped, feedback = message
+            with self.lock:
+                for key, value in feedback.items():
+                    execution = self.started.get(key)
+                    if execution is not None:
+                        execution.feedback = value
+            return True
+        return False
+
+
+def main() -> None:
+    """The child: the setup first, then the loop's messages until its input closes."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # a Ctrl-C to the group is the parent's to handle
+    with contextlib.suppress(OSError, AttributeError):  # never a real-time policy inherited from a loop thread
+        os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
+    inbox = FrameReader(sys.stdin.fileno())
+    first = inbox.read_blocking()
+    if not first:
+        return
+    setup: dict[str, Any] = first.pop(0)  # type: ignore[assignment]
+    spec = setup["spec"]
+    if setup["arm"] is not None and find_robot(spec.robot) is None:
+        register_robot(setup["arm"], config=setup["config"])
+
+    import rclpy
+    from rclpy.parameter import Parameter
+    from rclpy.signals import SignalHandlerOptions
+
+    from .action import FollowJointTrajectoryServer
+
+    context = rclpy.Context()
+    rclpy.init(args=[], context=context, signal_handler_options=SignalHandlerOptions.NO)
+    out = sys.stdout.fileno()
+    write_lock = threading.Lock()
+
+    def send(message: object) -> None:
+        data = pickle.dumps(message, protocol=pickle.HIGHEST_PROTOCOL)
+        with write_lock, contextlib.suppress(OSError):  # the loop's process gone: it ends this one too
+            _write_all(out, FRAME.pack(len(data)) + data)
+
+    view = RemoteView(setup, context, send)
+    overrides = [Parameter("use_sim_time", value=bool(setup["use_sim_time"]))]
+    server = FollowJointTrajectoryServer(view, parameter_overrides=overrides)
+    view.clock = server.node.get_clock()
+    try:
+        for message in first:
+            view.hear(message)
+        while True:
+            messages = inbox.read_blocking()
+            if not messages:
+                break  # the controller's process is gone or stopping
+            news = False
+            for message in messages:
+                news = view.hear(message) or news
+            if news:
+                server.state.send(float("inf"), list(server.goals.values()))
+    finally:
+        server.stop()
+        view.state_node.destroy_node()
+        with contextlib.suppress(Exception):
+            rclpy.shutdown(context=context)
+
+
+def _write_all(fd: int, data: bytes) -> None:
+    view = memoryview(data)
+    while view:
+        written = os.write(fd, view)
+        view = view[written:]
+
+
+if __name__ == "__main__":
+    main()
