@@ -13,14 +13,16 @@ So a real-time controller runs :class:`~.action.FollowJointTrajectoryServer` (th
 child (``python -m pdsmc_ros.controller.goal_process``, started with the node at normal
 scheduling), on a stand-in of the controller (:class:`RemoteView`) that validates goals and
 trajectories as the controller would (:func:`~.core.check_goal`,
-:func:`~.core.check_topic_trajectory`, the newest ``/joint_states`` taken when a goal arrives) and
-sends what it accepts to the loop's process over a pipe. The loop (:class:`GoalProcess`, in its
-spare time: :meth:`GoalProcess.poll`) starts, follows and cancels them with the same
-:class:`~.goals.GoalSlot` as ever, and answers with each goal's end, the trajectory that drives,
-its latest period and the goals' feedback at :data:`~.action.FEEDBACK_HZ`. Its pipes are
-non-blocking: the loop never waits for the child. Messages are length-prefixed pickles; a
-trajectory's points travel as stacked arrays
-(:meth:`~.joint_trajectory.JointTrajectoryReference.__getstate__`).
+:func:`~.core.check_topic_trajectory`, from the controller's latest measured state, asked of the
+loop's process when a goal arrives) and sends what it accepts to the loop's process over a pipe.
+The loop (:class:`GoalProcess`, in its spare time: :meth:`GoalProcess.poll`) starts, follows
+and cancels them with the same :class:`~.goals.GoalSlot` as ever, and answers with each goal's
+end, the trajectory that drives, its latest period and the goals' feedback at
+:data:`~.action.FEEDBACK_HZ`. Its pipes are non-blocking: the loop never waits for the child.
+Messages are length-prefixed pickles; a trajectory's points travel as stacked arrays
+(:meth:`~.joint_trajectory.JointTrajectoryReference.__getstate__`). The node waits for the child
+to serve the action before it activates (:meth:`GoalProcess.wait_ready`): as
+joint_trajectory_controller's, the action exists once the controller is active.
 
 Lockstep controllers, which have no deadline, and arms a child cannot rebuild (a robot class
 defined where it cannot be imported) keep the server in the controller's process.
@@ -33,6 +35,7 @@ import contextlib
 import fcntl
 import os
 import pickle
+import select
 import signal
 import struct
 import subprocess
@@ -52,7 +55,7 @@ FRAME = struct.Struct("<I")  # a message's length before it
 PIPE_SIZE = 1 << 20  # bytes: a 5,000-point goal in one pipe's buffer (Linux: fs.pipe-max-size, 1 MiB by default)
 READ_CHUNK = 1 << 20
 STATE_BACKLOG = 1 << 16  # bytes: the loop drops a state message while this much waits to be written
-FIRST_STATE_WAIT_S = 2.0  # the child's first goal waits this long for a first joint state
+MEASURE_WAIT_S = 1.0  # the child waits this long for the loop's latest state when a goal arrives
 KEPT_TRAJECTORIES = 64  # trajectories remembered for ~/query_state and the driving one
 NOT_ACTIVE = Outcome("aborted", INVALID_GOAL, "the controller is not active")
 
@@ -181,6 +184,7 @@ class GoalProcess:
         self.goals: dict[bytes, GoalExecution] = {}  # started here, their end not yet told
         self.ids: collections.OrderedDict[int, tuple[JointTrajectoryReference, object]] = collections.OrderedDict()
         self.told_driving: object = None
+        self.ready = False
         self.next_state = 0.0
         self.period_s = 1.0 / _feedback_hz()
 
@@ -209,6 +213,26 @@ class GoalProcess:
         os.set_blocking(to_child, False)
         os.set_blocking(from_child, False)
         self.reader, self.writer = FrameReader(from_child), FrameWriter(to_child)
+
+    def wait_ready(self, timeout_s: float) -> bool:
+        """Wait (the node's thread, before the loop runs) until the child serves the action, its
+        topic and its services -- as joint_trajectory_controller's exist once it is active --
+        for up to ``timeout_s``; whether it does."""
+        reader = self.reader
+        if reader is None:
+            return False
+        deadline = time.monotonic() + timeout_s
+        while not self.ready and not reader.closed:
+            left = deadline - time.monotonic()
+            if left <= 0.0:
+                return False
+            select.select([reader.fd], [], [], left)
+            for message in reader.read():
+                if message == ("ready",):
+                    self.ready = True
+                else:  # pragma: no cover - the child sends nothing before it is ready
+                    self._carry_out(message)
+        return self.ready
 
     def set_active(self, active: bool) -> None:
         """The controller was activated or deactivated (any thread): told to the child by :meth:`poll`."""
@@ -266,6 +290,9 @@ class GoalProcess:
             if self.active:
                 self._remember(reference, tid)
                 core.follow(reference)
+        elif kind == "measure":
+            if self.writer is not None:
+                self.writer.send(("measured", core.measured()))
         elif kind == "cancel":
             execution = self.goals.get(message[1])
             if execution is not None:
@@ -329,7 +356,6 @@ class RemoteView:
     def __init__(self, setup: dict[str, Any], context: Any, send: Callable[[object], None]) -> None:
         import rclpy.logging
 
-        from ..ros.topics import OBSERVER_QOS, TOPIC_JOINT_STATES
         from .joints import JointSelector
 
         self.name, self.namespace, self.base = setup["name"], setup["namespace"], setup["base"]
@@ -354,17 +380,9 @@ class RemoteView:
         self.driving_now: tuple[object, float, float] | None = None
         self.topic_count = 0
         self.clock: Any = None  # the action server's node's (its use_sim_time is the controller's)
-        self.state: tuple[Any, Any] | None = None
-        # the newest joint state, taken when a goal arrives (a node no executor spins)
-        from rclpy.node import Node
-        from sensor_msgs.msg import JointState
-
-        self.state_node = Node(f"{self.name}_action_state", namespace=self.namespace, context=context,
-                               use_global_arguments=False, start_parameter_services=False, enable_rosout=False)
-        self.state_topic = self.topics[TOPIC_JOINT_STATES]
-        self.state_sub = self.state_node.create_subscription(JointState, self.state_topic, lambda _msg: None,
-                                                             OBSERVER_QOS, raw=True)
-        self.state_type = JointState
+        self.asking = threading.Lock()
+        self.answered = threading.Event()
+        self.answer: tuple[Any, Any] | None = None
         self.lock = threading.Lock()  # the executor's threads and the reader thread
 
     def now(self) -> float:
@@ -374,22 +392,17 @@ class RemoteView:
         return self.topics[topic]
 
     def measured(self) -> tuple[Any, Any] | None:
-        """The newest complete ``/joint_states`` (robot order), or the last one taken; before the
-        first, waited for up to :data:`FIRST_STATE_WAIT_S` (this process's reader may be matched
-        with the driver after its action server is found: a first goal found no state)."""
-        deadline = time.monotonic() + FIRST_STATE_WAIT_S
-        with self.lock:
-            while True:
-                data = None
-                while (taken := self.state_sub.handle.take_message(self.state_type, True)) is not None:
-                    data = taken[0]
-                if data is not None:
-                    _, _, arrays, _ = self.selector.state_message(data, self.state_topic)
-                    if arrays is not None:
-                        self.state = (arrays[0], arrays[1])
-                if self.state is not None or time.monotonic() >= deadline:
-                    return self.state
-                time.sleep(0.002)
+        """The controller's latest complete measured state ``(q, qd)`` (robot order), asked of the
+        loop's process -- the very state its own checks would use, as joint_trajectory_controller's
+        -- or, if it does not answer within :data:`MEASURE_WAIT_S` (a loop with no spare time), the
+        one of its latest period; None before the first."""
+        with self.asking:  # one question at a time (the executor's threads)
+            self.answered.clear()
+            self.send(("measure",))
+            if self.answered.wait(MEASURE_WAIT_S):
+                return self.answer
+            snapshot = self.snapshot
+            return None if snapshot is None else (snapshot[1], snapshot[2])
 
     def check_goal(self, stamp: float, names: Sequence[str], points: Sequence[RawPoint], effort_sizes: Sequence[int],
                    now: float, path: Sequence[Any], goal: Sequence[Any], goal_time: float) -> Any:
@@ -467,6 +480,9 @@ class RemoteView:
                 execution = self.started.pop(message[1], None)
             if execution is not None:
                 execution.finish(message[2])
+        elif kind == "measured":
+            self.answer = message[1]
+            self.answered.set()
         elif kind == "driving":
             with self.lock:
                 self.driving_now = None if message[1] is None else (message[1], message[2], message[3])
@@ -515,6 +531,7 @@ def main() -> None:
     overrides = [Parameter("use_sim_time", value=bool(setup["use_sim_time"]))]
     server = FollowJointTrajectoryServer(view, parameter_overrides=overrides)
     view.clock = server.node.get_clock()
+    send(("ready",))
     try:
         for message in first:
             view.hear(message)
@@ -529,7 +546,6 @@ def main() -> None:
                 server.state.send(float("inf"), list(server.goals.values()))
     finally:
         server.stop()
-        view.state_node.destroy_node()
         with contextlib.suppress(Exception):
             rclpy.shutdown(context=context)
 

@@ -60,6 +60,7 @@ from .limits import JointLimits
 from .parameters import GainUpdates, declare_controller_parameters, declare_limit_parameters
 
 GOAL_BATCH_S = 0.002  # ~/joint_trajectory is looked at every 2 ms
+GOAL_PROCESS_START_S = 60.0  # real time: how long the node waits for its goal process to serve the action
 STOP_ACK_S = 0.5  # how long a stopping controller waits for its zero command to be acknowledged
 
 
@@ -155,17 +156,15 @@ class ControllerNode(CommandingEntity):
                      base=node.get_fully_qualified_name(), joints=params.joints, joint_map=self.joint_map,
                      robot_joints=robot.joint_names, limits=core.limits, goal_settings=core.goal_settings,
                      action_introspection=params.action_introspection,
-                     topics={t: node.resolve_topic_name(t) for t in (topics.TOPIC_JOINT_TRAJECTORY,
-                                                                     topics.TOPIC_JOINT_STATES)},
+                     topics={topics.TOPIC_JOINT_TRAJECTORY: node.resolve_topic_name(topics.TOPIC_JOINT_TRAJECTORY)},
                      use_sim_time=bool(node.get_parameter("use_sim_time").value)),
             core, lambda: self.guard.clamped, lambda why: self.loop_log.error(why))
+        self.action: FollowJointTrajectoryServer | None = None
+        self.trajectory_report = Diagnostics(node, "controller: trajectories", spec.robot)
         if self.goal_process is not None:
-            self.goal_process.start()  # from this thread, at normal scheduling, while the node starts
-            self.action: FollowJointTrajectoryServer | None = None
-            self.trajectory_report = Diagnostics(node, "controller: trajectories", spec.robot)
+            self.goal_process.start()  # from this thread, at normal scheduling; it starts while the node configures
         else:
             self.action = FollowJointTrajectoryServer(LocalView(self))
-            self.trajectory_report = self.action.report
         if params.autostart:
             # configured (the law's kernel loaded, the path from a message to a command warmed up) before
             # the robot's topics exist: a plant that starts once it sees them is answered at once, and a
@@ -183,6 +182,13 @@ class ControllerNode(CommandingEntity):
         if self.lockstep:
             goals.subscribe(JointTrajectory, topics.TOPIC_JOINT_TRAJECTORY, self.on_goals, topics.TRAJECTORY_QOS,
                             with_receipt=True)
+        if self.goal_process is not None and not self.goal_process.wait_ready(GOAL_PROCESS_START_S):
+            # as joint_trajectory_controller's, the action exists once the controller is active
+            node.get_logger().error(f"the goal process did not start within {GOAL_PROCESS_START_S:g} s: "
+                                    "the action is served in the controller's process")
+            self.goal_process.close()
+            self.goal_process = None
+            self.action = FollowJointTrajectoryServer(LocalView(self))
         if params.autostart:
             node.trigger_activate()
         waiting = "" if params.autostart else "; unconfigured until configure and activate"

@@ -193,6 +193,8 @@ def test_hold_on_activation_topic_trajectory_on_the_clock_and_sag_without_contro
     # a quintic on joint 1 and 2, stamped 0.3 s ahead on the wall clock
     q0 = client.q()
     q1 = q0 + [0.4, 0.2, 0.0]
+    # one message on a volatile topic: sent once the controller's reader (in its goal process) is matched
+    assert client.wait(lambda: client.trajectory.get_subscription_count() > 0, 30)
     span, begin = 2.0, time.time() + 0.3
     msg = JointTrajectory(joint_names=["joint3", "joint1", "joint2"])
     msg.header.stamp = wall_time(begin)
@@ -325,6 +327,9 @@ def test_joints_in_another_order_than_the_urdf_track_as_well(setup) -> None:  # 
     assert client.wait(lambda: len(client.commands) > 100 and len(client.states) > 0, 30), logs(tmp_path)
     q0 = client.q()
     q1 = q0 + [0.4, 0.2, 0.0]
+    # one message on a volatile topic: sent once the controller's reader is matched, as a ROS client
+    # must (the reader is in the goal process, a participant of its own that a client discovers apart)
+    assert client.wait(lambda: client.trajectory.get_subscription_count() > 0, 30)
     span, begin = 2.0, time.time() + 0.3
     msg = JointTrajectory(joint_names=NAMES, points=quintic(q0, q1, span))
     msg.header.stamp = wall_time(begin)
