@@ -13,6 +13,7 @@ import re
 import subprocess
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -27,6 +28,7 @@ import rclpy.executors  # noqa: E402
 from builtin_interfaces.msg import Duration, Time  # noqa: E402
 from control_msgs.action import FollowJointTrajectory  # noqa: E402
 from control_msgs.msg import JointTolerance, JointTrajectoryControllerState  # noqa: E402
+from control_msgs.srv import QueryTrajectoryState  # noqa: E402
 from lifecycle_msgs.msg import Transition  # noqa: E402
 from lifecycle_msgs.srv import ChangeState  # noqa: E402
 from rclpy.action import ActionClient  # noqa: E402
@@ -71,6 +73,7 @@ class Client(SpunNode):
         self.effort = self.node.create_publisher(Float64MultiArray, "/effort_controller/commands", 10)
         self.trajectory = self.node.create_publisher(JointTrajectory, "/controller/joint_trajectory", 10)
         self.action = ActionClient(self.node, FollowJointTrajectory, "/controller/follow_joint_trajectory")
+        self.query = self.node.create_client(QueryTrajectoryState, "/controller/query_state")
         self.feedback: list[FollowJointTrajectory.Feedback] = []
 
     def on_state(self, msg: JointState) -> None:
@@ -95,6 +98,26 @@ class Client(SpunNode):
         assert client.wait_for_service(timeout_sec=60)
         result = self.call(lambda: client.call_async(ChangeState.Request(transition=Transition(id=transition))), 60)
         assert result.success  # type: ignore[attr-defined]
+
+    def send_trajectory(self, build: Callable[[float], JointTrajectory], lead: float = 0.3) -> float:
+        """Publish ``build(begin)`` (a trajectory stamped to start at ``begin``, ``lead`` s ahead on the
+        wall clock) on ~/joint_trajectory until the controller drives it, as ~/query_state says; the
+        ``begin`` it took. One message on a volatile topic can be lost although the writer sees the
+        reader matched (discovery is asymmetric; the reader lives in the controller's goal process,
+        a participant a client discovers apart): a client that must know asks."""
+        assert self.wait(lambda: self.trajectory.get_subscription_count() > 0, 30)
+        assert self.query.wait_for_service(timeout_sec=30)
+        for _ in range(5):
+            begin = time.time() + lead
+            self.trajectory.publish(build(begin))
+            deadline = time.monotonic() + lead / 2
+            while time.monotonic() < deadline:
+                answer = self.call(lambda t=begin: self.query.call_async(  # noqa: B023 - called at once
+                    QueryTrajectoryState.Request(time=wall_time(t + 0.05))))
+                if answer.success:  # type: ignore[attr-defined]
+                    return begin
+                time.sleep(0.02)
+        raise AssertionError("the controller drove none of 5 trajectories sent on ~/joint_trajectory")
 
     def send_goal(self, goal: FollowJointTrajectory.Goal) -> object:
         began = time.monotonic()
@@ -193,17 +216,19 @@ def test_hold_on_activation_topic_trajectory_on_the_clock_and_sag_without_contro
     # a quintic on joint 1 and 2, stamped 0.3 s ahead on the wall clock
     q0 = client.q()
     q1 = q0 + [0.4, 0.2, 0.0]
-    # one message on a volatile topic: sent once the controller's reader (in its goal process) is matched
-    assert client.wait(lambda: client.trajectory.get_subscription_count() > 0, 30)
-    span, begin = 2.0, time.time() + 0.3
-    msg = JointTrajectory(joint_names=["joint3", "joint1", "joint2"])
-    msg.header.stamp = wall_time(begin)
-    for p in quintic(q0, q1, span):
-        order = [2, 0, 1]
-        msg.points.append(JointTrajectoryPoint(positions=[p.positions[i] for i in order],
-                                               velocities=[0.0] * 3, accelerations=[0.0] * 3,
-                                               time_from_start=p.time_from_start))
-    client.trajectory.publish(msg)
+    span = 2.0
+
+    def build(begin: float) -> JointTrajectory:
+        msg = JointTrajectory(joint_names=["joint3", "joint1", "joint2"])
+        msg.header.stamp = wall_time(begin)
+        for p in quintic(q0, q1, span):
+            order = [2, 0, 1]
+            msg.points.append(JointTrajectoryPoint(positions=[p.positions[i] for i in order],
+                                                   velocities=[0.0] * 3, accelerations=[0.0] * 3,
+                                                   time_from_start=p.time_from_start))
+        return msg
+
+    begin = client.send_trajectory(build)
     time.sleep(0.3 + span + 1.0)
     moving = client.window(begin - 0.1, begin + span + 0.3)
     shift = best_shift(moving, q0, q1, span, begin, 0)
@@ -327,13 +352,14 @@ def test_joints_in_another_order_than_the_urdf_track_as_well(setup) -> None:  # 
     assert client.wait(lambda: len(client.commands) > 100 and len(client.states) > 0, 30), logs(tmp_path)
     q0 = client.q()
     q1 = q0 + [0.4, 0.2, 0.0]
-    # one message on a volatile topic: sent once the controller's reader is matched, as a ROS client
-    # must (the reader is in the goal process, a participant of its own that a client discovers apart)
-    assert client.wait(lambda: client.trajectory.get_subscription_count() > 0, 30)
-    span, begin = 2.0, time.time() + 0.3
-    msg = JointTrajectory(joint_names=NAMES, points=quintic(q0, q1, span))
-    msg.header.stamp = wall_time(begin)
-    client.trajectory.publish(msg)
+    span = 2.0
+
+    def build(begin: float) -> JointTrajectory:
+        msg = JointTrajectory(joint_names=NAMES, points=quintic(q0, q1, span))
+        msg.header.stamp = wall_time(begin)
+        return msg
+
+    begin = client.send_trajectory(build)
     time.sleep(0.3 + span + 0.5)
     moving = client.window(begin - 0.1, begin + span + 0.3)
     errors = np.array([np.abs(s[1] - commanded(q0, q1, span, np.array([s[0] - begin]))[0]) for s in moving])
