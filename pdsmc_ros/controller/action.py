@@ -253,7 +253,8 @@ class FollowJointTrajectoryServer:
     """The action server of ``controller``, its topic trajectories, ``~/query_state`` and its
     state publisher, in a thread of their own."""
 
-    def __init__(self, controller: ControllerView, *, parameter_overrides: Sequence[Parameter] = ()) -> None:
+    def __init__(self, controller: ControllerView, *, parameter_overrides: Sequence[Parameter] = (),
+                 takes_topic: bool | None = None) -> None:
         self.controller = controller
         base = controller.base
         self.node = Node(f"{controller.name}_action", namespace=controller.namespace, context=controller.context,
@@ -266,7 +267,9 @@ class FollowJointTrajectoryServer:
                                    handle_accepted_callback=self.on_accepted,
                                    cancel_callback=self.on_cancel, callback_group=group)
         self.node.create_service(QueryTrajectoryState, f"{base}/query_state", self.query_state, callback_group=group)
-        if not controller.lockstep:  # lockstep: the loop takes them (it computes the waiting step at once)
+        # ~/joint_trajectory: here by default in real time; lockstep, the loop takes them (it computes the
+        # waiting step at once); in the goal process, the controller's process takes them and hands them over
+        if (not controller.lockstep) if takes_topic is None else takes_topic:
             self.node.create_subscription(
                 JointTrajectory, controller.resolve(topics.TOPIC_JOINT_TRAJECTORY),
                 lambda msg, info: topic_trajectory(controller, msg, _times(info), self.report), topics.TRAJECTORY_QOS,

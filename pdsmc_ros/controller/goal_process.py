@@ -35,6 +35,7 @@ import contextlib
 import fcntl
 import os
 import pickle
+import queue
 import select
 import signal
 import struct
@@ -233,6 +234,15 @@ class GoalProcess:
                 else:  # pragma: no cover - the child sends nothing before it is ready
                     self._carry_out(message)
         return self.ready
+
+    def forward(self, batch: list[tuple[bytes, tuple[float | None, float | None]]]) -> None:
+        """``~/joint_trajectory`` messages taken by the controller's process (serialized, with the
+        middleware's sent and received times), for the child to validate: the topic's reader stays
+        in the participant a client already discovered (a reader in the child's own participant
+        missed one-shot messages a client sent as soon as it counted the subscription)."""
+        if self.writer is not None:
+            for data, times in batch:
+                self.writer.send(("trajectory", bytes(data), times))
 
     def set_active(self, active: bool) -> None:
         """The controller was activated or deactivated (any thread): told to the child by :meth:`poll`."""
@@ -513,9 +523,12 @@ def main() -> None:
 
     import rclpy
     from rclpy.parameter import Parameter
+    from rclpy.serialization import deserialize_message
     from rclpy.signals import SignalHandlerOptions
+    from trajectory_msgs.msg import JointTrajectory
 
-    from .action import FollowJointTrajectoryServer
+    from ..ros.topics import TOPIC_JOINT_TRAJECTORY
+    from .action import FollowJointTrajectoryServer, topic_trajectory
 
     context = rclpy.Context()
     rclpy.init(args=[], context=context, signal_handler_options=SignalHandlerOptions.NO)
@@ -529,8 +542,24 @@ def main() -> None:
 
     view = RemoteView(setup, context, send)
     overrides = [Parameter("use_sim_time", value=bool(setup["use_sim_time"]))]
-    server = FollowJointTrajectoryServer(view, parameter_overrides=overrides)
+    server = FollowJointTrajectoryServer(view, parameter_overrides=overrides, takes_topic=False)
     view.clock = server.node.get_clock()
+    # ~/joint_trajectory messages, in order, in a thread of their own: their validation asks the
+    # loop's process for its state, which this (reading) thread receives
+    trajectories: queue.Queue[Any] = queue.Queue()
+
+    def take_trajectories() -> None:
+        while (item := trajectories.get()) is not None:
+            data, times = item
+            try:
+                msg = deserialize_message(data, JointTrajectory)
+            except Exception as exc:  # noqa: BLE001 - any malformed message: refused, never fatal
+                server.report.report("error", f"{view.resolve(TOPIC_JOINT_TRAJECTORY)}: malformed message ({exc})")
+                continue
+            topic_trajectory(view, msg, times, server.report)
+
+    worker = threading.Thread(target=take_trajectories, name="joint_trajectory", daemon=True)
+    worker.start()
     send(("ready",))
     try:
         for message in first:
@@ -541,10 +570,15 @@ def main() -> None:
                 break  # the controller's process is gone or stopping
             news = False
             for message in messages:
+                if message[0] == "trajectory":  # type: ignore[index]
+                    trajectories.put(message[1:])  # type: ignore[index]
+                    continue
                 news = view.hear(message) or news
             if news:
                 server.state.send(float("inf"), list(server.goals.values()))
     finally:
+        trajectories.put(None)
+        worker.join(timeout=2.0)
         server.stop()
         with contextlib.suppress(Exception):
             rclpy.shutdown(context=context)

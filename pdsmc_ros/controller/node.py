@@ -182,6 +182,9 @@ class ControllerNode(CommandingEntity):
         if self.lockstep:
             goals.subscribe(JointTrajectory, topics.TOPIC_JOINT_TRAJECTORY, self.on_goals, topics.TRAJECTORY_QOS,
                             with_receipt=True)
+        elif self.goal_process is not None:  # taken here as bytes, validated by the goal process
+            goals.subscribe(JointTrajectory, topics.TOPIC_JOINT_TRAJECTORY, self.goal_process.forward,
+                            topics.TRAJECTORY_QOS, with_receipt=True)
         if self.goal_process is not None and not self.goal_process.wait_ready(GOAL_PROCESS_START_S):
             # as joint_trajectory_controller's, the action exists once the controller is active
             node.get_logger().error(f"the goal process did not start within {GOAL_PROCESS_START_S:g} s: "

@@ -350,18 +350,25 @@ def test_joints_in_another_order_than_the_urdf_track_as_well(setup) -> None:  # 
     make, tmp_path = setup
     client = make(joints=["joint3", "joint1", "joint2"])
     assert client.wait(lambda: len(client.commands) > 100 and len(client.states) > 0, 30), logs(tmp_path)
-    q0 = client.q()
-    q1 = q0 + [0.4, 0.2, 0.0]
     span = 2.0
+    for attempt in range(2):
+        q0 = client.q()
+        q1 = q0 + ([0.4, 0.2, 0.0] if attempt % 2 == 0 else [-0.4, -0.2, 0.0])
 
-    def build(begin: float) -> JointTrajectory:
-        msg = JointTrajectory(joint_names=NAMES, points=quintic(q0, q1, span))
-        msg.header.stamp = wall_time(begin)
-        return msg
+        def build(begin: float, q0: np.ndarray = q0, q1: np.ndarray = q1) -> JointTrajectory:
+            msg = JointTrajectory(joint_names=NAMES, points=quintic(q0, q1, span))
+            msg.header.stamp = wall_time(begin)
+            return msg
 
-    begin = client.send_trajectory(build)
-    time.sleep(0.3 + span + 0.5)
-    moving = client.window(begin - 0.1, begin + span + 0.3)
+        begin = client.send_trajectory(build)
+        time.sleep(0.3 + span + 0.5)
+        moving = client.window(begin - 0.1, begin + span + 0.3)
+        # the stand-in itself stood still (its states' stamps have a gap: its loop stalled 0.18-0.33 s
+        # now and then on this machine): that motion measures the stand-in, not the controller; once more
+        gap = max(np.diff([s[0] for s in moving]), default=1.0)
+        print(f"attempt {attempt}: largest gap between the stand-in's states {gap * 1e3:.1f} ms")
+        if gap < 0.1:  # a Python client keeping the newest state only misses some (gaps of 40-75 ms)
+            break
     errors = np.array([np.abs(s[1] - commanded(q0, q1, span, np.array([s[0] - begin]))[0]) for s in moving])
     shift = best_shift(moving, q0, q1, span, begin, 0)
     print(f"joints reordered: best time shift {shift * 1e3:.0f} ms, mean |e| {errors.mean(axis=0)} rad")
