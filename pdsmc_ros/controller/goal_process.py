@@ -9,12 +9,15 @@ such work off its real-time thread with threads and lock-free buffers; without a
 interpreter, the equivalent here is a process.
 
 So a real-time controller runs :class:`~.action.FollowJointTrajectoryServer` (the action,
-``~/joint_trajectory``, ``~/query_state``, ``~/controller_state`` and the goals' feedback) in a
-child (``python -m pdsmc_ros.controller.goal_process``, started with the node at normal
-scheduling), on a stand-in of the controller (:class:`RemoteView`) that validates goals and
-trajectories as the controller would (:func:`~.core.check_goal`,
-:func:`~.core.check_topic_trajectory`, from the controller's latest measured state, asked of the
-loop's process when a goal arrives) and sends what it accepts to the loop's process over a pipe.
+``~/query_state``, ``~/controller_state`` and the goals' feedback) in a child (``python -m
+pdsmc_ros.controller.goal_process``, started with the node at normal scheduling), on a stand-in
+of the controller (:class:`RemoteView`) that validates goals and trajectories as the controller
+would (:func:`~.core.check_goal`, :func:`~.core.check_topic_trajectory`, from the controller's
+latest measured state, asked of the loop's process when a goal arrives) and sends what it
+accepts to the loop's process over a pipe.
+``~/joint_trajectory`` is read by the controller's process (as bytes, taken with its other inputs:
+:meth:`GoalProcess.forward`) and validated here: a reader in the child's own DDS participant
+missed one-shot messages that clients sent as soon as they counted the subscription.
 The loop (:class:`GoalProcess`, in its spare time: :meth:`GoalProcess.poll`) starts, follows
 and cancels them with the same :class:`~.goals.GoalSlot` as ever, and answers with each goal's
 end, the trajectory that drives, its latest period and the goals' feedback at

@@ -103,8 +103,7 @@ class Client(SpunNode):
         """Publish ``build(begin)`` (a trajectory stamped to start at ``begin``, ``lead`` s ahead on the
         wall clock) on ~/joint_trajectory until the controller drives it, as ~/query_state says; the
         ``begin`` it took. One message on a volatile topic can be lost although the writer sees the
-        reader matched (discovery is asymmetric; the reader lives in the controller's goal process,
-        a participant a client discovers apart): a client that must know asks."""
+        reader matched (discovery is asymmetric): a client that must know asks."""
         assert self.wait(lambda: self.trajectory.get_subscription_count() > 0, 30)
         assert self.query.wait_for_service(timeout_sec=30)
         for _ in range(5):

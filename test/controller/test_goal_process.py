@@ -161,3 +161,7 @@ def test_the_loop_starts_preempts_cancels_and_reports_goals_from_the_child() -> 
     loop.poll(0.4)
     assert ("ended", b"C", g.CANCELED) in child.hear() and core.goals.active is None
     assert [m for m in child.heard if m[0] == "driving"][-1] == ("driving", None, 0.0, 0.0)  # a hold drives now
+    # ~/joint_trajectory, taken by the loop's process as bytes: handed over with its times, in order
+    loop.forward([(b"first", (1.0, 2.0)), (memoryview(b"second"), (None, None))])
+    assert [m for m in child.hear() if m[0] == "trajectory"] == [("trajectory", b"first", (1.0, 2.0)),
+                                                                 ("trajectory", b"second", (None, None))]
