@@ -41,7 +41,7 @@ never the node's module: the node imports this one, not the other way round.
 from __future__ import annotations
 
 import time
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from typing import Any, Protocol
 
 import numpy as np
@@ -55,6 +55,7 @@ from rclpy.context import Context
 from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rclpy.serialization import serialize_message
 from service_msgs.msg import ServiceEventInfo
 from std_msgs.msg import Header
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
@@ -243,6 +244,11 @@ def topic_trajectory(controller: ControllerView, msg: JointTrajectory, times: Ti
     return True
 
 
+def goal_event_topic(base: str) -> str:
+    """The ``send_goal`` service's event topic of the action of controller ``base`` (action introspection)."""
+    return f"{base}/follow_joint_trajectory/_action/send_goal/_service_event"
+
+
 def _times(info: Any) -> Times:
     """A subscription's MessageInfo as ``(sent, received)`` seconds (None where the middleware gives none)."""
     sent, received = info.get("source_timestamp") or 0, info.get("received_timestamp") or 0
@@ -254,7 +260,7 @@ class FollowJointTrajectoryServer:
     state publisher, in a thread of their own."""
 
     def __init__(self, controller: ControllerView, *, parameter_overrides: Sequence[Parameter] = (),
-                 takes_topic: bool | None = None) -> None:
+                 takes_topic: bool | None = None, event_sink: Callable[[bytes], None] | None = None) -> None:
         self.controller = controller
         base = controller.base
         self.node = Node(f"{controller.name}_action", namespace=controller.namespace, context=controller.context,
@@ -276,9 +282,12 @@ class FollowJointTrajectoryServer:
                 callback_group=group)
         self.state = StatePublisher(self.node, controller)
         introspection = controller.action_introspection
-        self.goal_events = None if introspection == "disabled" else self.node.create_publisher(
-            FollowJointTrajectory.Impl.SendGoalService.Event, f"{base}/follow_joint_trajectory/_action/send_goal/"
-            "_service_event", 10)
+        # the goal process hands its events (serialized) to the controller's process, which publishes
+        # them: a publisher in the child's own participant lost a recorder's first event
+        self.event_sink = event_sink
+        self.goal_events = None if introspection == "disabled" or event_sink is not None else \
+            self.node.create_publisher(FollowJointTrajectory.Impl.SendGoalService.Event, goal_event_topic(base), 10)
+        self.introspection = introspection
         self.goal_contents = introspection == "contents"
         self.goal_event_count = 0
         self.pending: dict[int, tuple[Any, GoalExecution]] = {}  # validated, not yet accepted: by id(request)
@@ -344,7 +353,7 @@ class FollowJointTrajectoryServer:
     def publish_goal_events(self, goal_handle: Any) -> None:
         """An accepted goal as the ``send_goal`` service's REQUEST_RECEIVED and RESPONSE_SENT
         events (``action_introspection``: with the goal and the answer if ``contents``)."""
-        if self.goal_events is None:
+        if self.introspection == "disabled":
             return
         service = FollowJointTrajectory.Impl.SendGoalService
         stamp = self.node.get_clock().now().to_msg()
@@ -356,7 +365,10 @@ class FollowJointTrajectoryServer:
                                                         sequence_number=self.goal_event_count))
             if self.goal_contents:
                 setattr(event, field, [value])
-            self.goal_events.publish(event)
+            if self.event_sink is not None:
+                self.event_sink(serialize_message(event))
+            elif self.goal_events is not None:
+                self.goal_events.publish(event)
         self.goal_event_count += 1
 
     def on_cancel(self, goal_handle: Any) -> CancelResponse:

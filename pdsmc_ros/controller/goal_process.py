@@ -174,12 +174,14 @@ class GoalProcess:
     """
 
     def __init__(self, setup: dict[str, Any], core: Any, clamped: Callable[[], int], *, active: bool = False,
-                 on_lost: Callable[[str], None] = lambda why: None) -> None:
+                 on_lost: Callable[[str], None] = lambda why: None,
+                 publish_event: Callable[[bytes], None] | None = None) -> None:
         self.first_message = pickle.dumps(setup, protocol=pickle.HIGHEST_PROTOCOL)
         self.core = core
         self.clamped = clamped
         self.active = active
         self.on_lost = on_lost
+        self.publish_event = publish_event  # the action's goal events (serialized), published by this process
         self.lost = False
         self.process: subprocess.Popen[bytes] | None = None
         self.reader: FrameReader | None = None
@@ -194,11 +196,12 @@ class GoalProcess:
 
     @classmethod
     def for_controller(cls, setup: dict[str, Any], core: Any, clamped: Callable[[], int],
-                       on_lost: Callable[[str], None]) -> GoalProcess | None:
+                       on_lost: Callable[[str], None],
+                       publish_event: Callable[[bytes], None] | None = None) -> GoalProcess | None:
         """A goal process, or None when the arm cannot be sent to one (a robot class defined where a
         child cannot import it): the caller then serves the action in its own process."""
         try:
-            return cls(setup, core, clamped, on_lost=on_lost)
+            return cls(setup, core, clamped, on_lost=on_lost, publish_event=publish_event)
         except (pickle.PicklingError, AttributeError, TypeError):
             return None
 
@@ -303,6 +306,9 @@ class GoalProcess:
             if self.active:
                 self._remember(reference, tid)
                 core.follow(reference)
+        elif kind == "event":
+            if self.publish_event is not None:
+                self.publish_event(message[1])
         elif kind == "measure":
             if self.writer is not None:
                 self.writer.send(("measured", core.measured()))
@@ -545,7 +551,8 @@ def main() -> None:
 
     view = RemoteView(setup, context, send)
     overrides = [Parameter("use_sim_time", value=bool(setup["use_sim_time"]))]
-    server = FollowJointTrajectoryServer(view, parameter_overrides=overrides, takes_topic=False)
+    server = FollowJointTrajectoryServer(view, parameter_overrides=overrides, takes_topic=False,
+                                         event_sink=lambda data: send(("event", data)))
     view.clock = server.node.get_clock()
     # ~/joint_trajectory messages, in order, in a thread of their own: their validation asks the
     # loop's process for its state, which this (reading) thread receives

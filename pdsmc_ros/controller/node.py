@@ -27,6 +27,7 @@ import threading
 import time
 from collections.abc import Sequence
 
+from control_msgs.action import FollowJointTrajectory
 from rclpy.duration import Duration
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
 from rclpy.node import Node
@@ -48,7 +49,7 @@ from ..robots.base import FloatArray
 from ..ros import topics
 from ..ros.diagnostics import Diagnostics, InputReport
 from ..ros.publishers import GuardedPublisher, RowBatches
-from .action import FollowJointTrajectoryServer, topic_trajectory
+from .action import FollowJointTrajectoryServer, goal_event_topic, topic_trajectory
 from .commanding import Paired, TorqueGuard
 from .core import ControllerCore, GoalStart, Tolerance
 from .gain_check import CheckProcess, checked
@@ -158,7 +159,10 @@ class ControllerNode(CommandingEntity):
                      action_introspection=params.action_introspection,
                      topics={topics.TOPIC_JOINT_TRAJECTORY: node.resolve_topic_name(topics.TOPIC_JOINT_TRAJECTORY)},
                      use_sim_time=bool(node.get_parameter("use_sim_time").value)),
-            core, lambda: self.guard.clamped, lambda why: self.loop_log.error(why))
+            core, lambda: self.guard.clamped, lambda why: self.loop_log.error(why),
+            None if params.action_introspection == "disabled" else node.create_publisher(
+                FollowJointTrajectory.Impl.SendGoalService.Event, goal_event_topic(node.get_fully_qualified_name()),
+                10).publish)
         self.action: FollowJointTrajectoryServer | None = None
         self.trajectory_report = Diagnostics(node, "controller: trajectories", spec.robot)
         if self.goal_process is not None:
