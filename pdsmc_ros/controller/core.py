@@ -55,6 +55,13 @@ class GoalStart(NamedTuple):
     warning: str  # "" for none (an unknown joint or illegal value in the goal's tolerances)
 
 
+def latched_refusal(reason: str) -> str:
+    """Why no trajectory may start while the runaway stop is latched for ``reason`` ("" for none)."""
+    if not reason:
+        return ""
+    return f"the runaway stop is latched ({reason}): deactivate and activate the controller first"
+
+
 def check_topic_trajectory(settings: GoalSettings, limits: JointLimits | None, joints: tuple[str, ...],
                            state: tuple[FloatArray, FloatArray] | None, latched: str, lockstep: bool, stamp: float,
                            names: Sequence[str], points: Sequence[RawPoint], effort_sizes: Sequence[int],
@@ -285,9 +292,7 @@ class ControllerCore:
 
     def runaway_latched(self) -> str:
         """Why no trajectory may start (the runaway stop is latched), or ""."""
-        if self.runaway is None or not self.runaway.reason:
-            return ""
-        return f"the runaway stop is latched ({self.runaway.reason}): deactivate and activate the controller first"
+        return latched_refusal(self.runaway.reason if self.runaway is not None else "")
 
     def start_goal(self, execution: GoalExecution) -> bool:
         """Drive an accepted goal from now on; whether it preempted another action goal."""

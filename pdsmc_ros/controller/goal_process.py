@@ -439,9 +439,9 @@ class RemoteView:
                                       self.latched_reason(), False, stamp, names, points, effort_sizes, times, now)
 
     def latched_reason(self) -> str:
-        if not self.latched:
-            return ""
-        return f"the runaway stop is latched ({self.latched}): deactivate and activate the controller first"
+        from .core import latched_refusal
+
+        return latched_refusal(self.latched)
 
     def _running_goal(self) -> bool:
         return any(execution.outcome is None for execution in self.started.values())
