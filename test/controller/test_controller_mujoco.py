@@ -103,20 +103,31 @@ class Client(SpunNode):
         """Publish ``build(begin)`` (a trajectory stamped to start at ``begin``, ``lead`` s ahead on the
         wall clock) on ~/joint_trajectory until the controller drives it, as ~/query_state says; the
         ``begin`` it took. One message on a volatile topic can be lost although the writer sees the
-        reader matched (discovery is asymmetric): a client that must know asks."""
+        reader matched (discovery is asymmetric): a client that must know asks. It asks for the
+        reference a millisecond before the trajectory's last point (~/query_state answers no trajectory at
+        or after it), where this trajectory's reference is its last point's positions to 1e-6 (zero end
+        velocity and acceleration) and an earlier trajectory's is not."""
         assert self.wait(lambda: self.trajectory.get_subscription_count() > 0, 30)
         assert self.query.wait_for_service(timeout_sec=30)
+        answers = []
         for _ in range(5):
             begin = time.time() + lead
-            self.trajectory.publish(build(begin))
+            msg = build(begin)
+            last = msg.points[-1]
+            end = begin + last.time_from_start.sec + last.time_from_start.nanosec * 1e-9
+            self.trajectory.publish(msg)
             deadline = time.monotonic() + lead / 2
             while time.monotonic() < deadline:
-                answer = self.call(lambda t=begin: self.query.call_async(  # noqa: B023 - called at once
-                    QueryTrajectoryState.Request(time=wall_time(t + 0.05))))
+                answer = self.call(lambda t=end - 0.001: self.query.call_async(  # noqa: B023 - called at once
+                    QueryTrajectoryState.Request(time=wall_time(t))))
                 if answer.success:  # type: ignore[attr-defined]
-                    return begin
+                    given = dict(zip(answer.name, answer.position))  # type: ignore[attr-defined]
+                    if all(abs(given[n] - p) < 1e-6 for n, p in zip(msg.joint_names, last.positions)):
+                        return begin
+                    answers.append(answer)
                 time.sleep(0.02)
-        raise AssertionError("the controller drove none of 5 trajectories sent on ~/joint_trajectory")
+        raise AssertionError(f"the controller drove none of 5 trajectories sent on ~/joint_trajectory "
+                             f"(its answers: {answers[-3:]})")
 
     def send_goal(self, goal: FollowJointTrajectory.Goal) -> object:
         began = time.monotonic()
