@@ -181,9 +181,7 @@ class ControllerCore:
         """The run with new gains (already checked stable); a stateful law keeps integrating."""
         self.spec = spec
         if self.law is not None:
-            law = ControlLaw.from_spec(spec)
-            law.state[:] = self.law.state
-            self.law = law  # one attribute store: a period uses the old or the new
+            self.law = self.law.with_gains(spec.gains.matrix())  # one attribute store: a period uses the old or the new
 
     def start_state(self) -> tuple[FloatArray, FloatArray] | None:
         """Where a hold starts: the position and velocity the controller commands now while every

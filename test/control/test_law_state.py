@@ -71,3 +71,32 @@ def test_the_compiled_loop_carries_the_state_as_the_calls_do(controller: str, ro
     np.testing.assert_allclose(in_loop.state, by_calls.state, rtol=1e-12, atol=1e-12)
     for x, y in zip(a[:3], b, strict=True):
         np.testing.assert_allclose(x, np.array(y), rtol=1e-12, atol=1e-12)
+
+
+@pytest.mark.parametrize("controller", ["pd", "pdsmc", "ctc", "sta", "ismc"])
+def test_other_gains_at_run_time_give_the_law_a_fresh_build_gives_and_carry_its_state(controller: str) -> None:
+    """:meth:`ControlLaw.with_gains` (a gain change at run time, without rebuilding the model): the
+    torque of :meth:`ControlLaw.from_spec` with those gains, bit for bit, from the state reached so far."""
+    import dataclasses
+
+    spec = make_run("ur5", "circle", controller)
+    ref = spec.reference().sample([0.2, 0.4])
+    q = ref.q[0] + np.linspace(-2e-3, 3e-3, 6)
+    running = ControlLaw.from_spec(spec)
+    running.torque(q, ref.qd[0], ref.q[0], ref.qd[0], ref.qdd[0])  # a state to carry (stateful laws)
+    other = dataclasses.replace(spec, gains=spec.gains.scaled({name: 1.3 for name, _ in spec.gains.rows}))
+    changed = running.with_gains(other.gains.matrix())
+    fresh = ControlLaw.from_spec(other)
+    fresh.state[:] = running.state
+    args = (q, ref.qd[1], ref.q[1], ref.qd[1], ref.qdd[1])
+    assert np.array_equal(changed.torque(*args), fresh.torque(*args))
+    assert not np.array_equal(changed.torque(*args), running.torque(*args))
+    assert changed.state is not running.state  # the running law's own state untouched by the new one's calls
+
+
+def test_other_gains_of_another_shape_are_refused() -> None:
+    control = ControlLaw.from_spec(make_run("parallel_5r", "circle", "pd"))
+    with pytest.raises(InvalidInputError, match="gains must be a finite"):
+        control.with_gains(np.ones((5, 3)))
+    with pytest.raises(InvalidInputError, match="gains must be a finite"):
+        control.with_gains(np.full(control.gains.shape, np.nan))

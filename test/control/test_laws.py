@@ -54,3 +54,23 @@ def test_a_law_gives_either_its_code_or_its_python_torque() -> None:
         LawEntry("neither", "N", ("kp",))
     with pytest.raises(ValueError, match="either its compiled form's code or its Python torque"):
         LawEntry("both", "B", ("kp",), pdsmc_reading, code=2)
+
+
+def test_a_law_written_in_python_takes_other_gains_at_run_time() -> None:
+    """:meth:`ControlLaw.with_gains` on a Python law: the new law's torque is its own gains' (its
+    code calls back the new law, not the one it came from)."""
+    register_law(LawEntry("pdsmc_python", "PD-SMC (Python)", ("kp", "kd", "ks", "lam", "phi"), pdsmc_reading,
+                          linear_gains=pdsmc_linear_gains))
+    try:
+        spec = make_run("serial_3r", "circle", "pdsmc_python", gains=make_run("serial_3r", "circle", "pdsmc").gains)
+        running = ControlLaw.from_spec(spec)
+        gains = running.gains * 1.5
+        changed = running.with_gains(gains)
+        ref = spec.reference().sample([0.5])
+        args = (ref.q[0] + 1e-2, ref.qd[0], ref.q[0], ref.qd[0], ref.qdd[0])
+        expected = pdsmc_reading(LawSetup(gains, running.setup.model, running.smc_model), *args)
+        assert changed.code != running.code
+        assert np.allclose(changed.torque(*args), expected, rtol=1e-12, atol=1e-12)
+        assert not np.allclose(running.torque(*args), expected)
+    finally:
+        unregister_law("pdsmc_python")
