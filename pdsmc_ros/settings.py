@@ -10,6 +10,7 @@ closest declared one), is one line naming the file.
 
 from __future__ import annotations
 
+import contextlib
 import difflib
 import re
 from collections.abc import Iterable, Mapping
@@ -159,6 +160,26 @@ def node_parameters(path: str | Path, node_fqn: str, declared: Iterable[str], *,
         except ConfigError as exc:
             raise ConfigError(f"{label}: {exc}") from None
     return merged
+
+
+def given_value(name: str, node_fqn: str, args: Iterable[str]) -> Any:
+    """The value ``args`` give parameter ``name`` of node ``node_fqn`` before any node exists, as
+    rcl resolves it: the params files in order, then ``-p`` (``name:=`` or ``node:name:=``), the
+    last one winning; None if none does or a file cannot be read (the node's own start says why)."""
+    args = list(args)
+    value = None
+    with contextlib.suppress(ConfigError):
+        for path in params_files_in(args):
+            for section, values in read_params_file(path).items():
+                if name in values and section_matches(section, node_fqn):
+                    value = values[name]
+    node = node_fqn.rsplit("/", 1)[-1]
+    for flag, given in zip(args, args[1:]):
+        if flag in ("-p", "--param") and ":=" in given:
+            key, text = given.split(":=", 1)
+            if key == name or key == f"{node}:{name}":
+                value = text
+    return value
 
 
 def params_files_in(args: Iterable[str]) -> list[str]:

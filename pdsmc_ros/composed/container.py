@@ -56,7 +56,8 @@ def main(args: Sequence[str] | None = None) -> int:
     except ValueError as exc:
         print(f"composed: error: {exc}", file=sys.stderr, flush=True)
         return EXIT_BAD_INPUT
-    return run_nodes("composed", [NODES[n] for n in names], argv, intra_process=options.intra_process)
+    return run_nodes("composed", [NODES[n] for n in names], argv, intra_process=options.intra_process,
+                     node_names=names)
 
 
 if __name__ == "__main__":

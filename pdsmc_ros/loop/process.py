@@ -3,6 +3,7 @@ loop (:mod:`.serve`) run lockstep or paced in real time, then their teardown."""
 
 from __future__ import annotations
 
+import os
 import signal
 import sys
 import time
@@ -19,6 +20,7 @@ from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 
 from ..errors import InvalidInputError, PdsmcError
 from ..parameters.overrides import check_overrides, warn_unknown_arguments
+from ..settings import given_value
 from . import intra
 from .inputs import Inputs
 from .lifecycle import DRAIN_TIMEOUT_S, EXIT_BAD_INPUT, EXIT_FAILURE, EXIT_OK, arm_teardown_watch
@@ -41,12 +43,40 @@ def run_node(
     return run_nodes(name, [factory], args)
 
 
+PUBLICATION_MODE = "RMW_FASTRTPS_PUBLICATION_MODE"
+ALWAYS_REAL_TIME = ("mujoco_driver",)  # nodes that run in real time whatever their parameters
+
+
+def choose_publication_mode(node_names: Sequence[str], args: Sequence[str] | None) -> str | None:
+    """Before ``rclpy.init``: real time, the middleware's writes made asynchronous
+    (``RMW_FASTRTPS_PUBLICATION_MODE=ASYNCHRONOUS``) unless the environment already chooses; the
+    mode set, or None.
+
+    rmw_fastrtps writes synchronously by default: a write sends in the calling thread, which
+    waits while the middleware matches a reader that has just appeared, and through the
+    interpreter lock so does every thread of the process. ``bench/storm.py`` measured the control
+    loop standing still 13-22 ms when clients subscribed to its commands (best effort) and 333 ms
+    when they subscribed to a reliable topic the process wrote; with asynchronous writes, neither
+    (worst lateness under 1 ms). Lockstep keeps the default: asynchronous writes add a thread
+    hand-off to every message of its round trips (``bench/lockstep.py``: 24,000 and 20,000 steps
+    a second synchronous, 18,000 and 12,000 asynchronous).
+    """
+    argv = list(sys.argv if args is None else args)
+    realtime = any(name in ALWAYS_REAL_TIME or given_value("mode", f"/{name}", argv) == "realtime"
+                   for name in node_names)
+    if realtime and PUBLICATION_MODE not in os.environ:
+        os.environ[PUBLICATION_MODE] = "ASYNCHRONOUS"
+        return "ASYNCHRONOUS"
+    return None
+
+
 def run_nodes(
     name: str,
     factories: Sequence[Callable[[], Any]],
     args: Sequence[str] | None,
     *,
     intra_process: bool = False,
+    node_names: Sequence[str] | None = None,
 ) -> int:
     """Run one or several node wrappers in this process with one executor.
 
@@ -55,6 +85,7 @@ def run_nodes(
     creation, so a recorder created first is closed last. ``intra_process``
     hands the loop's messages between them without DDS (:mod:`.intra`).
     """
+    choose_publication_mode([name] if node_names is None else node_names, args)
     rclpy.init(args=args)
     wrappers: list[Any] = []
     reports: list[LoopReport] = []  # the real-time settings and loop statistics of each loop node
