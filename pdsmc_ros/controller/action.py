@@ -139,12 +139,17 @@ def _point(joint_map: JointMap, q: Any, qd: Any, qdd: Any = None) -> JointTrajec
 
 
 class StatePublisher:
-    """``controller``'s state topic on ``node`` (the action server's), and its saturation diagnostic."""
+    """``controller``'s state topic on ``node`` (the action server's), and its saturation diagnostic.
 
-    def __init__(self, node: Node, controller: ControllerView) -> None:
+    ``sink``: the state messages serialized, handed to it instead of published here (the goal
+    process: the controller's process publishes them, from the participant a recorder already knows).
+    """
+
+    def __init__(self, node: Node, controller: ControllerView, *, sink: Callable[[bytes], None] | None = None) -> None:
         self.controller = controller
-        self.state_pub = node.create_publisher(JointTrajectoryControllerState, f"{controller.base}/controller_state",
-                                               10)
+        self.sink = sink
+        self.state_pub = None if sink is not None else node.create_publisher(
+            JointTrajectoryControllerState, controller_state_topic(controller.base), 10)
         self.saturation = Diagnostics(node, "controller: torque limits", controller.robot, logger=controller.logger,
                                       values=lambda: {"saturated_periods": str(self.saturated)})
         self.saturated = self.saturated_seen = self.ticks = 0
@@ -172,7 +177,10 @@ class StatePublisher:
                                                  reference=_point(joint_map, *ref), feedback=_point(joint_map, q, qd),
                                                  error=_point(joint_map, ref[0] - q, ref[1] - qd))
             msg.output.effort = joint_map.to_user(np.asarray(tau, dtype=float)).tolist()
-            self.state_pub.publish(msg)
+            if self.sink is not None:
+                self.sink(serialize_message(msg))
+            elif self.state_pub is not None:
+                self.state_pub.publish(msg)
         for handle, execution in goals:
             feedback = execution.feedback
             if feedback is None or time.perf_counter() >= until:
@@ -244,6 +252,11 @@ def topic_trajectory(controller: ControllerView, msg: JointTrajectory, times: Ti
     return True
 
 
+def controller_state_topic(base: str) -> str:
+    """``~/controller_state`` of controller ``base`` (JTC's state topic)."""
+    return f"{base}/controller_state"
+
+
 def goal_event_topic(base: str) -> str:
     """The ``send_goal`` service's event topic of the action of controller ``base`` (action introspection)."""
     return f"{base}/follow_joint_trajectory/_action/send_goal/_service_event"
@@ -260,7 +273,8 @@ class FollowJointTrajectoryServer:
     state publisher, in a thread of their own."""
 
     def __init__(self, controller: ControllerView, *, parameter_overrides: Sequence[Parameter] = (),
-                 takes_topic: bool | None = None, event_sink: Callable[[bytes], None] | None = None) -> None:
+                 takes_topic: bool | None = None, event_sink: Callable[[bytes], None] | None = None,
+                 state_sink: Callable[[bytes], None] | None = None) -> None:
         self.controller = controller
         base = controller.base
         self.node = Node(f"{controller.name}_action", namespace=controller.namespace, context=controller.context,
@@ -280,7 +294,7 @@ class FollowJointTrajectoryServer:
                 JointTrajectory, controller.resolve(topics.TOPIC_JOINT_TRAJECTORY),
                 lambda msg, info: topic_trajectory(controller, msg, _times(info), self.report), topics.TRAJECTORY_QOS,
                 callback_group=group)
-        self.state = StatePublisher(self.node, controller)
+        self.state = StatePublisher(self.node, controller, sink=state_sink)
         introspection = controller.action_introspection
         # the goal process hands its events (serialized) to the controller's process, which publishes
         # them: a publisher in the child's own participant lost a recorder's first event

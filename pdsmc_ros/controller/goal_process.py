@@ -9,7 +9,8 @@ such work off its real-time thread with threads and lock-free buffers; without a
 interpreter, the equivalent here is a process.
 
 So a real-time controller runs :class:`~.action.FollowJointTrajectoryServer` (the action,
-``~/query_state``, ``~/controller_state`` and the goals' feedback) in a child (``python -m
+``~/query_state``, ``~/controller_state``'s messages and the goals' feedback) and its parameter
+services (:class:`ParameterStandIn`) in a child (``python -m
 pdsmc_ros.controller.goal_process``, started with the node at normal scheduling), on a stand-in
 of the controller (:class:`RemoteView`) that validates goals and trajectories as the controller
 would (:func:`~.core.check_goal`, :func:`~.core.check_topic_trajectory`, from the controller's
@@ -17,7 +18,9 @@ latest measured state, asked of the loop's process when a goal arrives) and send
 accepts to the loop's process over a pipe.
 ``~/joint_trajectory`` is read by the controller's process (as bytes, taken with its other inputs:
 :meth:`GoalProcess.forward`) and validated here: a reader in the child's own DDS participant
-missed one-shot messages that clients sent as soon as they counted the subscription.
+missed one-shot messages that clients sent as soon as they counted the subscription. For the
+same reason the goal events and ``~/controller_state`` are serialized here and published by the
+controller's process (:data:`PUBLISHED_HERE`): a recorder has matched that participant's writers.
 The loop (:class:`GoalProcess`, in its spare time: :meth:`GoalProcess.poll`) starts, follows
 and cancels them with the same :class:`~.goals.GoalSlot` as ever, and answers with each goal's
 end, the trajectory that drives, its latest period and the goals' feedback at
@@ -46,7 +49,7 @@ import subprocess
 import sys
 import threading
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 from ..robots.registry import find_robot, register_robot, robot_config
@@ -62,6 +65,10 @@ STATE_BACKLOG = 1 << 16  # bytes: the loop drops a state message while this much
 MEASURE_WAIT_S = 1.0  # the child waits this long for the loop's latest state when a goal arrives
 KEPT_TRAJECTORIES = 64  # trajectories remembered for ~/query_state and the driving one
 NOT_ACTIVE = Outcome("aborted", INVALID_GOAL, "the controller is not active")
+PUBLISHED_HERE = ("goal_event", "controller_state")
+"""What the child serializes and the controller's process publishes: the action's goal events and
+``~/controller_state`` (one-shot or first messages a recorder must not miss: a writer in the child's
+own participant lost a recorder's first ones)."""
 
 
 class FrameReader:
@@ -171,17 +178,26 @@ class GoalProcess:
         Whether the controller commands now (:meth:`set_active` from then on).
     on_lost : callable
         ``on_lost(why)``: told once if the child ends before :meth:`close` (the action is gone).
+    publishers : mapping
+        By kind (:data:`PUBLISHED_HERE`), what publishes the child's serialized messages of that
+        kind in this process: what a recorder or a client meets as a topic stays in the participant
+        it already discovered.
+    on_gains : callable
+        ``on_gains(gains, given)``: gains the child accepted through the controller's parameter
+        services (resolved from the gain parameters ``given``), for the loop to apply.
     """
 
     def __init__(self, setup: dict[str, Any], core: Any, clamped: Callable[[], int], *, active: bool = False,
                  on_lost: Callable[[str], None] = lambda why: None,
-                 publish_event: Callable[[bytes], None] | None = None) -> None:
+                 publishers: Mapping[str, Callable[[bytes], None]] | None = None,
+                 on_gains: Callable[[Any, dict[str, Any]], None] | None = None) -> None:
         self.first_message = pickle.dumps(setup, protocol=pickle.HIGHEST_PROTOCOL)
         self.core = core
         self.clamped = clamped
         self.active = active
         self.on_lost = on_lost
-        self.publish_event = publish_event  # the action's goal events (serialized), published by this process
+        self.publishers = dict(publishers or {})
+        self.on_gains = on_gains
         self.lost = False
         self.process: subprocess.Popen[bytes] | None = None
         self.reader: FrameReader | None = None
@@ -196,12 +212,12 @@ class GoalProcess:
 
     @classmethod
     def for_controller(cls, setup: dict[str, Any], core: Any, clamped: Callable[[], int],
-                       on_lost: Callable[[str], None],
-                       publish_event: Callable[[bytes], None] | None = None) -> GoalProcess | None:
+                       on_lost: Callable[[str], None], publishers: Mapping[str, Callable[[bytes], None]],
+                       on_gains: Callable[[Any, dict[str, Any]], None]) -> GoalProcess | None:
         """A goal process, or None when the arm cannot be sent to one (a robot class defined where a
-        child cannot import it): the caller then serves the action in its own process."""
+        child cannot import it): the caller then serves the action and the parameters in its own process."""
         try:
-            return cls(setup, core, clamped, on_lost=on_lost, publish_event=publish_event)
+            return cls(setup, core, clamped, on_lost=on_lost, publishers=publishers, on_gains=on_gains)
         except (pickle.PicklingError, AttributeError, TypeError):
             return None
 
@@ -306,9 +322,13 @@ class GoalProcess:
             if self.active:
                 self._remember(reference, tid)
                 core.follow(reference)
-        elif kind == "event":
-            if self.publish_event is not None:
-                self.publish_event(message[1])
+        elif kind == "publish":
+            publish = self.publishers.get(message[1])
+            if publish is not None:
+                publish(message[2])
+        elif kind == "gains":
+            if self.on_gains is not None:
+                self.on_gains(message[1], message[2])
         elif kind == "measure":
             if self.writer is not None:
                 self.writer.send(("measured", core.measured()))
@@ -355,14 +375,27 @@ def _feedback_hz() -> float:
 
 def setup_of(*, spec: Any, name: str, namespace: str, base: str, joints: Sequence[str], joint_map: JointMap,
              robot_joints: Sequence[str], limits: JointLimits | None, goal_settings: GoalSettings,
-             action_introspection: str, topics: dict[str, str], use_sim_time: bool) -> dict[str, Any]:
+             action_introspection: str, topics: dict[str, str], use_sim_time: bool,
+             parameters: Sequence[tuple[bytes, bytes]] = (), stability: dict[str, Any] | None = None
+             ) -> dict[str, Any]:
     """What the child needs to stand in for the controller: its names, joints, checks and the arm
     as registered in this process (a URDF arm named, given as a path or received on
-    ``/robot_description`` is registered in-process)."""
+    ``/robot_description`` is registered in-process); ``parameters`` (:func:`parameter_table`) and
+    ``stability`` (the gains' stability check's keywords) for its parameter services, none without."""
     return {"spec": spec, "arm": find_robot(spec.robot), "config": dict(robot_config(spec.robot)), "name": name,
             "namespace": namespace, "base": base, "joints": tuple(joints), "joint_map": joint_map,
             "robot_joints": tuple(robot_joints), "limits": limits, "goal_settings": goal_settings,
-            "action_introspection": action_introspection, "topics": dict(topics), "use_sim_time": use_sim_time}
+            "action_introspection": action_introspection, "topics": dict(topics), "use_sim_time": use_sim_time,
+            "parameters": list(parameters), "stability": stability}
+
+
+def parameter_table(node: Any) -> list[tuple[bytes, bytes]]:
+    """Every parameter ``node`` declared, as its value and its descriptor (both serialized), for
+    the child to declare the same (unset ones included: their type is in the descriptor)."""
+    from rclpy.serialization import serialize_message
+
+    return [(serialize_message(parameter.to_parameter_msg()), serialize_message(node.describe_parameter(name)))
+            for name, parameter in node._parameters.items()]  # noqa: SLF001 - unset typed ones too
 
 
 # --------------------------------------------------------------------------- #
@@ -516,6 +549,87 @@ class RemoteView:
         return False
 
 
+class ParameterStandIn:
+    """The controller's parameter services (``/<controller>/get_parameters``, ``set_parameters``,
+    ...), served in the goal process on a node of its own that declares the controller's
+    parameters as they are (:func:`parameter_table`) and guards them with the controller's own
+    callbacks: the tables' checks (:func:`~pdsmc_ros.parameters.run.guard_run_parameters`; rclpy
+    refuses read-only ones and wrong types from their descriptors) and the gains' resolver and
+    stability check (:class:`~.parameters.GainUpdates`, here in this process). Gains it accepts
+    are sent to the loop's process (``("gains", gains, given)``), which applies them in its spare
+    time. ``ros2 param set`` at ten sets a second held the loop's interpreter lock 1-3 ms a set
+    (rclpy's conversions, the callbacks) and kept the loop's p99 lateness at 1.5-2.2 times idle.
+
+    Events on ``/parameter_events`` name the controller, as its own would.
+    """
+
+    def __init__(self, setup: dict[str, Any], context: Any, send: Callable[[object], None]) -> None:
+        from rcl_interfaces.msg import Parameter as ParameterMsg
+        from rcl_interfaces.msg import ParameterDescriptor
+        from rclpy.node import Node
+        from rclpy.parameter import Parameter
+        from rclpy.parameter_service import ParameterService
+        from rclpy.serialization import deserialize_message
+
+        from ..control.stability import check_rate
+        from ..parameters.run import guard_run_parameters
+        from .parameters import GainUpdates
+
+        table = [(Parameter.from_parameter_msg(deserialize_message(value, ParameterMsg)),
+                  deserialize_message(descriptor, ParameterDescriptor)) for value, descriptor in setup["parameters"]]
+        self.node = node = Node(f"{setup['name']}_parameters", namespace=setup["namespace"], context=context,
+                                use_global_arguments=False, start_parameter_services=False, enable_rosout=False,
+                                parameter_overrides=[p for p, _ in table if p.type_ != Parameter.Type.NOT_SET])
+        events = _EventsAs(node._parameter_event_publisher, setup["base"])  # noqa: SLF001 - rclpy's writer
+        node._parameter_event_publisher = events  # noqa: SLF001 - the events name the controller
+        for parameter, descriptor in table:
+            if not node.has_parameter(parameter.name):
+                unset = parameter.type_ == Parameter.Type.NOT_SET and descriptor.type != Parameter.Type.NOT_SET
+                node.declare_parameter(parameter.name, Parameter.Type(descriptor.type) if unset else parameter.value,
+                                       descriptor)
+        events.on = True  # the controller announced its declarations
+        spec = setup["spec"]
+        guard_run_parameters(node, spec.controller, gains=True)
+        reference, stability = spec.reference(), setup["stability"] or {}
+        self.gains = GainUpdates(node, spec, lambda new: check_rate(new, reference, **stability),
+                                 lambda gains: send(("gains", gains, self.gains.given)),
+                                 joint_map=setup["joint_map"])
+        self.named = _Named(node, setup["name"])  # ParameterService keeps a weak reference to it
+        self.service = ParameterService(self.named)
+
+    def destroy(self) -> None:
+        self.node._parameter_event_publisher = None  # noqa: SLF001 - the real writer is destroyed with the node
+        self.node.destroy_node()
+
+
+class _EventsAs:
+    """rclpy's ``/parameter_events`` writer of a stand-in node: its events name ``node`` (from :attr:`on`)."""
+
+    def __init__(self, publisher: Any, node: str) -> None:
+        self.publisher = publisher
+        self.node = node
+        self.on = False
+
+    def publish(self, event: Any) -> None:
+        if self.on:
+            event.node = self.node
+            self.publisher.publish(event)
+
+
+class _Named:
+    """``node`` as rclpy's ParameterService sees it: its services named after ``name``."""
+
+    def __init__(self, node: Any, name: str) -> None:
+        self._node = node
+        self._name = name
+
+    def get_name(self) -> str:
+        return self._name
+
+    def __getattr__(self, attribute: str) -> Any:
+        return getattr(self._node, attribute)
+
+
 def main() -> None:
     """The child: the setup first, then the loop's messages until its input closes."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # a Ctrl-C to the group is the parent's to handle
@@ -552,8 +666,12 @@ def main() -> None:
     view = RemoteView(setup, context, send)
     overrides = [Parameter("use_sim_time", value=bool(setup["use_sim_time"]))]
     server = FollowJointTrajectoryServer(view, parameter_overrides=overrides, takes_topic=False,
-                                         event_sink=lambda data: send(("event", data)))
+                                         event_sink=lambda data: send(("publish", "goal_event", data)),
+                                         state_sink=lambda data: send(("publish", "controller_state", data)))
     view.clock = server.node.get_clock()
+    parameters = ParameterStandIn(setup, context, send) if setup["parameters"] else None
+    if parameters is not None:
+        server.executor.add_node(parameters.node)
     # ~/joint_trajectory messages, in order, in a thread of their own: their validation asks the
     # loop's process for its state, which this (reading) thread receives
     trajectories: queue.Queue[Any] = queue.Queue()
@@ -590,6 +708,8 @@ def main() -> None:
         trajectories.put(None)
         worker.join(timeout=2.0)
         server.stop()
+        if parameters is not None:
+            parameters.destroy()
         with contextlib.suppress(Exception):
             rclpy.shutdown(context=context)
 

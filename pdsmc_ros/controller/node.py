@@ -11,7 +11,9 @@ chosen law); a trajectory's time is the node clock (``header.stamp``, or the rec
 time when zero). Joints by name (``joints``, any order, mapped onto the robot's). Out:
 torques on ``/effort_controller/commands`` (``data[i]`` for ``joints[i]``, within the arm's soft
 limits: :mod:`.parameters`), ``~/controller_state``, ``/pdsmc/run_description`` (latched) and
-``/diagnostics``. Real time: a joint running away (beyond its velocity limit by
+``/diagnostics``. Parameters are validated on set (gains: their stability check at the running
+rate); real time, the parameter services are the goal process's, which declares the node's
+parameters as they are and hands accepted gains to the loop. Real time: a joint running away (beyond its velocity limit by
 ``runaway.velocity_factor``, beyond a position limit) aborts the active goal and latches a stop
 until the next activation; the node then exits 1. Lockstep pairs the state and the reference of each step (no hold: the
 plant waits for its command). Stopping (signal, lifecycle, stale inputs) publishes one zero command.
@@ -25,12 +27,14 @@ import dataclasses
 import sys
 import threading
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 from control_msgs.action import FollowJointTrajectory
+from control_msgs.msg import JointTrajectoryControllerState
 from rclpy.duration import Duration
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
 from rclpy.node import Node
+from rclpy.parameter_service import ParameterService
 from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray, String
@@ -43,17 +47,18 @@ from ..loop.inputs import Inputs, Times
 from ..loop.lifecycle import EXIT_FAILURE, EXIT_OK, WATCH_GRACE_S, CommandingEntity, end_when_plant_leaves
 from ..loop.log import LoopLog
 from ..loop.process import run_node
+from ..loop.realtime_params import declare_realtime_parameters
 from ..loop.statistics import LoopStatistics
 from ..parameters.run import declare_node_run, description_json
 from ..robots.base import FloatArray
 from ..ros import topics
 from ..ros.diagnostics import Diagnostics, InputReport
 from ..ros.publishers import GuardedPublisher, RowBatches
-from .action import FollowJointTrajectoryServer, goal_event_topic, topic_trajectory
+from .action import FollowJointTrajectoryServer, controller_state_topic, goal_event_topic, topic_trajectory
 from .commanding import Paired, TorqueGuard
 from .core import ControllerCore, GoalStart, Tolerance
 from .gain_check import CheckProcess, checked
-from .goal_process import GoalProcess, setup_of
+from .goal_process import GoalProcess, parameter_table, setup_of
 from .goals import GoalExecution
 from .joint_trajectory import JointTrajectoryReference, RawPoint
 from .joints import JointSelector
@@ -107,7 +112,8 @@ class ControllerNode(CommandingEntity):
     inputs, holds, goals, the law's torque): parameters, topics, logs and the lifecycle."""
 
     def __init__(self) -> None:
-        self.node = node = LifecycleNode("controller")
+        # the parameter services: real time, the goal process's (goal_process.ParameterStandIn), else this node's
+        self.node = node = LifecycleNode("controller", start_parameter_services=False)
         run = declare_node_run(node, gains=True)
         self.mode, self.busy_wait, self.lockstep = run.mode, run.busy_wait, run.mode == "lockstep"
         robot = run.spec.robot_model()
@@ -151,24 +157,26 @@ class ControllerNode(CommandingEntity):
             self.plant_watch = end_when_plant_leaves(self, lambda: core.states_received)
         node.add_managed_entity(self)
         # the action server: real time, in a process of its own (goal_process); else a node of its own spun by
-        # a thread of its own, never by the loop's executor
+        # a thread of its own, never by the loop's executor. Real time, this node publishes the server's state
+        # and goal events (serialized by the server): a recorder already knows this participant
+        self.published_here = {} if self.lockstep else self.raw_publishers()
+        declare_realtime_parameters(node, self.mode)  # before the goal process takes every parameter (run_node reads)
         self.goal_process = None if self.lockstep else GoalProcess.for_controller(
             setup_of(spec=spec, name=node.get_name(), namespace=node.get_namespace(),
                      base=node.get_fully_qualified_name(), joints=params.joints, joint_map=self.joint_map,
                      robot_joints=robot.joint_names, limits=core.limits, goal_settings=core.goal_settings,
                      action_introspection=params.action_introspection,
                      topics={topics.TOPIC_JOINT_TRAJECTORY: node.resolve_topic_name(topics.TOPIC_JOINT_TRAJECTORY)},
-                     use_sim_time=bool(node.get_parameter("use_sim_time").value)),
-            core, lambda: self.guard.clamped, lambda why: self.loop_log.error(why),
-            None if params.action_introspection == "disabled" else node.create_publisher(
-                FollowJointTrajectory.Impl.SendGoalService.Event, goal_event_topic(node.get_fully_qualified_name()),
-                10).publish)
+                     use_sim_time=bool(node.get_parameter("use_sim_time").value),
+                     parameters=parameter_table(node), stability=run.stability),
+            core, lambda: self.guard.clamped, lambda why: self.loop_log.error(why), self.published_here,
+            self.gain_updates.take)
         self.action: FollowJointTrajectoryServer | None = None
         self.trajectory_report = Diagnostics(node, "controller: trajectories", spec.robot)
         if self.goal_process is not None:
             self.goal_process.start()  # from this thread, at normal scheduling; it starts while the node configures
         else:
-            self.action = FollowJointTrajectoryServer(LocalView(self))
+            self.serve_here()
         if params.autostart:
             # configured (the law's kernel loaded, the path from a message to a command warmed up) before
             # the robot's topics exist: a plant that starts once it sees them is answered at once, and a
@@ -195,7 +203,7 @@ class ControllerNode(CommandingEntity):
                                     "the action is served in the controller's process")
             self.goal_process.close()
             self.goal_process = None
-            self.action = FollowJointTrajectoryServer(LocalView(self))
+            self.serve_here()
         if params.autostart:
             node.trigger_activate()
         waiting = "" if params.autostart else "; unconfigured until configure and activate"
@@ -240,8 +248,26 @@ class ControllerNode(CommandingEntity):
         self.core.law = None
 
     def apply_gains(self, gains: Gains) -> None:
+        """Gains accepted (:class:`~.parameters.GainUpdates`): the executor's thread, or real time the
+        loop's spare time (the goal process serves the parameters)."""
         self.core.apply_gains(self.gain_updates.spec)
-        self.node.get_logger().info(f"gains changed: {gains.as_dict()}")
+        self.loop_log.info(f"gains changed: {gains.as_dict()}")
+
+    def serve_here(self) -> None:
+        """The action and the parameter services in this process: lockstep, or no goal process."""
+        ParameterService(self.node)
+        self.action = FollowJointTrajectoryServer(LocalView(self), event_sink=self.published_here.get("goal_event"),
+                                                  state_sink=self.published_here.get("controller_state"))
+
+    def raw_publishers(self) -> dict[str, Callable[[bytes], None]]:
+        """The goal process's messages this process publishes (serialized there), by kind."""
+        node, base = self.node, self.node.get_fully_qualified_name()
+        publishers = {"controller_state": node.create_publisher(JointTrajectoryControllerState,
+                                                                controller_state_topic(base), 10).publish}
+        if self.params.action_introspection != "disabled":
+            publishers["goal_event"] = node.create_publisher(FollowJointTrajectory.Impl.SendGoalService.Event,
+                                                             goal_event_topic(base), 10).publish
+        return publishers
 
     # -- inputs --------------------------------------------------------------- #
     def on_state(self, data: bytes) -> None:

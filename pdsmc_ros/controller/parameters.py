@@ -183,6 +183,12 @@ class GainUpdates:
     def applied(self, params: Sequence[Parameter]) -> None:
         if self.pending is None or not any(p.name in GAINS for p in params):
             return
-        (gains, self.given), self.pending = self.pending, None
+        (gains, given), self.pending = self.pending, None
+        self.take(gains, given)
+
+    def take(self, gains: Gains, given: dict[str, Any]) -> None:
+        """Apply ``gains``, resolved from the gain parameters ``given`` and accepted: here (the
+        post-set callback) or by the goal process, which serves the controller's parameters in real time."""
+        self.given = dict(given)
         self.spec = dataclasses.replace(self.spec, gains=gains)
         self.apply(gains)

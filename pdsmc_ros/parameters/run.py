@@ -77,12 +77,21 @@ def declare_run_parameters(node: Node, *, gains: bool = False) -> dict[str, Any]
     and return their values."""
     values = declare(node, run_parameters())
     gain_specs = gain_parameters(applied=gains and _law_gains(values["type"]))
-    specs = (*run_parameters(), *gain_specs, *(STABILITY if gains else ()))
     values.update(declare(node, gain_specs, checked=False))  # the resolver's messages name the law
     if gains:
         values.update(declare(node, STABILITY))
-    guard(node, specs, checked_by_node=[g.name for g in gain_specs])
+    guard_run_parameters(node, values["type"], gains=gains)
     return values
+
+
+def guard_run_parameters(node: Node, controller: str, *, gains: bool = False) -> None:
+    """Guard the run's parameters, the gains of law ``controller`` and (``gains``: the controller)
+    the stability parameters on ``node`` (:func:`~pdsmc_ros.parameters.ros.guard`); the gains are
+    the controller's to check (:class:`~pdsmc_ros.controller.parameters.GainUpdates`). Also the
+    goal process's stand-in of the controller's parameters, declared as the controller's."""
+    gain_specs = gain_parameters(applied=gains and _law_gains(controller))
+    specs = (*run_parameters(), *gain_specs, *(STABILITY if gains else ()))
+    guard(node, specs, checked_by_node=[g.name for g in gain_specs])
 
 
 def _law_gains(controller: str) -> tuple[str, ...]:

@@ -20,7 +20,7 @@ from conftest import next_domain
 
 rclpy = pytest.importorskip("rclpy")
 from lifecycle_msgs.srv import GetState  # noqa: E402
-from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue  # noqa: E402
+from rcl_interfaces.msg import Parameter, ParameterEvent, ParameterType, ParameterValue  # noqa: E402
 from rcl_interfaces.srv import GetParameters, ListParameters, SetParameters  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 from std_msgs.msg import Float64MultiArray  # noqa: E402
@@ -81,6 +81,8 @@ class Client:
         self.node.create_subscription(Float64MultiArray, "/effort_controller/commands",
                                       lambda msg: self.commands.append(list(msg.data)), 100)
         self.states = self.node.create_publisher(JointState, "/joint_states", 100)
+        self.events: list[ParameterEvent] = []
+        self.node.create_subscription(ParameterEvent, "/parameter_events", self.events.append, 100)
 
     def call(self, client: object, request: object, timeout: float = 10.0) -> object:
         future = client.call_async(request)  # type: ignore[attr-defined]
@@ -127,8 +129,9 @@ def test_every_type_to_every_parameter_leaves_the_node_answering_and_commanding(
     try:
         assert client.list.wait_for_service(timeout_sec=120), "the controller's parameter services never appeared"
         names = list(client.call(client.list, ListParameters.Request()).result.names)  # type: ignore[attr-defined]
+        # real time, the goal process serves them: every parameter the node declared, run_node's too
         assert {"kp", "kd", "rate", "stability_margin", "delay_periods", "busy_wait", "joints",
-                "use_sim_time"} <= set(names)
+                "use_sim_time", "thread_priority", "lock_memory", "cpu_affinity"} <= set(names)
         answers = {}
         started = time.monotonic()
         for name in names:
@@ -154,6 +157,12 @@ def test_every_type_to_every_parameter_leaves_the_node_answering_and_commanding(
         assert ok, reason
         got = client.call(client.get, GetParameters.Request(names=["kp", "rate"]))
         assert list(got.values[0].double_array_value) == [60.0, 60.0] and got.values[1].double_value == 1000.0  # type: ignore[attr-defined]
+        # the change announced on /parameter_events in the controller's name, as rclpy's own node would
+        client.executor.spin_once(timeout_sec=0.5)
+        changes = [(e.node, p.name, list(p.value.double_array_value))
+                   for e in client.events for p in e.changed_parameters]
+        assert ("/controller", "kp", [60.0, 60.0]) in changes, changes
+        assert "/controller_parameters" not in {e.node for e in client.events}  # the stand-in's own name
         state = client.call(client.state, GetState.Request())
         assert state.current_state.label == "active"  # type: ignore[attr-defined]
         client.commands.clear()
