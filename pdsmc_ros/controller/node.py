@@ -13,10 +13,11 @@ torques on ``/effort_controller/commands`` (``data[i]`` for ``joints[i]``, withi
 limits: :mod:`.parameters`), ``~/controller_state``, ``/pdsmc/run_description`` (latched) and
 ``/diagnostics``. Parameters are validated on set (gains: their stability check at the running
 rate); real time, the parameter services are the goal process's, which declares the node's
-parameters as they are and hands accepted gains to the loop. Real time: a joint running away (beyond its velocity limit by
-``runaway.velocity_factor``, beyond a position limit) aborts the active goal and latches a stop
-until the next activation; the node then exits 1. Lockstep pairs the state and the reference of each step (no hold: the
-plant waits for its command). Stopping (signal, lifecycle, stale inputs) publishes one zero command.
+parameters as they are and hands accepted gains to the loop. Real time: a joint running away
+(beyond its velocity limit by ``runaway.velocity_factor``, beyond a position limit) aborts the
+active goal and latches a stop until the next activation; the node then exits 1. Lockstep pairs the
+state and the reference of each step (no hold: the plant waits for its command). Stopping (signal,
+lifecycle, stale inputs) publishes one zero command.
 A law with internal state (an integrator: ``sta``, ``ismc``) starts from zero at each activation
 and integrates it once per command with the nominal period ``1 / rate`` (not the measured one).
 """
