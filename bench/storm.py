@@ -20,8 +20,9 @@ rclpy clients:
   (:data:`~pdsmc_ros.controller.joint_trajectory.MAX_POINTS`: validated);
 * ``set_parameters`` calls every ``PARAM_EVERY_S``, valid (the running gains again) and invalid
   (a negative gain, a wrong length, a string) in turn, through a plain service client;
-* every ``NODE_EVERY_S`` a new client node in the storm's process (an action client and a
-  subscription to ``/controller/controller_state``), destroyed ``NODE_LIFE_S`` later; every
+* every ``NODE_EVERY_S`` a new client node in the storm's process (an action client and
+  subscriptions to ``/controller/controller_state``, the commands and the joint states, as a
+  viewer or a bridge subscribes), destroyed ``NODE_LIFE_S`` later; every
   ``PARTICIPANT_EVERY_S`` the same in a context of its own (a new DDS participant).
 
 Printed: per window the commanding ticks, the lateness p50, p99, p99.9 and worst (us), the missed
@@ -235,11 +236,14 @@ class Storm:
 
     # -- connections ---------------------------------------------------------- #
     def connect(self, own_context: bool) -> None:
-        """A new client node (its own context: a new DDS participant) with an action client and a
-        subscription to the controller state, destroyed NODE_LIFE_S later."""
+        """A new client node (its own context: a new DDS participant) with an action client and
+        subscriptions to the controller state and, as a viewer or a bridge would, to the commands
+        and the joint states, destroyed NODE_LIFE_S later."""
         from control_msgs.action import FollowJointTrajectory
         from control_msgs.msg import JointTrajectoryControllerState
         from rclpy.action import ActionClient
+        from sensor_msgs.msg import JointState
+        from std_msgs.msg import Float64MultiArray
 
         context = None
         if own_context:
@@ -250,6 +254,8 @@ class Storm:
                                       context=context or self.context)
         ActionClient(node, FollowJointTrajectory, "/controller/follow_joint_trajectory")
         node.create_subscription(JointTrajectoryControllerState, "/controller/controller_state", lambda m: None, 10)
+        node.create_subscription(Float64MultiArray, "/effort_controller/commands", lambda m: None, 10)
+        node.create_subscription(JointState, "/joint_states", lambda m: None, 10)
         self.count("connections")
         if own_context:
             self.count("new participants")
