@@ -136,13 +136,10 @@ class ControllerNode(CommandingEntity):
         in_process = lambda new: check_rate(new, core.reference, **run.stability)  # noqa: E731 - used twice below
         checked(in_process, spec)  # refuse gains unstable here
         # gains: the on-set callback checks a change is stable at the running rate, the post-set one applies
-        # it; real time: the check (50-100 ms of numpy) in a process of its own, never beside the loop
-        self.gain_check = None if self.lockstep else CheckProcess.for_run(spec, run.stability)
-        if self.gain_check is not None:
-            self.gain_check.start()  # from this thread, at normal scheduling, while the node starts
-        self.gain_updates = GainUpdates(
-            node, spec, self.gain_check or in_process,
-            self.apply_gains, joint_map=self.joint_map)
+        # it (real time: the goal process serves the parameters and checks; serve_here otherwise)
+        self.stability = run.stability
+        self.gain_check: CheckProcess | None = None
+        self.gain_updates = GainUpdates(node, spec, in_process, self.apply_gains, joint_map=self.joint_map)
         self.active = self.done = False  # commanding; the run is over
         self.exit_code = EXIT_OK
 
@@ -256,6 +253,11 @@ class ControllerNode(CommandingEntity):
 
     def serve_here(self) -> None:
         """The action and the parameter services in this process: lockstep, or no goal process."""
+        if not self.lockstep:  # the gains' check (50-100 ms of numpy) in a process of its own, never beside the loop
+            self.gain_check = CheckProcess.for_run(self.gain_updates.spec, self.stability)
+            if self.gain_check is not None:
+                self.gain_check.start()  # from this thread, at normal scheduling, while the node starts
+                self.gain_updates.check = self.gain_check
         ParameterService(self.node)
         self.action = FollowJointTrajectoryServer(LocalView(self), event_sink=self.published_here.get("goal_event"),
                                                   state_sink=self.published_here.get("controller_state"))

@@ -91,3 +91,55 @@ def test_the_node_exits_2_on_an_unknown_joint(ros_env: dict) -> None:
                           timeout=100)
     assert proc.returncode == 2, proc.stderr
     assert "'wrist' is not a joint of the robot" in proc.stderr and "Traceback" not in proc.stderr
+
+
+def test_the_goal_process_serves_the_nodes_parameters_as_the_node_would(node_with) -> None:  # noqa: ANN001
+    """The goal process's stand-in (:class:`~pdsmc_ros.controller.goal_process.ParameterStandIn`)
+    declares every parameter of the node as it is (values, unset gains, descriptors), refuses what the
+    node refuses with the same reason, and hands accepted gains over (``("gains", gains, given)``)."""
+    from pdsmc_ros.control.stability import check_rate
+    from pdsmc_ros.controller.goal_process import ParameterStandIn, parameter_table
+    from pdsmc_ros.controller.parameters import declare_limit_parameters
+    from pdsmc_ros.loop.realtime_params import declare_realtime_parameters
+
+    node = node_with(Parameter("robot", value="serial_3r"), Parameter("type", value="pd"),
+                     Parameter("mode", value="realtime"), Parameter("rate", value=1000.0),
+                     Parameter("joints", value=REORDERED),  # gains in joints order: joint3, joint1, joint2
+                     Parameter("kp", value=[160.0, 800.0, 800.0]), Parameter("kd", value=[8.0, 40.0, 40.0]))
+    run = declare_node_run(node, gains=True)
+    robot = run.spec.robot_model()
+    params = declare_controller_parameters(node, robot)
+    declare_limit_parameters(node, robot, params, 1.0 / run.spec.rate, False, run.spec.reference().sample([0.0]).q[0])
+    declare_realtime_parameters(node, run.mode)
+    reference = run.spec.reference()
+    GainUpdates(node, run.spec, lambda new: check_rate(new, reference, **run.stability), lambda gains: None,
+                joint_map=params.joint_map)  # as the controller node guards its gains
+    sent: list[object] = []
+    setup = {"parameters": parameter_table(node), "name": "stand_in_of_controller", "namespace": "/",
+             "base": "/controller", "spec": run.spec, "stability": run.stability, "joint_map": params.joint_map}
+    stand_in = ParameterStandIn(setup, node.context, sent.append)
+    try:
+        other = stand_in.node
+        names = node._parameters.keys()  # noqa: SLF001 - unset gains too
+        assert set(names) <= set(other._parameters)  # noqa: SLF001
+        for name in names:
+            mine, theirs = node._parameters[name].value, other._parameters[name].value  # noqa: SLF001
+            assert (list(theirs) if hasattr(theirs, "tolist") else theirs) == \
+                (list(mine) if hasattr(mine, "tolist") else mine), name
+            assert other.describe_parameter(name) == node.describe_parameter(name), name
+        # what the node refuses, refused alike; the same reasons
+        for change in (Parameter("rate", value=500.0), Parameter("kp", value=3000.0),
+                       Parameter("kp", value=[1e6, 1e6, 1e6]),
+                       Parameter("kd", value=[1e308, 1e308, 1e308]), Parameter("use_sim_time", value=True)):
+            mine, theirs = node.set_parameters([change])[0], other.set_parameters([change])[0]
+            assert not theirs.successful and theirs.reason == mine.reason, (change.name, theirs.reason, mine.reason)
+        assert not sent
+        # an accepted gain: set there, handed over in robot order with what was given
+        result = other.set_parameters([Parameter("kp", value=[150.0, 700.0, 750.0])])[0]
+        assert result.successful, result.reason
+        [(kind, gains, given)] = sent
+        assert kind == "gains" and list(given["kp"]) == [150.0, 700.0, 750.0]
+        assert list(gains["kp"]) == [700.0, 750.0, 150.0]  # in URDF order
+        assert stand_in.named.get_name() == "stand_in_of_controller"  # its services: the controller's names
+    finally:
+        stand_in.destroy()
