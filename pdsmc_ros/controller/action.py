@@ -274,13 +274,15 @@ class FollowJointTrajectoryServer:
 
     def __init__(self, controller: ControllerView, *, parameter_overrides: Sequence[Parameter] = (),
                  takes_topic: bool | None = None, event_sink: Callable[[bytes], None] | None = None,
-                 state_sink: Callable[[bytes], None] | None = None) -> None:
+                 state_sink: Callable[[bytes], None] | None = None, report: Diagnostics | None = None) -> None:
         self.controller = controller
         base = controller.base
         self.node = Node(f"{controller.name}_action", namespace=controller.namespace, context=controller.context,
                          use_global_arguments=False, start_parameter_services=False, enable_rosout=False,
                          parameter_overrides=parameter_overrides)
-        self.report = Diagnostics(self.node, "controller: trajectories", controller.robot, logger=controller.logger)
+        # one "controller: trajectories" status per controller: the node's, when it takes trajectories too
+        self.report = report if report is not None else Diagnostics(self.node, "controller: trajectories",
+                                                                    controller.robot, logger=controller.logger)
         group = ReentrantCallbackGroup()
         self.server = ActionServer(self.node, FollowJointTrajectory, f"{base}/follow_joint_trajectory",
                                    execute_callback=self.execute, goal_callback=self.on_goal,

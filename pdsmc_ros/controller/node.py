@@ -170,7 +170,8 @@ class ControllerNode(CommandingEntity):
             core, lambda: self.guard.clamped, lambda why: self.loop_log.error(why), self.published_here,
             self.gain_updates.take)
         self.action: FollowJointTrajectoryServer | None = None
-        self.trajectory_report = Diagnostics(node, "controller: trajectories", spec.robot)
+        # lockstep, the loop takes ~/joint_trajectory: its status, shared with the action server
+        self.trajectory_report = Diagnostics(node, "controller: trajectories", spec.robot) if self.lockstep else None
         if self.goal_process is not None:
             self.goal_process.start()  # from this thread, at normal scheduling; it starts while the node configures
         else:
@@ -260,7 +261,8 @@ class ControllerNode(CommandingEntity):
                 self.gain_updates.check = self.gain_check
         ParameterService(self.node)
         self.action = FollowJointTrajectoryServer(LocalView(self), event_sink=self.published_here.get("goal_event"),
-                                                  state_sink=self.published_here.get("controller_state"))
+                                                  state_sink=self.published_here.get("controller_state"),
+                                                  report=self.trajectory_report)
 
     def raw_publishers(self) -> dict[str, Callable[[bytes], None]]:
         """The goal process's messages this process publishes (serialized there), by kind."""
@@ -291,13 +293,16 @@ class ControllerNode(CommandingEntity):
 
     def on_goals(self, batch: list[tuple[bytes, Times]]) -> None:
         """Lockstep: trajectory goals taken in a batch, each replacing the previous one, in order."""
+        report = self.trajectory_report
+        if report is None:  # pragma: no cover - subscribed in lockstep only, where the status exists
+            return
         for data, times in batch:
             try:
                 msg = deserialize_message(data, JointTrajectory)
             except Exception as exc:  # noqa: BLE001 - any malformed message: refused, never fatal
-                self.trajectory_report.report("error", f"{topics.TOPIC_JOINT_TRAJECTORY}: malformed message ({exc})")
+                report.report("error", f"{topics.TOPIC_JOINT_TRAJECTORY}: malformed message ({exc})")
                 continue
-            if topic_trajectory(LocalView(self), msg, times, self.trajectory_report):
+            if topic_trajectory(LocalView(self), msg, times, report):
                 self.compute(self.core.pairing.take())
 
     def compute(self, paired: Paired | None) -> None:
