@@ -45,6 +45,7 @@ import contextlib
 import json
 import os
 import random
+import select
 import subprocess
 import sys
 import tempfile
@@ -70,6 +71,7 @@ PARAM_EVERY_S = 0.1
 NODE_EVERY_S = 0.4
 NODE_LIFE_S = 0.3
 PARTICIPANT_EVERY_S = 2.0
+WORKER_GRACE_S = 60.0  # a storm process answers its window's counts within this long after the window
 MOVE_RAD = 0.03  # each goal's move around the start position, per joint
 MOVE_S = 0.4
 ENDINGS = ("success", "goal_tolerance", "cancel", "preempted")
@@ -505,7 +507,12 @@ def main() -> int:
             for proc in storms:
                 proc.stdin.write(f"go {args.duration}\n")  # type: ignore[union-attr]
                 proc.stdin.flush()  # type: ignore[union-attr]
-            for proc in storms:
+            for role, proc in zip(roles, storms, strict=True):
+                # a client that hangs (rclpy once stood still destroying a guest node) fails the run, never hangs it
+                if not select.select([proc.stdout], [], [], args.duration + WORKER_GRACE_S)[0]:
+                    print(f"bench/storm.py: error: the storm's {role} clients did not answer within "
+                          f"{args.duration + WORKER_GRACE_S:g} s of their window (logs in {logs})", file=sys.stderr)
+                    return 1
                 counts = json.loads(proc.stdout.readline() or "{}")  # type: ignore[union-attr]
                 for key, value in counts.items():
                     did[key] = did.get(key, 0) + value
