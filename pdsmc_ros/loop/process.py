@@ -57,7 +57,8 @@ def choose_publication_mode(node_names: Sequence[str], args: Sequence[str] | Non
     interpreter lock so does every thread of the process. ``bench/storm.py`` measured the control
     loop standing still 13-22 ms when clients subscribed to its commands (best effort) and 333 ms
     when they subscribed to a reliable topic the process wrote; with asynchronous writes, neither
-    (worst lateness under 1 ms). Lockstep keeps the default: asynchronous writes add a thread
+    in two runs (worst lateness under 1 ms), while a third still stood still 333 ms (the sending
+    thread holds the writer while it waits). Lockstep keeps the default: asynchronous writes add a thread
     hand-off to every message of its round trips (``bench/lockstep.py``: 24,000 and 20,000 steps
     a second synchronous, 18,000 and 12,000 asynchronous).
     """
