@@ -566,7 +566,6 @@ class ParameterStandIn:
     def __init__(self, setup: dict[str, Any], context: Any, send: Callable[[object], None]) -> None:
         from rcl_interfaces.msg import Parameter as ParameterMsg
         from rcl_interfaces.msg import ParameterDescriptor
-        from rclpy.node import Node
         from rclpy.parameter import Parameter
         from rclpy.parameter_service import ParameterService
         from rclpy.serialization import deserialize_message
@@ -577,17 +576,16 @@ class ParameterStandIn:
 
         table = [(Parameter.from_parameter_msg(deserialize_message(value, ParameterMsg)),
                   deserialize_message(descriptor, ParameterDescriptor)) for value, descriptor in setup["parameters"]]
-        self.node = node = Node(f"{setup['name']}_parameters", namespace=setup["namespace"], context=context,
-                                use_global_arguments=False, start_parameter_services=False, enable_rosout=False,
-                                parameter_overrides=[p for p, _ in table if p.type_ != Parameter.Type.NOT_SET])
-        events = _EventsAs(node._parameter_event_publisher, setup["base"])  # noqa: SLF001 - rclpy's writer
-        node._parameter_event_publisher = events  # noqa: SLF001 - the events name the controller
+        self.node = node = _stand_in_node(
+            setup["base"], f"{setup['name']}_parameters", namespace=setup["namespace"], context=context,
+            use_global_arguments=False, start_parameter_services=False, enable_rosout=False,
+            parameter_overrides=[p for p, _ in table if p.type_ != Parameter.Type.NOT_SET])
         for parameter, descriptor in table:
             if not node.has_parameter(parameter.name):
                 unset = parameter.type_ == Parameter.Type.NOT_SET and descriptor.type != Parameter.Type.NOT_SET
                 node.declare_parameter(parameter.name, Parameter.Type(descriptor.type) if unset else parameter.value,
                                        descriptor)
-        events.on = True  # the controller announced its declarations
+        node._parameter_event_publisher.on = True  # noqa: SLF001 - the controller announced its declarations
         spec = setup["spec"]
         guard_run_parameters(node, spec.controller, gains=True)
         reference, stability = spec.reference(), setup["stability"] or {}
@@ -598,8 +596,25 @@ class ParameterStandIn:
         self.service = ParameterService(self.named)
 
     def destroy(self) -> None:
-        self.node._parameter_event_publisher = None  # noqa: SLF001 - the real writer is destroyed with the node
         self.node.destroy_node()
+
+
+def _stand_in_node(base: str, *args: Any, **kwargs: Any) -> Any:
+    """An rclpy Node whose ``/parameter_events`` name the controller ``base``, silent until its
+    writer's ``on`` is set: rclpy's own declarations in ``Node.__init__`` (``use_sim_time``) and
+    the stand-in's are the controller's, which it announced itself."""
+    from rclpy.node import Node
+
+    class StandInNode(Node):
+        @property
+        def _parameter_event_publisher(self) -> Any:
+            return self._events_as
+
+        @_parameter_event_publisher.setter
+        def _parameter_event_publisher(self, publisher: Any) -> None:  # rclpy's writer, then None at destruction
+            self._events_as = None if publisher is None else _EventsAs(publisher, base)
+
+    return StandInNode(*args, **kwargs)
 
 
 class _EventsAs:
