@@ -193,16 +193,16 @@ class ControllerNode(CommandingEntity):
         if self.lockstep:
             goals.subscribe(JointTrajectory, topics.TOPIC_JOINT_TRAJECTORY, self.on_goals, topics.TRAJECTORY_QOS,
                             with_receipt=True)
-        elif self.goal_process is not None:  # taken here as bytes, validated by the goal process
-            goals.subscribe(JointTrajectory, topics.TOPIC_JOINT_TRAJECTORY, self.goal_process.forward,
-                            topics.TRAJECTORY_QOS, with_receipt=True)
         if self.goal_process is not None and not self.goal_process.wait_ready(GOAL_PROCESS_START_S):
             # as joint_trajectory_controller's, the action exists once the controller is active
             node.get_logger().error(f"the goal process did not start within {GOAL_PROCESS_START_S:g} s: "
                                     "the action is served in the controller's process")
             self.goal_process.close()
             self.goal_process = None
-            self.serve_here()
+            self.serve_here()  # its server takes ~/joint_trajectory itself
+        if self.goal_process is not None:  # taken here as bytes, validated by the goal process
+            goals.subscribe(JointTrajectory, topics.TOPIC_JOINT_TRAJECTORY, self.goal_process.forward,
+                            topics.TRAJECTORY_QOS, with_receipt=True)
         if params.autostart:
             node.trigger_activate()
         waiting = "" if params.autostart else "; unconfigured until configure and activate"
