@@ -174,11 +174,9 @@ def given_value(name: str, node_fqn: str, args: Iterable[str]) -> Any:
                 if name in values and section_matches(section, node_fqn):
                     value = values[name]
     node = node_fqn.rsplit("/", 1)[-1]
-    for flag, given in zip(args, args[1:]):
-        if flag in ("-p", "--param") and ":=" in given:
-            key, text = given.split(":=", 1)
-            if key == name or key == f"{node}:{name}":
-                value = text
+    for target, key, text in param_arguments(args):
+        if key == name and target in ("", node):
+            value = text
     return value
 
 
@@ -186,3 +184,16 @@ def params_files_in(args: Iterable[str]) -> list[str]:
     """The files of every ``--params-file FILE`` among a process's ROS arguments."""
     args = list(args)
     return [args[i + 1] for i, arg in enumerate(args[:-1]) if arg == "--params-file"]
+
+
+def param_arguments(args: Iterable[str]) -> list[tuple[str, str, str]]:
+    """Every ``-p``/``--param`` among a process's ROS arguments as ``(node, name, value)``: ``node``
+    is "" for ``name:=value`` (every node) and the node's name for ``node:name:=value``."""
+    args = list(args)
+    found = []
+    for flag, given in zip(args, args[1:]):
+        if flag in ("-p", "--param") and ":=" in given:
+            key, value = given.split(":=", 1)
+            node, _, name = key.rpartition(":")
+            found.append((node, name, value))
+    return found

@@ -19,6 +19,7 @@ from ..settings import (
     ALWAYS_DECLARED,
     is_declared,
     node_parameters,
+    param_arguments,
     params_files_in,
     read_params_file,
     section_matches,
@@ -62,9 +63,7 @@ def warn_unknown_arguments(name: str, args: Sequence[str] | None) -> None:
     whose gains were then refused)."""
     args = list(sys.argv if args is None else args)
     known = [*package_parameter_names(), *ALWAYS_DECLARED]
-    for flag, value in zip(args, args[1:]):
-        if flag in ("-p", "--param") and ":=" in value:
-            key = value.split(":=", 1)[0].rsplit(":", 1)[-1]  # node:name:=value names a node's parameter
-            if not is_declared(key, known):
-                print(f"{name}: warning: {unknown_parameter(key, known)}: ignored", file=sys.stderr, flush=True)
+    for _, key, _ in param_arguments(args):  # node:name:=value names a node's parameter
+        if not is_declared(key, known):
+            print(f"{name}: warning: {unknown_parameter(key, known)}: ignored", file=sys.stderr, flush=True)
 
