@@ -71,6 +71,7 @@ PARAM_EVERY_S = 0.1
 NODE_EVERY_S = 0.4
 NODE_LIFE_S = 0.3
 PARTICIPANT_EVERY_S = 2.0
+CAUSE_WINDOW_S = 0.005  # late_tick_causes: how long before a late tick's deadline an event may have caused it
 WORKER_GRACE_S = 60.0  # a storm process answers its window's counts within this long after the window
 MOVE_RAD = 0.03  # each goal's move around the start position, per joint
 MOVE_S = 0.4
@@ -120,6 +121,7 @@ class Storm:
         self.node.create_subscription(String, "/pdsmc/run_description", self._on_description,
                                       QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL))
         self.counts: dict[str, int] = {}
+        self.events: list[tuple[float, str]] = []  # (wall time, what) of each count in this window
         self.home: np.ndarray | None = None
         self.names: list[str] = []
         self.large: list[Any] = []  # the large goals, built once (20,000 points take seconds in Python)
@@ -135,6 +137,7 @@ class Storm:
 
     def count(self, what: str, n: int = 1) -> None:
         self.counts[what] = self.counts.get(what, 0) + n
+        self.events.append((time.time(), what))
 
     def spin_until(self, condition: Any, seconds: float) -> bool:
         end = time.monotonic() + seconds
@@ -268,6 +271,7 @@ class Storm:
         for until, node, context in self.guests:
             if everyone or now >= until:
                 node.destroy_node()
+                self.count("disconnections")
                 if context is not None:
                     self.rclpy.try_shutdown(context=context)
             else:
@@ -275,9 +279,11 @@ class Storm:
         self.guests = keep
 
     # -- the storm ------------------------------------------------------------ #
-    def run(self, seconds: float) -> dict[str, int]:
-        """This role's part of the storm for ``seconds``; what it did."""
+    def run(self, seconds: float) -> dict[str, Any]:
+        """This role's part of the storm for ``seconds``; what it did (counts, and ``events``: each
+        one's wall time)."""
         self.counts = {}
+        self.events = []
         start = time.monotonic()
         end = start + seconds
         every = {"goals": (("goal", GOAL_EVERY_S),), "params": (("param", PARAM_EVERY_S),),
@@ -308,7 +314,7 @@ class Storm:
         for handle, _, _ in list(self.active):
             handle.cancel_goal_async()
         self.spin_until(lambda: not self.active, 3.0)
-        return self.counts
+        return {**self.counts, "events": self.events}
 
     def close(self) -> None:
         self.disconnect(0.0, everyone=True)
@@ -383,6 +389,33 @@ class TimingRows:
         self.rclpy.try_shutdown(context=self.context)
 
 
+def late_tick_causes(rows: np.ndarray, windows: list[tuple[str, float, float, str]],
+                     events: list[tuple[float, str]], period: float) -> str:
+    """What the storm did just before each of its missed deadlines: the events from
+    ``CAUSE_WINDOW_S`` before the late tick's deadline to the tick, counted by kind (a tick late
+    in an idle window has no storm event to blame; the idle windows' count is the base rate)."""
+    late = rows[rows[:, 3] > period]
+    kinds: dict[str, int] = {}
+    ticks = {"idle": 0, "storm": 0}
+    unexplained = 0
+    times = np.array([t for t, _ in events])
+    for tick, _, _, lateness in late[:, :4]:
+        kind = next((name for name, a, b, _ in windows if a <= tick < b), None)
+        if kind is None:
+            continue
+        ticks[kind] += 1
+        if kind == "idle":
+            continue
+        near = np.flatnonzero((times >= tick - lateness - CAUSE_WINDOW_S) & (times <= tick)) if len(times) else []
+        if not len(near):
+            unexplained += 1
+        for k in near:
+            kinds[events[k][1]] = kinds.get(events[k][1], 0) + 1
+    listed = ", ".join(f"{what} {n}" for what, n in sorted(kinds.items(), key=lambda item: -item[1]))
+    return (f"missed deadlines: {ticks['idle']} idle, {ticks['storm']} in the storm; storm events in the "
+            f"{1e3 * CAUSE_WINDOW_S:g} ms before them: {listed or 'none'}; with none: {unexplained}")
+
+
 def window_figures(rows: np.ndarray, start: float, end: float, period: float) -> dict[str, float]:
     """The lateness of the commanding ticks whose wall time lies in ``[start, end)``."""
     inside = rows[(rows[:, 0] >= start) & (rows[:, 0] < end)]
@@ -411,6 +444,16 @@ def print_table(labelled: list[tuple[str, dict[str, float], str]]) -> None:
     for label, figures, load in labelled:
         cells = "".join(f"{(fmt.format(figures[key]) if key in figures else '-'):>16s}" for key, _, fmt in COLUMNS)
         print(f"{label:14s}{cells}  {load}")
+
+
+def answer(proc: subprocess.Popen[Any]) -> dict[str, Any]:
+    """A storm process's next answer: its next line that is a JSON object. Fast DDS logs its own
+    errors to the standard output, which is the answers' pipe; such lines go to stderr."""
+    for line in proc.stdout:  # type: ignore[union-attr]
+        if line.startswith("{"):
+            return json.loads(line)
+        print(f"storm process: {line.rstrip()}", file=sys.stderr)
+    return {}
 
 
 def ratio(storm: float, idle: float) -> float:
@@ -490,7 +533,7 @@ def main() -> int:
                 [sys.executable, __file__, "--worker", role, "--domain", str(args.domain),
                  "--large-points", str(args.large_points), "--seed", str(args.seed)],
                 env=env, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, start_new_session=True))
-            hello = json.loads(storms[-1].stdout.readline() or "{}")  # type: ignore[union-attr]
+            hello = answer(storms[-1])
             if not hello.get("ready"):
                 print(f"bench/storm.py: error: the storm's {role} clients did not connect: {hello}", file=sys.stderr)
                 return 1
@@ -499,6 +542,7 @@ def main() -> int:
         time.sleep(2.0)  # the storm's connection settles
         windows: list[tuple[str, float, float, str]] = []
         did: dict[str, int] = {}
+        events: list[tuple[float, str]] = []  # (wall time, what) of everything the storm did
         for _ in range(args.rounds):
             start, loaded = time.time(), load()
             time.sleep(args.duration)
@@ -513,7 +557,8 @@ def main() -> int:
                     print(f"bench/storm.py: error: the storm's {role} clients did not answer within "
                           f"{args.duration + WORKER_GRACE_S:g} s of their window (logs in {logs})", file=sys.stderr)
                     return 1
-                counts = json.loads(proc.stdout.readline() or "{}")  # type: ignore[union-attr]
+                counts = answer(proc)
+                events.extend((float(t), str(what)) for t, what in counts.pop("events", []))
                 for key, value in counts.items():
                     did[key] = did.get(key, 0) + value
             windows.append(("storm", start, start + args.duration, loaded))
@@ -535,6 +580,7 @@ def main() -> int:
               "after its deadline")
         print_table(labelled + [(f"{kind} (all)", pooled[kind], "") for kind in ("idle", "storm")])
         print("storm: " + ", ".join(f"{key} {value}" for key, value in sorted(did.items())))
+        print(late_tick_causes(rows, windows, events, period))
         idle, busy_figures = pooled["idle"], pooled["storm"]
         if "p99_us" not in idle or "p99_us" not in busy_figures:
             span = f"{rows[0, 0]:.3f}-{rows[-1, 0]:.3f}" if len(rows) else "none"

@@ -20,6 +20,7 @@ from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 
 from ..errors import InvalidInputError, PdsmcError
 from ..parameters.overrides import check_overrides, warn_unknown_arguments
+from ..resources import config_dir
 from ..settings import given_value
 from . import intra
 from .inputs import Inputs
@@ -44,31 +45,64 @@ def run_node(
 
 
 PUBLICATION_MODE = "RMW_FASTRTPS_PUBLICATION_MODE"
+BUILTIN_TRANSPORTS = "FASTDDS_BUILTIN_TRANSPORTS"
+PROFILES_FILE = "FASTRTPS_DEFAULT_PROFILES_FILE"  # the name Fast DDS 2.x reads
+DISCOVERY_RANGE = "ROS_AUTOMATIC_DISCOVERY_RANGE"
+# settings by which the environment already chooses the transports: left as they are
+TRANSPORTS_CHOSEN_BY = (BUILTIN_TRANSPORTS, PROFILES_FILE, "FASTDDS_DEFAULT_PROFILES_FILE", "ROS_LOCALHOST_ONLY")
+LOCALHOST_PROFILE = "fastdds_realtime_localhost.xml"  # in config/
 ALWAYS_REAL_TIME = ("mujoco_driver",)  # nodes that run in real time whatever their parameters
 
 
-def choose_publication_mode(node_names: Sequence[str], args: Sequence[str] | None) -> str | None:
-    """Before ``rclpy.init``: real time, the middleware's writes made asynchronous
-    (``RMW_FASTRTPS_PUBLICATION_MODE=ASYNCHRONOUS``) unless the environment already chooses; the
-    mode set, or None.
+def choose_middleware(node_names: Sequence[str], args: Sequence[str] | None) -> dict[str, str]:
+    """Before ``rclpy.init``: a real-time process's middleware settings put in the environment;
+    those set (none for a lockstep process, and none the environment already chooses).
 
-    rmw_fastrtps writes synchronously by default: a write sends in the calling thread, which
-    waits while the middleware matches a reader that has just appeared, and through the
-    interpreter lock so does every thread of the process. ``bench/storm.py`` measured the control
-    loop standing still 13-22 ms when clients subscribed to its commands (best effort) and 333 ms
-    when they subscribed to a reliable topic the process wrote; with asynchronous writes, neither
-    in two runs (worst lateness under 1 ms), while a third still stood still 333 ms (the sending
-    thread holds the writer while it waits). Lockstep keeps the default: asynchronous writes add a thread
-    hand-off to every message of its round trips (``bench/lockstep.py``: 24,000 and 20,000 steps
-    a second synchronous, 18,000 and 12,000 asynchronous).
+    Two ways in which Fast DDS (rmw_fastrtps) makes a writer wait for a reader that has just
+    appeared, and through the interpreter lock every thread of the process with it:
+
+    * rmw_fastrtps writes synchronously by default: a write sends in the calling thread, which
+      waits while the middleware matches the new reader (``bench/storm.py``: the control loop
+      stood still 13-22 ms when clients subscribed to its commands). Real time writes
+      asynchronously (``RMW_FASTRTPS_PUBLICATION_MODE=ASYNCHRONOUS``): the middleware's own
+      thread sends.
+    * Its shared-memory transport checks a process's port before it first sends to it and, when
+      the port's listener has not yet answered, sleeps a third of the port's
+      ``healthy_check_timeout_ms`` (1 s by default, set by the port's owner, so by the client)
+      while it holds the writer and the participant's send lock (Fast DDS 2.14
+      ``SharedMemGlobal::Port::healthy_check``, reached from ``StatefulWriter::matched_reader_add``):
+      the 333 ms stand-stills of ``bench/storm.py`` as clients came and went. Real time sends over
+      UDP only, so it never opens a client's port; the other processes keep shared memory among
+      themselves. For the discovery ranges SUBNET (Jazzy's default) and SYSTEM_DEFAULT that is
+      ``FASTDDS_BUILTIN_TRANSPORTS=UDPv4``. For LOCALHOST rmw_fastrtps always adds a shared-memory
+      transport, so the process takes ``config/fastdds_realtime_localhost.xml`` (LOCALHOST's
+      discovery, over the loopback only) with the range SYSTEM_DEFAULT, under which rmw_fastrtps
+      keeps the profile's transports.
+
+    Transports stay as the environment has them under another middleware (``RMW_IMPLEMENTATION``),
+    with discovery OFF, with LOCALHOST and static peers (other hosts too), and where the
+    environment already chooses them (:data:`TRANSPORTS_CHOSEN_BY`: a profiles file, built-in
+    transports or the deprecated ``ROS_LOCALHOST_ONLY``).
+
+    Lockstep keeps the defaults: asynchronous writes add a thread hand-off to every message of
+    its round trips (``bench/lockstep.py``: 24,000 and 20,000 steps a second synchronous,
+    18,000 and 12,000 asynchronous).
     """
     argv = list(sys.argv if args is None else args)
-    realtime = any(name in ALWAYS_REAL_TIME or given_value("mode", f"/{name}", argv) == "realtime"
-                   for name in node_names)
-    if realtime and PUBLICATION_MODE not in os.environ:
-        os.environ[PUBLICATION_MODE] = "ASYNCHRONOUS"
-        return "ASYNCHRONOUS"
-    return None
+    if not any(name in ALWAYS_REAL_TIME or given_value("mode", f"/{name}", argv) == "realtime"
+               for name in node_names):
+        return {}
+    chosen = {} if PUBLICATION_MODE in os.environ else {PUBLICATION_MODE: "ASYNCHRONOUS"}
+    discovery = os.environ.get(DISCOVERY_RANGE, "")
+    if ((os.environ.get("RMW_IMPLEMENTATION") or "rmw_fastrtps_cpp") == "rmw_fastrtps_cpp"
+            and not any(os.environ.get(key) for key in TRANSPORTS_CHOSEN_BY)):
+        if discovery == "LOCALHOST" and not os.environ.get("ROS_STATIC_PEERS"):  # peers: other hosts too
+            chosen[DISCOVERY_RANGE] = "SYSTEM_DEFAULT"
+            chosen[PROFILES_FILE] = str(config_dir() / LOCALHOST_PROFILE)
+        elif discovery in ("", "SUBNET", "SYSTEM_DEFAULT"):
+            chosen[BUILTIN_TRANSPORTS] = "UDPv4"
+    os.environ.update(chosen)
+    return chosen
 
 
 def run_nodes(
@@ -86,7 +120,7 @@ def run_nodes(
     creation, so a recorder created first is closed last. ``intra_process``
     hands the loop's messages between them without DDS (:mod:`.intra`).
     """
-    choose_publication_mode([name] if node_names is None else node_names, args)
+    choose_middleware([name] if node_names is None else node_names, args)
     rclpy.init(args=args)
     wrappers: list[Any] = []
     reports: list[LoopReport] = []  # the real-time settings and loop statistics of each loop node

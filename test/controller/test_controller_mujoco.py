@@ -63,6 +63,7 @@ class Client(SpunNode):
         self.states: list[tuple[float, np.ndarray, np.ndarray]] = []  # (stamp s, q, qd) by NAMES
         self.commands: list[tuple[float, tuple[float, ...]]] = []
         self.controller_states: list[JointTrajectoryControllerState] = []
+        self.pids: list[int] = []  # the processes the test started (the driver, the controller)
         # the newest state and command only: a Python client on a loaded machine may take fewer than
         # 1,000 a second, and a deep queue would make it fall behind the arm
         self.node.create_subscription(JointState, "/joint_states", self.on_state, 1)
@@ -194,6 +195,7 @@ def setup(ros_env: dict, tmp_path: Path):  # noqa: ANN201
         procs.append(controller(ros_env, domain, tmp_path / "controller.log", joints, *controller_params))
         client.append(Client(domain))
         assert client[0].wait(lambda: len(client[0].states) > 100, 90), (tmp_path / "driver.log").read_text()
+        client[0].pids = [proc.pid for proc in procs]
         return client[0]
 
     yield make, tmp_path
@@ -293,6 +295,11 @@ def test_follow_joint_trajectory_action(setup) -> None:  # noqa: ANN001
     client = make()
     # holding on activation
     assert client.wait(lambda: len(client.commands) > 100 and len(client.states) > 0, 30), logs(tmp_path)
+    # real time talks UDP on the loopback only (pdsmc_ros/loop/process.py choose_middleware): the driver and
+    # the controller map no Fast DDS shared-memory segment, as this client, with the default transports, does
+    assert "/dev/shm/fastrtps_" in Path("/proc/self/maps").read_text()
+    for pid in client.pids:
+        assert "/dev/shm/fastrtps_" not in Path(f"/proc/{pid}/maps").read_text(), logs(tmp_path)
 
     # success: within the goal tolerance at the end; then the last point is held
     q0 = client.q()
