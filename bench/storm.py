@@ -581,6 +581,9 @@ def main() -> int:
         print_table(labelled + [(f"{kind} (all)", pooled[kind], "") for kind in ("idle", "storm")])
         print("storm: " + ", ".join(f"{key} {value}" for key, value in sorted(did.items())))
         print(late_tick_causes(rows, windows, events, period))
+        late = rows[rows[:, 3] > period]
+        (logs / "storm.json").write_text(json.dumps({  # for a closer look: the late ticks and every storm event
+            "windows": windows, "late_ticks": late[:, :4].tolist(), "events": events}))
         idle, busy_figures = pooled["idle"], pooled["storm"]
         if "p99_us" not in idle or "p99_us" not in busy_figures:
             span = f"{rows[0, 0]:.3f}-{rows[-1, 0]:.3f}" if len(rows) else "none"
