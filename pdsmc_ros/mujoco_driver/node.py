@@ -86,6 +86,7 @@ class MujocoDriverNode:
         self.ticks = 0
         self.periods: deque[float] = deque(maxlen=PERIODS_KEPT)  # achieved periods (s), for the closing line
         self.last_tick = 0.0
+        self.longest = (0.0, 0.0)  # the longest achieved period (s) and the wall time it ended, for the closing line
         self.publish_state()
         node.get_logger().info(
             f"MuJoCo {robot} ({arm.n} joints), {rate:g} Hz x {substeps} RK4 steps, /joint_states in "
@@ -128,6 +129,8 @@ class MujocoDriverNode:
                 f"no command for {self.driver.command_timeout:g} s: brakes closed until the next one")
         if self.last_tick:
             self.periods.append(now - self.last_tick)
+            if now - self.last_tick > self.longest[0]:
+                self.longest = (now - self.last_tick, time.time())
         self.last_tick = now
         self.publish_state()
 
@@ -146,7 +149,8 @@ class MujocoDriverNode:
             self.node.get_logger().info(
                 f"{self.ticks} states, mean rate {1.0 / p.mean():.1f} Hz, period jitter p50 "
                 f"{np.percentile(jitter, 50) * 1e6:.0f} us, p99 {np.percentile(jitter, 99) * 1e6:.0f} us, "
-                f"max {jitter.max() * 1e6:.0f} us; {self.driver.commands} commands, {self.driver.dropped} dropped")
+                f"max {jitter.max() * 1e6:.0f} us; {self.driver.commands} commands, {self.driver.dropped} dropped; "
+                f"longest period {self.longest[0] * 1e6:.0f} us, ended at {self.longest[1]:.3f} (wall clock)")
 
 
 def main(args: Sequence[str] | None = None) -> int:
