@@ -8,6 +8,7 @@ import signal
 import sys
 import time
 from collections.abc import Callable, Sequence
+from pathlib import Path
 from typing import Any
 
 import rclpy
@@ -18,7 +19,7 @@ from rclpy.exceptions import (
 )
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 
-from ..errors import InvalidInputError, PdsmcError
+from ..errors import ConfigError, InvalidInputError, PdsmcError
 from ..parameters.overrides import check_overrides, warn_unknown_arguments
 from ..resources import config_dir
 from ..settings import given_value
@@ -49,8 +50,11 @@ BUILTIN_TRANSPORTS = "FASTDDS_BUILTIN_TRANSPORTS"
 PROFILES_FILE = "FASTRTPS_DEFAULT_PROFILES_FILE"  # the name Fast DDS 2.x reads
 DISCOVERY_RANGE = "ROS_AUTOMATIC_DISCOVERY_RANGE"
 # settings by which the environment already chooses the transports: left as they are
-TRANSPORTS_CHOSEN_BY = (BUILTIN_TRANSPORTS, PROFILES_FILE, "FASTDDS_DEFAULT_PROFILES_FILE", "ROS_LOCALHOST_ONLY")
+TRANSPORTS_CHOSEN_BY = (BUILTIN_TRANSPORTS, PROFILES_FILE, "FASTDDS_DEFAULT_PROFILES_FILE")
 LOCALHOST_PROFILE = "fastdds_realtime_localhost.xml"  # in config/
+# in config/: scripts/run_experiment.sh's profile (leases and heartbeats, no transports): under SUBNET and
+# SYSTEM_DEFAULT the built-in transports still apply beside it
+OWN_PROFILE = "fastdds_profile.xml"
 ALWAYS_REAL_TIME = ("mujoco_driver",)  # nodes that run in real time whatever their parameters
 
 
@@ -80,9 +84,12 @@ def choose_middleware(node_names: Sequence[str], args: Sequence[str] | None) -> 
       keeps the profile's transports.
 
     Transports stay as the environment has them under another middleware (``RMW_IMPLEMENTATION``),
-    with discovery OFF, with LOCALHOST and static peers (other hosts too), and where the
-    environment already chooses them (:data:`TRANSPORTS_CHOSEN_BY`: a profiles file, built-in
-    transports or the deprecated ``ROS_LOCALHOST_ONLY``).
+    with discovery OFF, with the deprecated ``ROS_LOCALHOST_ONLY=1``, with LOCALHOST and static
+    peers (other hosts too) or ``scripts/run_experiment.sh``'s profile (:data:`OWN_PROFILE`, whose
+    leases and heartbeats the real-time profile does not carry), and where the environment already
+    chooses them (:data:`TRANSPORTS_CHOSEN_BY`: a profiles file other than :data:`OWN_PROFILE`,
+    built-in transports). The process's children (the controller's goal process) inherit what is
+    set.
 
     Lockstep keeps the defaults: asynchronous writes add a thread hand-off to every message of
     its round trips (``bench/lockstep.py``: 24,000 and 20,000 steps a second synchronous,
@@ -92,17 +99,37 @@ def choose_middleware(node_names: Sequence[str], args: Sequence[str] | None) -> 
     if not any(name in ALWAYS_REAL_TIME or given_value("mode", f"/{name}", argv) == "realtime"
                for name in node_names):
         return {}
-    chosen = {} if PUBLICATION_MODE in os.environ else {PUBLICATION_MODE: "ASYNCHRONOUS"}
-    discovery = os.environ.get(DISCOVERY_RANGE, "")
-    if ((os.environ.get("RMW_IMPLEMENTATION") or "rmw_fastrtps_cpp") == "rmw_fastrtps_cpp"
-            and not any(os.environ.get(key) for key in TRANSPORTS_CHOSEN_BY)):
-        if discovery == "LOCALHOST" and not os.environ.get("ROS_STATIC_PEERS"):  # peers: other hosts too
-            chosen[DISCOVERY_RANGE] = "SYSTEM_DEFAULT"
-            chosen[PROFILES_FILE] = str(config_dir() / LOCALHOST_PROFILE)
+    environ = os.environ
+    chosen = {} if environ.get(PUBLICATION_MODE) else {PUBLICATION_MODE: "ASYNCHRONOUS"}  # "": rmw's default
+    discovery = environ.get(DISCOVERY_RANGE, "")
+    try:
+        config = config_dir()
+    except ConfigError:  # a broken install: the node says so itself
+        config = None
+    own_profile = config is not None and _same_file(environ.get(PROFILES_FILE, ""), config / OWN_PROFILE)
+    fastrtps = (environ.get("RMW_IMPLEMENTATION") or "rmw_fastrtps_cpp") == "rmw_fastrtps_cpp"
+    # rcl: ROS_LOCALHOST_ONLY=1 (deprecated) overrides the range; any other value leaves it
+    user_choice = [key for key in TRANSPORTS_CHOSEN_BY
+                   if environ.get(key) and not (own_profile and key == PROFILES_FILE)]
+    if fastrtps and config is not None and environ.get("ROS_LOCALHOST_ONLY") != "1" and not user_choice:
+        if discovery == "LOCALHOST":
+            # not with static peers (other hosts too), nor in place of run_experiment.sh's profile,
+            # whose leases and heartbeats the real-time profile does not carry
+            if not environ.get("ROS_STATIC_PEERS") and not own_profile:
+                chosen[DISCOVERY_RANGE] = "SYSTEM_DEFAULT"
+                chosen[PROFILES_FILE] = str(config / LOCALHOST_PROFILE)
         elif discovery in ("", "SUBNET", "SYSTEM_DEFAULT"):
             chosen[BUILTIN_TRANSPORTS] = "UDPv4"
-    os.environ.update(chosen)
+    environ.update(chosen)
     return chosen
+
+
+def _same_file(path: str, other: Path) -> bool:
+    """Whether ``path`` (an environment variable's value, maybe empty) names the file ``other``."""
+    try:
+        return bool(path) and os.path.samefile(path, other)
+    except OSError:
+        return False
 
 
 def run_nodes(

@@ -21,6 +21,7 @@ from pdsmc_ros.loop.process import (  # noqa: E402
     TRANSPORTS_CHOSEN_BY,
     choose_middleware,
 )
+from pdsmc_ros.resources import config_dir  # noqa: E402
 from pdsmc_ros.settings import given_value  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -74,7 +75,15 @@ def test_real_time_writes_asynchronously_over_udp_unless_the_environment_chooses
     assert chosen(["controller"], realtime, RMW_IMPLEMENTATION="rmw_cyclonedds_cpp") == writes_only
     for key in TRANSPORTS_CHOSEN_BY:
         assert chosen(["controller"], realtime, **{key: "1", DISCOVERY_RANGE: "LOCALHOST"}) == writes_only, key
+    assert chosen(["controller"], realtime, ROS_LOCALHOST_ONLY="1") == writes_only  # rcl: LOCALHOST, rmw's
+    assert chosen(["controller"], realtime, ROS_LOCALHOST_ONLY="0") == udp  # rcl: the range decides
     assert chosen(["controller"], realtime, **{PUBLICATION_MODE: "SYNCHRONOUS"}) == {BUILTIN_TRANSPORTS: "UDPv4"}
+    assert chosen(["controller"], realtime, **{PUBLICATION_MODE: ""}) == udp  # empty: rmw's default, unchosen
+    # scripts/run_experiment.sh's own profile (leases, heartbeats) sets no transports: UDP beside it under
+    # SUBNET; under LOCALHOST the real-time profile would drop its settings, so shared memory stays
+    own = {PROFILES_FILE: str(config_dir() / "fastdds_profile.xml")}  # where run_experiment.sh finds it
+    assert chosen(["controller"], realtime, **own) == udp
+    assert chosen(["controller"], realtime, **own, **{DISCOVERY_RANGE: "LOCALHOST"}) == writes_only
 
 
 def test_the_real_time_localhost_profile_is_valid_fast_dds_xml() -> None:
