@@ -60,6 +60,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from pdsmc_ros.controller import joint_trajectory  # noqa: E402
+from pdsmc_ros.loop.statistics import missed  # noqa: E402
 
 # the controller's size limit for a trajectory (a goal at the limit is validated); 5,000 where it has none
 MAX_POINTS = int(getattr(joint_trajectory, "MAX_POINTS", 5_000))
@@ -389,12 +390,12 @@ class TimingRows:
         self.rclpy.try_shutdown(context=self.context)
 
 
-def late_tick_causes(rows: np.ndarray, windows: list[tuple[str, float, float, str]],
-                     events: list[tuple[float, str]], period: float) -> str:
-    """What the storm did just before each of its missed deadlines: the events from
-    ``CAUSE_WINDOW_S`` before the late tick's deadline to the tick, counted by kind (a tick late
-    in an idle window has no storm event to blame; the idle windows' count is the base rate)."""
-    late = rows[rows[:, 3] > period]
+def late_tick_causes(late: np.ndarray, windows: list[tuple[str, float, float, str]],
+                     events: list[tuple[float, str]]) -> str:
+    """What the storm did just before each of its missed deadlines (``late``: the timing rows of the
+    ticks that missed theirs): the events from ``CAUSE_WINDOW_S`` before the late tick's deadline
+    to the tick, counted by kind (a tick late in an idle window has no storm event to blame; the
+    idle windows' count is the base rate)."""
     kinds: dict[str, int] = {}
     ticks = {"idle": 0, "storm": 0}
     unexplained = 0
@@ -428,7 +429,7 @@ def window_figures(rows: np.ndarray, start: float, end: float, period: float) ->
             "p99_us": 1e6 * float(np.percentile(lateness, 99)),
             "p999_us": 1e6 * float(np.percentile(lateness, 99.9)),
             "worst_us": 1e6 * float(lateness.max()),
-            "missed": float(np.count_nonzero(lateness > period)),
+            "missed": float(np.count_nonzero(missed(lateness, period))),
             "lost": float(np.maximum(np.round(achieved / period) - 1.0, 0.0).sum()),
             "worst_period_us": 1e6 * float(achieved.max())}
 
@@ -580,8 +581,8 @@ def main() -> int:
               "after its deadline")
         print_table(labelled + [(f"{kind} (all)", pooled[kind], "") for kind in ("idle", "storm")])
         print("storm: " + ", ".join(f"{key} {value}" for key, value in sorted(did.items())))
-        print(late_tick_causes(rows, windows, events, period))
-        late = rows[rows[:, 3] > period]
+        late = rows[missed(rows[:, 3], period)]
+        print(late_tick_causes(late, windows, events))
         (logs / "storm.json").write_text(json.dumps({  # for a closer look: the late ticks and every storm event
             "windows": windows, "late_ticks": late[:, :4].tolist(), "events": events}))
         idle, busy_figures = pooled["idle"], pooled["storm"]

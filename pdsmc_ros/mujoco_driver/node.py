@@ -128,9 +128,10 @@ class MujocoDriverNode:
             self.node.get_logger().warn(
                 f"no command for {self.driver.command_timeout:g} s: brakes closed until the next one")
         if self.last_tick:
-            self.periods.append(now - self.last_tick)
-            if now - self.last_tick > self.longest[0]:
-                self.longest = (now - self.last_tick, time.time())
+            period = now - self.last_tick
+            self.periods.append(period)
+            if period > self.longest[0]:
+                self.longest = (period, time.time())
         self.last_tick = now
         self.publish_state()
 
