@@ -30,11 +30,19 @@ deadlines (a tick started more than a period late) and the ticks lost (periods w
 the load average at each window's start, and what the storm did. ``--busy`` keeps one core
 busy with another process throughout. Target (issue 37): the storm within 1.2x of idle.
 
+``--control`` keeps the storm's processes connected but quiet in the storm windows: the spread
+of the ratios between two kinds of window that differ in nothing (the measurement's own noise on
+this machine, against which the storm's ratios are read).
+
+The logs directory (named on the ratios' line) keeps each process's log, ``storm.json`` (the
+windows, the late ticks and every storm event) and ``timing.npy`` (every commanding tick's
+timing row).
+
 Last line: ``idle_p99_us=A storm_p99_us=B ratio_p99=C idle_worst_us=D storm_worst_us=E ratio_worst=F``
 (each window kind pooled over the rounds).
 
 Usage: python bench/storm.py [--duration 10] [--rounds 1] [--busy] [--large-points 20000]
-       [--domain N] [--law pd] [--roles goals,params,large,connections]
+       [--domain N] [--law pd] [--roles goals,params,large,connections] [--control]
        (inside the venv, the venv's bin first on PATH)
 """
 
@@ -317,6 +325,12 @@ class Storm:
         self.spin_until(lambda: not self.active, 3.0)
         return {**self.counts, "events": self.events}
 
+    def rest(self, seconds: float) -> dict[str, Any]:
+        """A control window (``--control``): connected, subscribed and spinning as in the idle
+        windows, for ``seconds``, sending nothing."""
+        self.spin_until(lambda: False, seconds)
+        return {"events": []}
+
     def close(self) -> None:
         self.disconnect(0.0, everyone=True)
         self.action.destroy()
@@ -325,7 +339,8 @@ class Storm:
 
 
 def worker(role: str, domain: int, large_points: int, seed: int) -> int:
-    """A storm process: "ready" once connected, then one storm per "go SECONDS" line on stdin."""
+    """A storm process: "ready" once connected, then one storm per "go SECONDS" line on stdin (a
+    quiet window per "rest SECONDS")."""
     storm = Storm(role, domain, large_points, seed)
     try:
         if not storm.ready():
@@ -335,9 +350,10 @@ def worker(role: str, domain: int, large_points: int, seed: int) -> int:
         print(json.dumps({"ready": True}), flush=True)
         for line in sys.stdin:
             words = line.split()
-            if not words or words[0] != "go":
+            if not words or words[0] not in ("go", "rest"):
                 break
-            print(json.dumps(storm.run(float(words[1]))), flush=True)
+            seconds = float(words[1])
+            print(json.dumps(storm.run(seconds) if words[0] == "go" else storm.rest(seconds)), flush=True)
         return 0
     finally:
         storm.close()
@@ -489,6 +505,9 @@ def main() -> int:
                         help="an extra controller parameter, e.g. --param thread_priority:=0")
     parser.add_argument("--roles", default=",".join(ROLES),
                         help=f"the storm's processes, comma-separated, of {', '.join(ROLES)} (default all)")
+    parser.add_argument("--control", action="store_true",
+                        help="a control run: the storm's processes stay connected but quiet in the storm windows "
+                             "(the ratios' noise on this machine)")
     parser.add_argument("--worker", choices=ROLES, help=argparse.SUPPRESS)
     parser.add_argument("--seed", type=int, default=37, help=argparse.SUPPRESS)
     args = parser.parse_args()
@@ -550,7 +569,7 @@ def main() -> int:
             windows.append(("idle", start, time.time(), loaded))
             start, loaded = time.time(), load()
             for proc in storms:
-                proc.stdin.write(f"go {args.duration}\n")  # type: ignore[union-attr]
+                proc.stdin.write(f"{'rest' if args.control else 'go'} {args.duration}\n")  # type: ignore[union-attr]
                 proc.stdin.flush()  # type: ignore[union-attr]
             for role, proc in zip(roles, storms, strict=True):
                 # a client that hangs (rclpy once stood still destroying a guest node) fails the run, never hangs it
@@ -567,7 +586,8 @@ def main() -> int:
         time.sleep(0.5)  # the last timing batch
         rows = timing.all()
         period = 1.0 / RATE
-        labelled = [(f"{kind} {k // 2 + 1}", window_figures(rows, a, b, period), loaded)
+        second = "control" if args.control else "storm"  # the second window of each round
+        labelled = [(f"{second if kind == 'storm' else kind} {k // 2 + 1}", window_figures(rows, a, b, period), loaded)
                     for k, (kind, a, b, loaded) in enumerate(windows)]
         pooled = {}
         for kind in ("idle", "storm"):
@@ -579,19 +599,23 @@ def main() -> int:
         print(f"controller {args.law}, UR5 against the MuJoCo stand-in, {RATE:g} Hz real time, windows of "
               f"{args.duration:g} s{', one core kept busy' if args.busy else ''}; lateness of each commanding tick "
               "after its deadline")
-        print_table(labelled + [(f"{kind} (all)", pooled[kind], "") for kind in ("idle", "storm")])
+        if args.control:
+            print("a control run: in the control windows the storm's processes are connected and quiet")
+        print_table(labelled + [(f"{second if kind == 'storm' else kind} (all)", pooled[kind], "")
+                                for kind in ("idle", "storm")])
         print("storm: " + ", ".join(f"{key} {value}" for key, value in sorted(did.items())))
         late = rows[missed(rows[:, 3], period)]
         print(late_tick_causes(late, windows, events))
         (logs / "storm.json").write_text(json.dumps({  # for a closer look: the late ticks and every storm event
             "windows": windows, "late_ticks": late[:, :4].tolist(), "events": events}))
+        np.save(logs / "timing.npy", rows)  # every commanding tick's row (LoopStatistics.row)
         idle, busy_figures = pooled["idle"], pooled["storm"]
         if "p99_us" not in idle or "p99_us" not in busy_figures:
             span = f"{rows[0, 0]:.3f}-{rows[-1, 0]:.3f}" if len(rows) else "none"
             print(f"bench/storm.py: error: a window holds no ticks ({len(rows)} rows received, wall times {span}; "
                   f"windows {[(round(a, 3), round(b, 3)) for _, a, b, _ in windows]})", file=sys.stderr)
             return 1
-        print(f"ratios storm/idle: p99 {ratio(busy_figures['p99_us'], idle['p99_us']):.2f}, p99.9 "
+        print(f"ratios {second}/idle: p99 {ratio(busy_figures['p99_us'], idle['p99_us']):.2f}, p99.9 "
               f"{ratio(busy_figures['p999_us'], idle['p999_us']):.2f}, worst "
               f"{ratio(busy_figures['worst_us'], idle['worst_us']):.2f}, missed "
               f"{busy_figures['missed']:.0f} vs {idle['missed']:.0f} (logs: {logs})")
