@@ -26,7 +26,8 @@ rclpy clients:
   ``PARTICIPANT_EVERY_S`` the same in a context of its own (a new DDS participant).
 
 Printed: per window the commanding ticks, the lateness p50, p99, p99.9 and worst (us), the missed
-deadlines (a tick started more than a period late) and the ticks lost (periods without a tick),
+deadlines (a tick started more than a period late), the ticks lost (periods without a tick), the
+longest period and how long the ticks took (p50, p99.9: a long tick makes the next one late),
 the load average at each window's start, and what the storm did. ``--busy`` keeps one core
 busy with another process throughout. Target (issue 37): the storm within 1.2x of idle.
 
@@ -440,6 +441,7 @@ def window_figures(rows: np.ndarray, start: float, end: float, period: float) ->
         return {"ticks": float(len(inside))}
     lateness = inside[:, 3]
     achieved = inside[1:, 1]
+    compute = inside[:, 2]
     return {"ticks": float(len(inside)),
             "p50_us": 1e6 * float(np.percentile(lateness, 50)),
             "p99_us": 1e6 * float(np.percentile(lateness, 99)),
@@ -447,12 +449,15 @@ def window_figures(rows: np.ndarray, start: float, end: float, period: float) ->
             "worst_us": 1e6 * float(lateness.max()),
             "missed": float(np.count_nonzero(missed(lateness, period))),
             "lost": float(np.maximum(np.round(achieved / period) - 1.0, 0.0).sum()),
-            "worst_period_us": 1e6 * float(achieved.max())}
+            "worst_period_us": 1e6 * float(achieved.max()),
+            "compute_p50_us": 1e6 * float(np.percentile(compute, 50)),
+            "compute_p999_us": 1e6 * float(np.percentile(compute, 99.9))}
 
 
 COLUMNS = (("ticks", "ticks", "{:.0f}"), ("p50_us", "p50 us", "{:.0f}"), ("p99_us", "p99 us", "{:.0f}"),
            ("p999_us", "p99.9 us", "{:.0f}"), ("worst_us", "worst us", "{:.0f}"), ("missed", "missed", "{:.0f}"),
-           ("lost", "lost", "{:.0f}"), ("worst_period_us", "worst period us", "{:.0f}"))
+           ("lost", "lost", "{:.0f}"), ("worst_period_us", "worst period us", "{:.0f}"),
+           ("compute_p50_us", "tick p50 us", "{:.0f}"), ("compute_p999_us", "tick p99.9 us", "{:.0f}"))
 
 
 def print_table(labelled: list[tuple[str, dict[str, float], str]]) -> None:
