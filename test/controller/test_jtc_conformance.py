@@ -147,6 +147,7 @@ CONFIGS = {
     "default": (),
     # JTC's options on; per-joint default tolerances of a vendor's tests; rejection off, as JTC
     "options": ("-p", "allow_partial_joints_goal:=true", "-p", "allow_nonzero_velocity_at_trajectory_end:=true",
+                "-p", "constraints.stopped_velocity_tolerance:=0.0",
                 "-p", "reject_beyond_limits:=false", "-p", "cmd_timeout:=0.5",
                 *(arg for j in JOINTS for arg in ("-p", f"constraints.{j}.trajectory:=0.2",
                                                   "-p", f"constraints.{j}.goal:=0.1"))),
@@ -228,12 +229,13 @@ def test_success_multi_point_with_feedback_then_the_last_point_is_held(arms) -> 
 
 @pytest.mark.timeout(120)
 def test_success_single_point(arms) -> None:  # noqa: ANN001
-    """JTC test_success_single_point_sendgoal."""
+    """JTC test_success_single_point_sendgoal: SUCCEEDED, then the point held."""
     arm = arms("default")
     q1 = arm.q() + [0.0, 0.1, -0.1]
     handle = arm.send(goal([point(q1, 1.0)], at_goal=dict.fromkeys(JOINTS, GOAL_TOL), goal_time=2.0))
     assert handle.accepted  # type: ignore[attr-defined]
     assert arm.result(handle)[:2] == (GoalStatus.STATUS_SUCCEEDED, SUCCESSFUL), arm.logs()
+    assert arm.held_near(q1) < HOLD
 
 
 def _rejections(q: np.ndarray) -> dict[str, FollowJointTrajectory.Goal]:
@@ -273,7 +275,8 @@ def _rejections(q: np.ndarray) -> dict[str, FollowJointTrajectory.Goal]:
 
 @pytest.mark.timeout(180)
 def test_invalid_goals_are_rejected_on_arrival_and_the_arm_keeps_holding(arms) -> None:  # noqa: ANN001
-    """JTC: accepted == False for each; the reason logged in one line; the arm untouched."""
+    """JTC: accepted == False for each; the reason logged in one line; the arm untouched; then (JTC
+    test_allow_nonzero_velocity_at_trajectory_end_false) a valid goal is accepted and succeeds."""
     arm = arms("default")
     held = arm.q()
     accepted = {name: arm.send(g).accepted for name, g in _rejections(held).items()}  # type: ignore[attr-defined]
@@ -283,6 +286,10 @@ def test_invalid_goals_are_rejected_on_arrival_and_the_arm_keeps_holding(arms) -
     assert "at its velocity limit 25 rad/s that takes 0.020 s" in log
     assert "action goal rejected: 5001 points: the controller validates at most 5000 points" in log
     assert arm.held_near(held) < HOLD
+    q1 = held + [0.05, 0.0, 0.0]
+    handle = arm.send(goal([point(q1, 0.5, [0.0] * 3)], at_goal=dict.fromkeys(JOINTS, GOAL_TOL), goal_time=2.0))
+    assert handle.accepted, arm.logs()  # type: ignore[attr-defined]
+    assert arm.result(handle)[:2] == (GoalStatus.STATUS_SUCCEEDED, SUCCESSFUL), arm.logs()
 
 
 @pytest.mark.timeout(120)
@@ -424,13 +431,16 @@ def test_partial_joint_goal_holds_the_other_joints(arms) -> None:  # noqa: ANN00
 
 
 @pytest.mark.timeout(120)
-def test_nonzero_velocity_at_trajectory_end_is_accepted(arms) -> None:  # noqa: ANN001
-    """JTC test_allow_nonzero_velocity_at_trajectory_end_true: accepted (an effort controller need not succeed)."""
+def test_nonzero_velocity_at_trajectory_end_succeeds_and_the_end_is_held(arms) -> None:  # noqa: ANN001
+    """JTC test_allow_nonzero_velocity_at_trajectory_end_true (accepted) and
+    test_success_single_point_with_velocity_sendgoal (the stopped velocity check off: SUCCEEDED, then
+    the last point held with its velocity: an effort law settles kd v / kp from it, 0.003 rad here)."""
     arm = arms("options")
-    q0 = arm.q()
-    handle = arm.send(goal([point(q0 + [0.0, 0.0, 0.05], 0.5, [0.0, 0.0, 0.05])]))
+    q1 = arm.q() + [0.0, 0.0, 0.05]
+    handle = arm.send(goal([point(q1, 0.5, [0.0, 0.0, 0.05])]))
     assert handle.accepted, arm.logs()  # type: ignore[attr-defined]
-    assert arm.result(handle)[1] != INVALID_GOAL  # executed, not refused after acceptance
+    assert arm.result(handle)[:2] == (GoalStatus.STATUS_SUCCEEDED, SUCCESSFUL), arm.logs()
+    assert arm.held_near(q1) < HOLD
 
 
 @pytest.mark.timeout(120)
@@ -452,13 +462,14 @@ def test_vendor_too_fast_segment_path_tolerance_violated_then_hold(arms) -> None
 @pytest.mark.timeout(120)
 def test_no_time_from_start_state_tolerance_fail(arms) -> None:  # noqa: ANN001
     """JTC test_no_time_from_start_state_tolerance_fail: one point at t = 0 away from the arm (a step; with
-    reject_beyond_limits false it is accepted as JTC accepts it): PATH_TOLERANCE_VIOLATED."""
+    reject_beyond_limits false it is accepted as JTC accepts it): PATH_TOLERANCE_VIOLATED, and the
+    position where it started held (the abort comes at the first sample, before the arm moves)."""
     arm = arms("options")
-    q1 = arm.q() + [0.0, 0.0, 0.3]
-    handle = arm.send(goal([point(q1, 0.0)]))
+    q0 = arm.q()
+    handle = arm.send(goal([point(q0 + [0.0, 0.0, 0.3], 0.0)]))
     assert handle.accepted, arm.logs()  # type: ignore[attr-defined]
     assert arm.result(handle)[:2] == (GoalStatus.STATUS_ABORTED, PATH_TOLERANCE_VIOLATED)
-    time.sleep(1.0)
+    assert arm.held_near(q0) < HOLD
 
 
 @pytest.mark.timeout(120)
