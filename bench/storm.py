@@ -591,8 +591,8 @@ def main() -> int:
         time.sleep(0.5)  # the last timing batch
         rows = timing.all()
         period = 1.0 / RATE
-        second = "control" if args.control else "storm"  # the second window of each round
-        labelled = [(f"{second if kind == 'storm' else kind} {k // 2 + 1}", window_figures(rows, a, b, period), loaded)
+        label = {"idle": "idle", "storm": "control" if args.control else "storm"}  # the second window of each round
+        labelled = [(f"{label[kind]} {k // 2 + 1}", window_figures(rows, a, b, period), loaded)
                     for k, (kind, a, b, loaded) in enumerate(windows)]
         pooled = {}
         for kind in ("idle", "storm"):
@@ -606,8 +606,7 @@ def main() -> int:
               "after its deadline")
         if args.control:
             print("a control run: in the control windows the storm's processes are connected and quiet")
-        print_table(labelled + [(f"{second if kind == 'storm' else kind} (all)", pooled[kind], "")
-                                for kind in ("idle", "storm")])
+        print_table(labelled + [(f"{label[kind]} (all)", pooled[kind], "") for kind in ("idle", "storm")])
         print("storm: " + ", ".join(f"{key} {value}" for key, value in sorted(did.items())))
         late = rows[missed(rows[:, 3], period)]
         print(late_tick_causes(late, windows, events))
@@ -620,7 +619,7 @@ def main() -> int:
             print(f"bench/storm.py: error: a window holds no ticks ({len(rows)} rows received, wall times {span}; "
                   f"windows {[(round(a, 3), round(b, 3)) for _, a, b, _ in windows]})", file=sys.stderr)
             return 1
-        print(f"ratios {second}/idle: p99 {ratio(busy_figures['p99_us'], idle['p99_us']):.2f}, p99.9 "
+        print(f"ratios {label['storm']}/idle: p99 {ratio(busy_figures['p99_us'], idle['p99_us']):.2f}, p99.9 "
               f"{ratio(busy_figures['p999_us'], idle['p999_us']):.2f}, worst "
               f"{ratio(busy_figures['worst_us'], idle['worst_us']):.2f}, missed "
               f"{busy_figures['missed']:.0f} vs {idle['missed']:.0f} (logs: {logs})")

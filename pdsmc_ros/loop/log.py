@@ -28,34 +28,33 @@ class RcutilsLines:
 
     def __init__(self, logger: Any, write: Any) -> None:
         self.logger = logger
-        self.name = logger.name
         self.write: Any = write  # None once refused: rclpy's own logger from then on
 
-    def _line(self, severity: LoggingSeverity, text: str) -> None:
-        if self.write is not None:
-            if not self.logger.is_enabled_for(severity):  # as rclpy's logger checks first
-                return
-            try:
-                self.write(int(severity), self.name, text, "LoopLog.flush", __file__, 0)
-                return
-            except TypeError:  # an rclpy whose write takes other arguments
-                self.write = None
-        # one call site per severity: rclpy refuses a call site whose severity changes
-        if severity == LoggingSeverity.INFO:
-            self.logger.info(text)
-        elif severity == LoggingSeverity.WARN:
-            self.logger.warn(text)
-        else:
-            self.logger.error(text)
+    def _written(self, severity: LoggingSeverity, text: str) -> bool:
+        """Whether the line is dealt with here: written, or below the logger's level."""
+        if self.write is None:
+            return False
+        if not self.logger.is_enabled_for(severity):  # as rclpy's logger checks first
+            return True
+        try:
+            self.write(int(severity), self.logger.name, text, "LoopLog.flush", __file__, 0)
+        except TypeError:  # an rclpy whose write takes other arguments
+            self.write = None
+            return False
+        return True
 
+    # else rclpy's logger, one call site per severity (it refuses a call site whose severity changes)
     def info(self, text: str) -> None:
-        self._line(LoggingSeverity.INFO, text)
+        if not self._written(LoggingSeverity.INFO, text):
+            self.logger.info(text)
 
     def warn(self, text: str) -> None:
-        self._line(LoggingSeverity.WARN, text)
+        if not self._written(LoggingSeverity.WARN, text):
+            self.logger.warn(text)
 
     def error(self, text: str) -> None:
-        self._line(LoggingSeverity.ERROR, text)
+        if not self._written(LoggingSeverity.ERROR, text):
+            self.logger.error(text)
 
 
 def lines_of(logger: Any) -> Any:
