@@ -1,0 +1,78 @@
+"""The verdict of ``bench/storm.py`` (issue 37's storm target): its intervals hold what they claim.
+
+Lateness samples are drawn here, so the truth is known: equal distributions must not be called
+beyond the target, a storm twice as late must be, one half as late must be within it; the exact
+interval of the missed deadlines' rate ratio must cover the true ratio at least as often as its level.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+BENCH = Path(__file__).resolve().parent.parent / "bench" / "storm.py"
+
+
+@pytest.fixture(scope="module")
+def storm():
+    spec = importlib.util.spec_from_file_location("storm_bench", BENCH)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def rounds(rng: np.random.Generator, n: int, scale: float, per_round: int = 4000) -> list[np.ndarray]:
+    """Lateness (s) of ``n`` windows: exponential around 30 us times ``scale``, each window with its own drift."""
+    return [scale * rng.uniform(0.8, 1.25) * rng.exponential(30e-6, per_round) for _ in range(n)]
+
+
+def test_equal_windows_are_never_called_beyond(storm) -> None:
+    rng = np.random.default_rng(1)
+    found = storm.ratio_intervals(rounds(rng, 10, 1.0), rounds(rng, 10, 1.0), 1e-3, resamples=300)
+    for name in ("p99", "p99.9", "worst"):
+        point, low, high = found[name]
+        assert low <= point <= high
+        assert low <= 1.0 <= high, (name, found[name])
+        assert not storm.verdict(low, high).startswith("beyond")
+
+
+def test_a_storm_twice_as_late_is_beyond_and_half_as_late_within(storm) -> None:
+    rng = np.random.default_rng(2)
+    idle = rounds(rng, 10, 1.0)
+    _, low, high = storm.ratio_intervals(idle, rounds(rng, 10, 2.0), 1e-3, resamples=300)["p99"]
+    assert storm.verdict(low, high) == "beyond 1.2x" and low > 1.2
+    _, low, high = storm.ratio_intervals(idle, rounds(rng, 10, 0.5), 1e-3, resamples=300)["p99"]
+    assert storm.verdict(low, high) == "within 1.2x" and high <= 1.2
+
+
+def test_missed_deadlines_counted_past_one_period(storm) -> None:
+    idle = [np.full(1000, 10e-6)] * 2
+    late = [np.concatenate([np.full(995, 10e-6), np.full(5, 2e-3)])] * 2  # 5 ticks a window a period late
+    point, low, high = storm.ratio_intervals(idle, late, 1e-3, resamples=50)["missed"]
+    assert point == np.inf and high == np.inf and low > 1.0  # 10 against none: the storm's alone
+
+
+def test_rate_ratio_interval_covers_the_true_ratio(storm) -> None:
+    rng = np.random.default_rng(3)
+    ticks_storm, ticks_idle, rate = 100_000, 120_000, 1e-4
+    for true in (1.0, 3.0):
+        covered = 0
+        for _ in range(400):
+            m_storm = int(rng.poisson(true * rate * ticks_storm))
+            m_idle = int(rng.poisson(rate * ticks_idle))
+            _, low, high = storm.rate_ratio_interval(m_storm, ticks_storm, m_idle, ticks_idle)
+            covered += low <= true <= high
+        assert covered / 400 >= 0.93, (true, covered)  # exact intervals are conservative: >= 95 % but for chance
+
+
+def test_rate_ratio_interval_values(storm) -> None:
+    point, low, high = storm.rate_ratio_interval(43, 120_000, 11, 120_000)
+    assert point == pytest.approx(43 / 11)
+    assert 1.0 < low < point < high  # 43 against 11 over the same ticks: beyond 1, clearly
+    assert storm.rate_ratio_interval(0, 1000, 0, 1000) == (1.0, 0.0, np.inf)
+    assert storm.verdict(0.5, 1.2) == "within 1.2x"
+    assert storm.verdict(1.21, 3.0) == "beyond 1.2x"
+    assert storm.verdict(0.9, 1.5).startswith("undecided")
