@@ -1,4 +1,5 @@
-"""Shared fixtures: locating the installed ROS entry points for end-to-end tests."""
+"""Shared fixtures: locating the installed ROS entry points for end-to-end tests, ROS domains of
+their own, a plain rclpy node."""
 
 from __future__ import annotations
 
@@ -7,7 +8,9 @@ import shutil
 import signal
 import subprocess
 import sys
+from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -66,3 +69,20 @@ def stop_process(proc: subprocess.Popen, *, grace_s: float = 20.0) -> tuple[int,
         os.kill(proc.pid, signal.SIGKILL)
         out, _ = proc.communicate(timeout=10)
     return proc.returncode, out or ""
+
+
+@pytest.fixture
+def rclpy_node(request: pytest.FixtureRequest) -> Iterator[Any]:
+    """A plain rclpy node in a context and a ROS domain of its own (skipped without rclpy)."""
+    rclpy = pytest.importorskip("rclpy")
+    from rclpy.context import Context
+    from rclpy.node import Node
+
+    ctx = Context()
+    rclpy.init(context=ctx, domain_id=next_domain())
+    created = Node(f"{request.module.__name__.rsplit('.', 1)[-1]}_node", context=ctx)
+    try:
+        yield created
+    finally:
+        created.destroy_node()
+        rclpy.shutdown(context=ctx)

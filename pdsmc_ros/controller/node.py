@@ -77,10 +77,13 @@ class EffortOutput:
     and one zero command when it stops commanding (a forward command controller holds the last
     command forever). Its lines go to ``log`` (the loop's thread publishes: :class:`~pdsmc_ros.loop.log.LoopLog`)."""
 
-    def __init__(self, node: Node, topic: str, n: int, guard: TorqueGuard, *, log: LoopLog | None = None) -> None:
+    def __init__(self, node: Node, topic: str, n: int, guard: TorqueGuard, *, log: LoopLog | None = None,
+                 writer_thread: bool = False) -> None:
         self.node = node
         self.log = log if log is not None else LoopLog(node)
-        self.pub = GuardedPublisher(node.create_publisher(Float64MultiArray, topic, topics.STREAM_QOS), node)
+        # real time: the middleware's writes in a thread of their own (never a tick waiting in Fast DDS)
+        self.pub = GuardedPublisher(node.create_publisher(Float64MultiArray, topic, topics.STREAM_QOS), node,
+                                    writer_thread=writer_thread)
         self.n = n
         self.guard = guard
         self.commanding = False  # a torque may be the last command on the wire
@@ -106,6 +109,14 @@ class EffortOutput:
             self.commanding = False
         self.log.warn(f"{why}: zero effort published, output stopped")
         return True
+
+    def close(self, timeout: float) -> None:
+        """Every command handed over written (up to ``timeout`` s), the writer's summary logged, its thread ended."""
+        writer = self.pub.writer
+        if writer is not None:
+            writer.flush(timeout)
+            writer.close()
+            self.node.get_logger().info(writer.summary())
 
 
 class ControllerNode(CommandingEntity):
@@ -181,7 +192,8 @@ class ControllerNode(CommandingEntity):
             # the robot's topics exist: a plant that starts once it sees them is answered at once, and a
             # lockstep plant never sends its first state again to a controller that is only slow to start
             node.trigger_configure()
-        self.effort = EffortOutput(node, topics.TOPIC_EFFORT, robot.n, self.guard, log=self.loop_log)
+        self.effort = EffortOutput(node, topics.TOPIC_EFFORT, robot.n, self.guard, log=self.loop_log,
+                                   writer_thread=not self.lockstep)
         self.report_input = InputReport(Diagnostics(node, "controller: inputs", spec.robot,
                                                     values=lambda: {"joints": ",".join(self.params.joints)}))
         self.inputs = Inputs(node, self.mode)
@@ -364,7 +376,9 @@ class ControllerNode(CommandingEntity):
             saturated = self.joint_map.to_user(self.guard.joint_saturated).tolist()
             self.node.get_logger().warn(f"torque limited by the soft limits in {self.guard.clamped} periods (at "
                                         f"the effort limit, per joint: {dict(zip(self.params.joints, saturated))})")
-        if not self.core.pairing.finished and self.stop_commanding("stopping"):  # complete: the plant has ended
+        stopped = not self.core.pairing.finished and self.stop_commanding("stopping")  # complete: the plant has ended
+        self.effort.close(STOP_ACK_S)
+        if stopped:
             self.effort.pub.publisher.wait_for_all_acked(Duration(nanoseconds=int(STOP_ACK_S * 1e9)))
 
 

@@ -1,11 +1,15 @@
-"""What the nodes publish: guarded publishers (a failed publish is logged, never fatal) and rows
-in batches."""
+"""What the nodes publish: guarded publishers (a failed publish is logged, never fatal), the
+middleware's writes of a real-time loop's command in a thread of their own, and rows in batches."""
 
 from __future__ import annotations
 
+import ctypes
+import threading
+import time
 from collections.abc import Sequence
 from typing import Any
 
+import numpy as np
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy_impl
 from rclpy.node import Node
 from rclpy.serialization import serialize_message
@@ -17,15 +21,154 @@ from .topics import STREAM_QOS
 RCLError = _rclpy_impl.RCLError
 
 
+class _SerializedMessage(ctypes.Structure):
+    """``rcl_serialized_message_t`` (``rcutils_uint8_array_t``): the bytes, their length, the
+    buffer's capacity and an allocator (five pointers; unused by a publish)."""
+
+    _fields_ = [("buffer", ctypes.c_void_p), ("buffer_length", ctypes.c_size_t),
+                ("buffer_capacity", ctypes.c_size_t), ("allocator", ctypes.c_void_p * 5)]
+
+
+def _rcl_calls() -> tuple[Any, Any] | None:
+    """``rcl_publish_serialized_message`` and ``rcutils_reset_error`` from the libraries rclpy has
+    loaded (found by their sonames), through ctypes, which releases the GIL for the call; None
+    where they cannot be found."""
+    try:
+        publish = ctypes.CDLL("librcl.so").rcl_publish_serialized_message
+        reset = ctypes.CDLL("librcutils.so").rcutils_reset_error
+    except (OSError, AttributeError):
+        return None
+    publish.argtypes = [ctypes.c_void_p, ctypes.POINTER(_SerializedMessage), ctypes.c_void_p]
+    publish.restype = ctypes.c_int  # rcl_ret_t
+    reset.argtypes, reset.restype = [], None
+    return publish, reset
+
+
+DELAYS_KEPT = 1 << 16  # the hand-off-to-written delays kept for the summary (the latest 65 s at 1 kHz)
+
+
+class WriterThread:
+    """The middleware's writes of one publisher's serialized messages, in a thread of their own.
+
+    A write into Fast DDS takes its writer's lock, which Fast DDS's sending thread holds while it
+    sends to every matched reader: in a storm of clients connecting (``bench/storm.py``) the
+    loop's effort command waited 0.7-13 ms there, the interpreter lock held all along (rclpy's
+    ``publish_raw`` keeps it). ros2_control's answer is realtime_tools' ``RealtimePublisher``: the
+    loop hands the message over and a thread of its own publishes it. Here the loop's
+    :meth:`write` stores the bytes in a one-message slot and wakes the thread, which calls
+    ``rcl_publish_serialized_message`` through ctypes with the interpreter lock released, so
+    neither the loop nor the process's other Python waits for the middleware.
+
+    Where realtime_tools keeps the older message while its thread is busy, the newer one wins
+    here: a command superseded before it was written is dropped (:attr:`superseded`), and the
+    newest torque is the next on the wire. Messages are written in the order handed over, so a
+    zero command handed over last is the last written. The thread is one of the process's
+    others (raised to ``SCHED_FIFO`` 1 with them in real time: :func:`~pdsmc_ros.loop.realtime.raise_helpers`).
+    """
+
+    def __init__(self, publisher: Any, node: Node) -> None:
+        calls = _rcl_calls()
+        if calls is None:
+            raise OSError("librcl.so or librcutils.so is not loaded: rcl cannot be called through ctypes")
+        self._publish, self._reset_error = calls
+        self.node = node
+        self.topic = publisher.topic_name
+        self._handle = publisher.handle
+        self._pointer = self._handle.pointer
+        self._cond = threading.Condition()
+        self._pending: tuple[bytes, float] | None = None
+        self._busy = False
+        self._closing = False
+        self.written = 0
+        self.superseded = 0
+        self.failures = 0
+        self._delays = np.zeros(DELAYS_KEPT)
+        self.delay_max = 0.0
+        self._thread = threading.Thread(target=self._run, name="command writer", daemon=True)
+        self._thread.start()
+
+    def write(self, data: bytes) -> None:
+        """The loop's side: ``data`` is the next message to write (replacing one not yet written)."""
+        with self._cond:
+            if self._pending is not None:
+                self.superseded += 1
+            self._pending = (data, time.perf_counter())
+            self._cond.notify()
+
+    def _run(self) -> None:
+        message = _SerializedMessage()
+        while True:
+            with self._cond:
+                while self._pending is None and not self._closing:
+                    self._cond.wait()
+                if self._pending is None:
+                    return
+                (data, handed), self._pending = self._pending, None
+                self._busy = True
+            message.buffer = ctypes.cast(ctypes.c_char_p(data), ctypes.c_void_p)
+            message.buffer_length = message.buffer_capacity = len(data)
+            try:
+                with self._handle:  # the publisher is not destroyed while it is written to
+                    failed = self._publish(self._pointer, ctypes.byref(message), None)
+            except Exception as exc:  # noqa: BLE001 - the publisher destroyed: never fatal
+                failed, why = 1, str(exc)
+            else:
+                why = f"rcl_publish_serialized_message returned {failed}"
+                if failed:
+                    self._reset_error()
+            delay = time.perf_counter() - handed
+            with self._cond:
+                self._busy = False
+                self._delays[self.written % DELAYS_KEPT] = delay
+                self.written += 1
+                self.delay_max = max(self.delay_max, delay)
+                if failed:
+                    self.failures += 1
+                self._cond.notify_all()
+            if failed and (self.failures <= 5 or self.failures % 1000 == 0):
+                self.node.get_logger().error(f"publish on {self.topic} failed ({self.failures} so far): {why}")
+
+    def flush(self, timeout: float) -> bool:
+        """Wait up to ``timeout`` s until every message handed over is written; whether they were."""
+        with self._cond:
+            return self._cond.wait_for(lambda: self._pending is None and not self._busy, timeout)
+
+    def close(self, timeout: float = 1.0) -> None:
+        """Write what is pending, then end the thread (before the publisher is destroyed)."""
+        with self._cond:
+            self._closing = True
+            self._cond.notify_all()
+        self._thread.join(timeout)
+
+    def summary(self) -> str:
+        """One line: messages written and superseded, and how long after the hand-over they were written."""
+        with self._cond:
+            kept = self._delays[:min(self.written, DELAYS_KEPT)] * 1e6
+            written, superseded, worst = self.written, self.superseded, self.delay_max
+        if not len(kept):
+            return f"{self.topic}: nothing written"
+        p50, p99, p999 = np.percentile(kept, [50, 99, 99.9])
+        return (f"{self.topic} written by its own thread: {written} messages, {superseded} superseded by a newer "
+                f"one before written; hand-over to written p50 {p50:.0f} us, p99 {p99:.0f} us, p99.9 {p999:.0f} us, "
+                f"max {1e6 * worst:.0f} us")
+
+
 class GuardedPublisher:
     """A publisher whose failures (e.g. a dead reliable subscriber not yet dropped)
     are logged, throttled, and counted instead of killing the node."""
 
-    def __init__(self, publisher: Any, node: Node) -> None:
+    def __init__(self, publisher: Any, node: Node, *, writer_thread: bool = False) -> None:
         self.publisher = publisher
         self.node = node
         self.failures = 0
         self._handle = publisher.handle
+        # serialized messages written by a thread of their own (the real-time loop's command)
+        self.writer: WriterThread | None = None
+        if writer_thread:
+            try:
+                self.writer = WriterThread(publisher, node)
+            except OSError as exc:
+                node.get_logger().warn(f"{publisher.topic_name}: written by the loop's thread ({exc})")
         # composed with --intra-process: local subscribers get the bytes directly (loop.intra)
         domain = intra.current()
         self._route = None if domain is None else domain.add_publisher(
@@ -36,8 +179,11 @@ class GuardedPublisher:
             route = self._route
             if type(msg) is bytes:  # the loop's serialized messages: straight to rcl
                 if route is None or route.deliver(msg):
-                    with self._handle:
-                        self._handle.publish_raw(msg)
+                    if self.writer is not None:
+                        self.writer.write(msg)
+                    else:
+                        with self._handle:
+                            self._handle.publish_raw(msg)
             else:
                 data = serialize_message(msg) if route is not None and route.queues else b""
                 if route is None or route.deliver(data):

@@ -3,31 +3,18 @@ second severity from the same line of code, which once killed the plant on a rej
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-
 import pytest
-from conftest import next_domain
 
 rclpy = pytest.importorskip("rclpy")
 
-from rclpy.context import Context  # noqa: E402
 from rclpy.node import Node  # noqa: E402
 
 from pdsmc_ros.ros.diagnostics import Diagnostics, log  # noqa: E402
 
-DOMAIN_ID = next_domain()
-
 
 @pytest.fixture
-def node() -> Iterator[Node]:
-    ctx = Context()
-    rclpy.init(context=ctx, domain_id=DOMAIN_ID)
-    created = Node("diagnostics_test", context=ctx)
-    try:
-        yield created
-    finally:
-        created.destroy_node()
-        rclpy.shutdown(context=ctx)
+def node(rclpy_node: Node) -> Node:
+    return rclpy_node
 
 
 def test_every_severity_in_any_order_from_one_node(node: Node) -> None:
