@@ -28,7 +28,8 @@ rclpy clients:
 Printed: per window the commanding ticks, the lateness p50, p99, p99.9 and worst (us), the missed
 deadlines (a tick started more than a period late), the ticks lost (periods without a tick), the
 longest period and how long the ticks took (p50, p99.9: a long tick makes the next one late),
-the load average at each window's start, and what the storm did. ``--busy`` keeps one core
+the load average at each window's start, and what the storm did; at the end, the controller's
+line on its effort command's writer thread (how long after each tick its command was written). ``--busy`` keeps one core
 busy with another process throughout. Target (issue 37): the storm within 1.2x of idle.
 
 ``--control`` keeps the storm's processes connected but quiet in the storm windows: the spread
@@ -740,6 +741,11 @@ def main() -> int:
             timing.close()
         for proc in reversed(procs):
             stop(proc)
+        # the controller's closing line on its effort command's writer thread: how late the commands left
+        with contextlib.suppress(OSError):
+            for line in (logs / "controller.log").read_text(errors="replace").splitlines():
+                if "written by its own thread" in line:
+                    print("command writes: " + line.split("]: ", 1)[-1])
 
 
 if __name__ == "__main__":
