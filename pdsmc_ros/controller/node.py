@@ -114,7 +114,9 @@ class EffortOutput:
         """Every command handed over written (up to ``timeout`` s), the writer's summary logged, its thread ended."""
         writer = self.pub.writer
         if writer is not None:
-            writer.flush(timeout)
+            if not writer.flush(timeout):
+                self.node.get_logger().error(f"{self.pub.publisher.topic_name}: the last commands handed over were not "
+                                             f"written within {timeout:g} s")
             writer.close()
             self.node.get_logger().info(writer.summary())
 

@@ -4,6 +4,7 @@ middleware's writes of a real-time loop's command in a thread of their own, and 
 from __future__ import annotations
 
 import ctypes
+import os
 import threading
 import time
 from collections.abc import Sequence
@@ -33,13 +34,13 @@ def _rcl_calls() -> tuple[Any, Any] | None:
     """``rcl_publish_serialized_message`` and ``rcutils_reset_error`` from the libraries rclpy has
     loaded (found by their sonames), through ctypes, which releases the GIL for the call; None
     where they cannot be found."""
-    try:
-        publish = ctypes.CDLL("librcl.so").rcl_publish_serialized_message
-        reset = ctypes.CDLL("librcutils.so").rcutils_reset_error
+    try:  # RTLD_NOLOAD: rclpy's own copies, never a second one from the library path
+        publish = ctypes.CDLL("librcl.so", mode=os.RTLD_NOLOAD).rcl_publish_serialized_message
+        reset = ctypes.CDLL("librcutils.so", mode=os.RTLD_NOLOAD).rcutils_reset_error
     except (OSError, AttributeError):
         return None
     publish.argtypes = [ctypes.c_void_p, ctypes.POINTER(_SerializedMessage), ctypes.c_void_p]
-    publish.restype = ctypes.c_int  # rcl_ret_t
+    publish.restype = ctypes.c_int32  # rcl_ret_t
     reset.argtypes, reset.restype = [], None
     return publish, reset
 
@@ -88,14 +89,26 @@ class WriterThread:
         self._thread.start()
 
     def write(self, data: bytes) -> None:
-        """The loop's side: ``data`` is the next message to write (replacing one not yet written)."""
+        """The loop's side: ``data`` is the next message to write (replacing one not yet written).
+        Once the thread has ended (closed, or an error it logged), written here, as rclpy would."""
         with self._cond:
-            if self._pending is not None:
-                self.superseded += 1
-            self._pending = (data, time.perf_counter())
-            self._cond.notify()
+            if not self._closing and self._thread.is_alive():
+                if self._pending is not None:
+                    self.superseded += 1
+                self._pending = (bytes(data), time.perf_counter())
+                self._cond.notify()
+                return
+        with self._handle:
+            self._handle.publish_raw(bytes(data))
 
     def _run(self) -> None:
+        try:
+            self._write_until_closed()
+        except BaseException as exc:  # noqa: BLE001 - logged; write() then publishes from the caller's thread
+            self.node.get_logger().error(f"{self.topic}: its writer thread ended ({exc!r}); written by the loop")
+            raise
+
+    def _write_until_closed(self) -> None:
         message = _SerializedMessage()
         while True:
             with self._cond:
@@ -144,13 +157,13 @@ class WriterThread:
         """One line: messages written and superseded, and how long after the hand-over they were written."""
         with self._cond:
             kept = self._delays[:min(self.written, DELAYS_KEPT)] * 1e6
-            written, superseded, worst = self.written, self.superseded, self.delay_max
+            written, superseded, failed, worst = self.written, self.superseded, self.failures, self.delay_max
         if not len(kept):
             return f"{self.topic}: nothing written"
         p50, p99, p999 = np.percentile(kept, [50, 99, 99.9])
-        return (f"{self.topic} written by its own thread: {written} messages, {superseded} superseded by a newer "
-                f"one before written; hand-over to written p50 {p50:.0f} us, p99 {p99:.0f} us, p99.9 {p999:.0f} us, "
-                f"max {1e6 * worst:.0f} us")
+        return (f"{self.topic} written by its own thread: {written} messages ({failed} failed), {superseded} "
+                f"superseded by a newer one before written; hand-over to written p50 {p50:.0f} us, p99 {p99:.0f} us, "
+                f"p99.9 {p999:.0f} us, max {1e6 * worst:.0f} us")
 
 
 class GuardedPublisher:

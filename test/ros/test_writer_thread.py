@@ -75,7 +75,7 @@ def test_every_message_handed_over_paced_arrives_intact_in_order(node: Node) -> 
     assert [m[0] for m in got] == [float(k) for k in range(200)]
     assert all(m[1:] == [1.5, -2.25, 1e-9, 0.0, 3.0] for m in got)
     assert writer.written == 200 and writer.superseded == 0 and writer.failures == 0
-    assert "200 messages, 0 superseded" in writer.summary()
+    assert "200 messages (0 failed), 0 superseded" in writer.summary()
 
 
 def test_a_burst_keeps_order_and_the_newest_is_written_last(node: Node) -> None:
@@ -105,3 +105,15 @@ def test_guarded_publisher_routes_bytes_through_its_writer(node: Node) -> None:
     listener.join(30.0)
     guarded.writer.close()
     assert results[0][-1][0] == 7.0 and guarded.writer.written == 1
+
+
+def test_after_close_a_message_is_still_written(node: Node) -> None:
+    """A zero command handed over after the thread ended is written from the caller's thread."""
+    publisher = node.create_publisher(Float64MultiArray, TOPIC, QOS)
+    writer = WriterThread(publisher, node)
+    listener, results = listen(node, 5.0)
+    wait_matched(publisher)
+    writer.close()
+    writer.write(encoded(5))
+    listener.join(30.0)
+    assert results[0][-1][0] == 5.0 and writer.written == 0
