@@ -681,6 +681,13 @@ def main() -> int:
         label = {"idle": "idle", "storm": "control" if args.control else "storm"}  # the second window of each round
         labelled = [(f"{label[kind]} {k // 2 + 1}", window_figures(rows, a, b, period), loaded)
                     for k, (kind, a, b, loaded) in enumerate(windows)]
+        empty = [name for name, figures, _ in labelled if figures["ticks"] < 2]
+        if empty:  # the timing rows stopped reaching this process: no figure of those windows is known
+            print_table(labelled)
+            last = f"{rows[-1, 0]:.3f}" if len(rows) else "none"
+            print(f"bench/storm.py: error: no timing rows in windows {', '.join(empty)} (the last row's wall time "
+                  f"{last}; logs in {logs}): the run is not measured", file=sys.stderr)
+            return 1
         pooled = {}
         for kind in ("idle", "storm"):
             mask = np.zeros(len(rows), dtype=bool)
