@@ -29,8 +29,8 @@ Printed: per window the commanding ticks, the lateness p50, p99, p99.9 and worst
 deadlines (a tick started more than a period late), the ticks lost (periods without a tick), the
 longest period and how long the ticks took (p50, p99.9: a long tick makes the next one late),
 the load average at each window's start, and what the storm did; at the end, the controller's
-line on its effort command's writer thread (how long after each tick its command was written). ``--busy`` keeps one core
-busy with another process throughout. Target (issue 37): the storm within 1.2x of idle.
+line on its effort command's writer thread (how long after each tick its command was written).
+``--busy`` keeps one core busy with another process throughout. Target (issue 37): the storm within 1.2x of idle.
 
 ``--control`` keeps the storm's processes connected but quiet in the storm windows: the spread
 of the ratios between two kinds of window that differ in nothing (the measurement's own noise on
@@ -681,13 +681,6 @@ def main() -> int:
         label = {"idle": "idle", "storm": "control" if args.control else "storm"}  # the second window of each round
         labelled = [(f"{label[kind]} {k // 2 + 1}", window_figures(rows, a, b, period), loaded)
                     for k, (kind, a, b, loaded) in enumerate(windows)]
-        empty = [name for name, figures, _ in labelled if figures["ticks"] < 2]
-        if empty:  # the timing rows stopped reaching this process: no figure of those windows is known
-            print_table(labelled)
-            last = f"{rows[-1, 0]:.3f}" if len(rows) else "none"
-            print(f"bench/storm.py: error: no timing rows in windows {', '.join(empty)} (the last row's wall time "
-                  f"{last}; logs in {logs}): the run is not measured", file=sys.stderr)
-            return 1
         pooled = {}
         for kind in ("idle", "storm"):
             mask = np.zeros(len(rows), dtype=bool)
@@ -707,12 +700,13 @@ def main() -> int:
         (logs / "storm.json").write_text(json.dumps({  # for a closer look: the late ticks and every storm event
             "windows": windows, "late_ticks": late[:, :4].tolist(), "events": events}))
         np.save(logs / "timing.npy", rows)  # every commanding tick's row (LoopStatistics.row)
-        idle, busy_figures = pooled["idle"], pooled["storm"]
-        if "p99_us" not in idle or "p99_us" not in busy_figures:
-            span = f"{rows[0, 0]:.3f}-{rows[-1, 0]:.3f}" if len(rows) else "none"
-            print(f"bench/storm.py: error: a window holds no ticks ({len(rows)} rows received, wall times {span}; "
-                  f"windows {[(round(a, 3), round(b, 3)) for _, a, b, _ in windows]})", file=sys.stderr)
+        empty = [name for name, figures, _ in labelled if figures["ticks"] < 2]
+        if empty:  # the timing rows stopped reaching this process: no figure of those windows is known
+            last = f"{rows[-1, 0]:.3f}" if len(rows) else "none"
+            print(f"bench/storm.py: error: no timing rows in windows {', '.join(empty)} (the last row's wall time "
+                  f"{last}; logs in {logs}): the run is not measured", file=sys.stderr)
             return 1
+        idle, busy_figures = pooled["idle"], pooled["storm"]
         print(f"ratios {label['storm']}/idle: p99 {ratio(busy_figures['p99_us'], idle['p99_us']):.2f}, p99.9 "
               f"{ratio(busy_figures['p999_us'], idle['p999_us']):.2f}, worst "
               f"{ratio(busy_figures['worst_us'], idle['worst_us']):.2f}, missed "

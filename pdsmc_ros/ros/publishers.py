@@ -88,24 +88,23 @@ class WriterThread:
         self._thread = threading.Thread(target=self._run, name="command writer", daemon=True)
         self._thread.start()
 
-    def write(self, data: bytes) -> None:
+    def write(self, data: bytes) -> bool:
         """The loop's side: ``data`` is the next message to write (replacing one not yet written).
-        Once the thread has ended (closed, or an error it logged), written here, as rclpy would."""
+        False once the thread has ended (closed, or an error it logged): the caller writes it."""
         with self._cond:
-            if not self._closing and self._thread.is_alive():
-                if self._pending is not None:
-                    self.superseded += 1
-                self._pending = (bytes(data), time.perf_counter())
-                self._cond.notify()
-                return
-        with self._handle:
-            self._handle.publish_raw(bytes(data))
+            if self._closing or not self._thread.is_alive():
+                return False
+            if self._pending is not None:
+                self.superseded += 1
+            self._pending = (bytes(data), time.perf_counter())
+            self._cond.notify()
+            return True
 
     def _run(self) -> None:
         try:
             self._write_until_closed()
         except BaseException as exc:  # noqa: BLE001 - logged; write() then publishes from the caller's thread
-            self.node.get_logger().error(f"{self.topic}: its writer thread ended ({exc!r}); written by the loop")
+            self.node.get_logger().error(f"{self.topic}: its writer thread ended ({exc!r}); written by the caller")
             raise
 
     def _write_until_closed(self) -> None:
@@ -191,12 +190,10 @@ class GuardedPublisher:
         try:
             route = self._route
             if type(msg) is bytes:  # the loop's serialized messages: straight to rcl
-                if route is None or route.deliver(msg):
-                    if self.writer is not None:
-                        self.writer.write(msg)
-                    else:
-                        with self._handle:
-                            self._handle.publish_raw(msg)
+                # over DDS unless only local subscribers take it; by the writer's thread while it runs
+                if (route is None or route.deliver(msg)) and (self.writer is None or not self.writer.write(msg)):
+                    with self._handle:
+                        self._handle.publish_raw(msg)
             else:
                 data = serialize_message(msg) if route is not None and route.queues else b""
                 if route is None or route.deliver(data):

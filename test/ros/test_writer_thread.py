@@ -109,11 +109,13 @@ def test_guarded_publisher_routes_bytes_through_its_writer(node: Node) -> None:
 
 def test_after_close_a_message_is_still_written(node: Node) -> None:
     """A zero command handed over after the thread ended is written from the caller's thread."""
-    publisher = node.create_publisher(Float64MultiArray, TOPIC, QOS)
-    writer = WriterThread(publisher, node)
+    guarded = GuardedPublisher(node.create_publisher(Float64MultiArray, TOPIC, QOS), node, writer_thread=True)
+    writer = guarded.writer
+    assert writer is not None
     listener, results = listen(node, 5.0)
-    wait_matched(publisher)
+    wait_matched(guarded.publisher)
     writer.close()
-    writer.write(encoded(5))
+    assert not writer.write(encoded(5))  # refused by the ended thread ...
+    assert guarded.publish(encoded(5))  # ... so the publisher writes it itself
     listener.join(30.0)
     assert results[0][-1][0] == 5.0 and writer.written == 0
