@@ -185,10 +185,15 @@ def test_demo_hint_pasted_verbatim(tmp_path: Path) -> None:
                              env=clean_env(**env), capture_output=True, text=True, timeout=120)
     assert globbed.returncode == 0, globbed.stderr
     assert globbed.stdout == pasted.stdout
-    assert sorted(globbed.stderr.strip().splitlines()) == [
+    # the glob adds the skipped logs and nothing else; what the run itself reports (a safe-mode
+    # stretch on a loaded machine, say) is the same both ways
+    skipped = [
         f"pdsmc analyze: skipping 'demo/{name}.logs': a directory with no .mcap file and no bag inside"
         for name in ("pd", "pdsmc", "smc")
     ]
+    lines = globbed.stderr.strip().splitlines()
+    assert sorted(line for line in lines if line in skipped) == skipped, globbed.stderr
+    assert [line for line in lines if line not in skipped] == pasted.stderr.strip().splitlines(), globbed.stderr
     # the thesis-style comparison figures of the three runs (make figures does this at full length)
     figures = subprocess.run(["bash", "-c", command + " --plots --out figures"], cwd=tmp_path,
                              env=clean_env(**env), capture_output=True, text=True, timeout=300)
