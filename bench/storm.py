@@ -441,6 +441,31 @@ def late_tick_causes(late: np.ndarray, windows: list[tuple[str, float, float, st
             f"{1e3 * CAUSE_WINDOW_S:g} ms before them: {listed or 'none'}; with none: {unexplained}")
 
 
+def miss_origins(rows: np.ndarray, windows: list[tuple[str, float, float, str]], period: float) -> str:
+    """Where each missed deadline came from, per kind of window: the tick before it still running
+    a period past the missed tick's deadline (a long tick: the loop's own work, or a lock it
+    waited for, made the next one late), or the loop starting late after a short tick (its thread
+    not scheduled, or waiting for the GIL before the tick). ``rows``: timing rows in tick order
+    (:meth:`~pdsmc_ros.loop.statistics.LoopStatistics.row`: wall time at the tick's end, achieved
+    period, compute time, lateness)."""
+    counts = {kind: {"long": 0, "late": 0, "first": 0} for kind in ("idle", "storm")}
+    for k in np.flatnonzero(missed(rows[:, 3], period)):
+        end, _, compute, lateness = rows[k, :4]
+        kind = next((name for name, a, b, _ in windows if a <= end < b), None)
+        if kind is None:
+            continue
+        if k == 0:
+            counts[kind]["first"] += 1
+            continue
+        deadline = end - compute - lateness  # the missed tick's deadline, on the wall clock
+        previous_end = rows[k - 1, 0]
+        counts[kind]["long" if previous_end - deadline > period else "late"] += 1
+    return "; ".join(
+        f"missed deadlines {kind}: {c['long']} after a tick still running a period past the deadline, "
+        f"{c['late']} started late after a short tick" + (f", {c['first']} first rows" if c["first"] else "")
+        for kind, c in counts.items())
+
+
 def window_figures(rows: np.ndarray, start: float, end: float, period: float) -> dict[str, float]:
     """The lateness of the commanding ticks whose wall time lies in ``[start, end)``."""
     inside = rows[(rows[:, 0] >= start) & (rows[:, 0] < end)]
@@ -697,6 +722,7 @@ def main() -> int:
         print("storm: " + ", ".join(f"{key} {value}" for key, value in sorted(did.items())))
         late = rows[missed(rows[:, 3], period)]
         print(late_tick_causes(late, windows, events))
+        print(miss_origins(rows, windows, period))
         (logs / "storm.json").write_text(json.dumps({  # for a closer look: the late ticks and every storm event
             "windows": windows, "late_ticks": late[:, :4].tolist(), "events": events}))
         np.save(logs / "timing.npy", rows)  # every commanding tick's row (LoopStatistics.row)

@@ -76,3 +76,18 @@ def test_rate_ratio_interval_values(storm) -> None:
     assert storm.verdict(0.5, 1.2) == "within 1.2x"
     assert storm.verdict(1.21, 3.0) == "beyond 1.2x"
     assert storm.verdict(0.9, 1.5).startswith("undecided")
+
+
+def test_miss_origins_tell_a_long_tick_from_a_late_start(storm) -> None:
+    """A 1 kHz loop, ticks 50 us long, deadlines on whole milliseconds: tick 10 runs 3 ms, so tick 11
+    starts when it ends, 2 ms late; tick 30 starts 2.5 ms late after a short tick."""
+    period, start = 1e-3, 100.0
+    rows = []  # (wall time at the end, achieved period, compute, lateness)
+    for k in range(40):
+        compute = 3e-3 if k == 10 else 50e-6
+        lateness = {11: 2e-3, 30: 2.5e-3}.get(k, 0.0)
+        rows.append([start + k * period + lateness + compute, period, compute, lateness])
+    windows = [("idle", 99.0, 100.02, ""), ("storm", 100.02, 101.0, "")]
+    told = storm.miss_origins(np.array(rows), windows, period)
+    assert "idle: 1 after a tick still running a period past the deadline, 0 started late" in told, told
+    assert "storm: 0 after a tick still running a period past the deadline, 1 started late" in told, told
