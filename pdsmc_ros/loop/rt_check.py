@@ -17,6 +17,7 @@ from __future__ import annotations
 import argparse
 import os
 import platform
+import re
 import resource
 import sys
 import time
@@ -103,6 +104,49 @@ def _read(path: str) -> str:
         return ""
 
 
+def preemption(version: str) -> str:
+    """How the running kernel preempts itself: the active mode of a ``PREEMPT_DYNAMIC`` kernel
+    (``/sys/kernel/debug/sched/preempt``, the ``preempt=`` boot parameter, or the boot log's
+    ``Dynamic Preempt:`` line, the first that can be read), else what ``uname -v`` says. Under
+    ``none`` a task inside a system call keeps its CPU until the call returns, so a real-time
+    thread waits for other processes' kernel work (``docs/PERFORMANCE.md``, the machine)."""
+    if "PREEMPT_RT" in version:
+        return "rt"
+    if "PREEMPT_DYNAMIC" in version:
+        active = re.search(r"\((\w+)\)", _read("/sys/kernel/debug/sched/preempt"))
+        if active:
+            return active.group(1)
+        boot = re.search(r"(?:^|\s)preempt=(\w+)", _read("/proc/cmdline"))
+        if boot:
+            return boot.group(1)
+        logged = _boot_log_line("Dynamic Preempt: ")
+        return logged or "dynamic (mode unknown: /sys/kernel/debug/sched/preempt and the boot log are not readable)"
+    return "full" if re.search(r"\bPREEMPT\b", version) else "none or voluntary"
+
+
+def _boot_log_line(prefix: str) -> str:
+    """The rest of the kernel log's first line that starts with ``prefix`` ("" if none or not readable)."""
+    try:
+        fd = os.open("/dev/kmsg", os.O_RDONLY | os.O_NONBLOCK)
+    except OSError:
+        return ""
+    try:
+        while True:
+            try:
+                record = os.read(fd, 8192).decode(errors="replace")
+            except BlockingIOError:
+                return ""
+            except OSError:  # EPIPE: a record overwritten while read; the next read goes on
+                continue
+            if not record:
+                return ""
+            text = record.split(";", 1)[-1].strip()
+            if text.startswith(prefix):
+                return text[len(prefix):].strip()
+    finally:
+        os.close(fd)
+
+
 def _limit(which: int) -> str:
     soft, _ = resource.getrlimit(which)
     return "unlimited" if soft == resource.RLIM_INFINITY else str(soft)
@@ -113,9 +157,14 @@ def system_checks() -> list[Check]:
     checks: list[Check] = []
     version = platform.uname().version
     rt = "PREEMPT_RT" in version or _read("/sys/kernel/realtime") == "1"
-    checks.append(("kernel", rt, f"{platform.release()} {version}" + (" (PREEMPT_RT)" if rt else " (not PREEMPT_RT)"),
-                   ("install a PREEMPT_RT kernel (Debian: linux-image-rt-amd64; Ubuntu: the real-time kernel of "
-                   "Ubuntu Pro) for bounded latency; a lowlatency kernel helps too")))
+    mode = "rt" if rt else preemption(version)
+    fix = ("install a PREEMPT_RT kernel (Debian: linux-image-rt-amd64; Ubuntu: the real-time kernel of Ubuntu Pro) "
+           "for bounded latency; a lowlatency kernel helps too")
+    if mode in ("none", "voluntary", "none or voluntary"):
+        fix += ("; at least boot this one with preempt=full (without it a real-time thread waits for other "
+                "processes' system calls)")
+    checks.append(("kernel", rt, f"{platform.release()} {version}" + (" (PREEMPT_RT)" if rt else " (not PREEMPT_RT)")
+                   + f", preemption {mode}", fix))
     rt_runtime = _read("/proc/sys/kernel/sched_rt_runtime_us")
     fifo_ok = _can_fifo()
     checks.append(("SCHED_FIFO", fifo_ok,

@@ -45,3 +45,29 @@ def test_rt_check_bad_input_is_one_line_and_exit_2(args: list[str], message: str
     assert proc.returncode == 2
     assert message in proc.stderr and "Traceback" not in proc.stderr
     assert len(proc.stderr.strip().splitlines()) == 1, proc.stderr
+
+
+@pytest.mark.parametrize(("version", "debugfs", "cmdline", "boot_log", "mode"), [
+    ("#1 SMP PREEMPT_RT Thu", "", "", "", "rt"),
+    ("#1 SMP PREEMPT_DYNAMIC @0", "none voluntary (full) lazy", "preempt=none", "none", "full"),
+    ("#1 SMP PREEMPT_DYNAMIC @0", "", "quiet preempt=voluntary panic=1", "none", "voluntary"),
+    ("#1 SMP PREEMPT_DYNAMIC @0", "", "quiet panic=1", "none", "none"),
+    ("#1 SMP PREEMPT Thu Jan 1", "", "", "", "full"),
+    ("#1 SMP Thu Jan 1", "", "", "", "none or voluntary"),
+])
+def test_preemption_mode_from_the_first_source_that_tells(monkeypatch, version, debugfs, cmdline, boot_log,
+                                                           mode) -> None:
+    from pdsmc_ros.loop import rt_check as module
+
+    files = {"/sys/kernel/debug/sched/preempt": debugfs, "/proc/cmdline": cmdline}
+    monkeypatch.setattr(module, "_read", lambda path: files.get(path, ""))
+    monkeypatch.setattr(module, "_boot_log_line", lambda prefix: boot_log)
+    assert module.preemption(version) == mode
+
+
+def test_preemption_mode_says_when_it_cannot_tell(monkeypatch) -> None:
+    from pdsmc_ros.loop import rt_check as module
+
+    monkeypatch.setattr(module, "_read", lambda path: "")
+    monkeypatch.setattr(module, "_boot_log_line", lambda prefix: "")
+    assert module.preemption("#1 SMP PREEMPT_DYNAMIC @0").startswith("dynamic (mode unknown")
