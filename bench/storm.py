@@ -28,8 +28,14 @@ rclpy clients:
 Printed: per window the commanding ticks, the lateness p50, p99, p99.9 and worst (us), the missed
 deadlines (a tick started more than a period late), the ticks lost (periods without a tick), the
 longest period and how long the ticks took (p50, p99.9: a long tick makes the next one late),
-the load average at each window's start, and what the storm did; at the end, the controller's
+how long the controller's and the stand-in's loop threads waited on a run queue (runnable, their
+CPU given to something else), the load average at each window's start, and what the storm did.
+Then each missed deadline told by what came before it (a long tick, or a late start after a short
+one) and whether the controller's loop waited on the run queue then; at the end, the controller's
 line on its effort command's writer thread (how long after each tick its command was written).
+``--floor`` runs a bare Python loop beside everything, paced as the controller's loop is, at its
+``SCHED_FIFO`` priority, with no ROS and one thread (so no GIL or middleware lock to wait for), and
+prints its lateness in each kind of window: what the storm does to any loop on this machine.
 ``--busy`` keeps one core busy with another process throughout. Target (issue 37): the storm within 1.2x of idle.
 
 ``--control`` keeps the storm's processes connected but quiet in the storm windows: the spread
@@ -49,8 +55,8 @@ timing row).
 Last line: ``idle_p99_us=A storm_p99_us=B ratio_p99=C idle_worst_us=D storm_worst_us=E ratio_worst=F``
 (each window kind pooled over the rounds).
 
-Usage: python bench/storm.py [--duration 10] [--rounds 1 (12 for a verdict)] [--busy] [--large-points 20000]
-       [--domain N] [--law pd] [--roles goals,params,large,connections] [--control]
+Usage: python bench/storm.py [--duration 10] [--rounds 1 (12 for a verdict)] [--busy] [--large-points 10000]
+       [--domain N] [--law pd] [--roles goals,params,large,connections] [--control] [--floor]
        (inside the venv, the venv's bin first on PATH)
 """
 
@@ -58,6 +64,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import ctypes
 import json
 import os
 import random
@@ -89,6 +96,9 @@ NODE_EVERY_S = 0.4
 NODE_LIFE_S = 0.3
 PARTICIPANT_EVERY_S = 2.0
 CAUSE_WINDOW_S = 0.005  # late_tick_causes: how long before a late tick's deadline an event may have caused it
+FLOOR_PRIORITY = 50  # --floor: the controller loop's SCHED_FIFO priority (thread_priority's default)
+FLOOR_SPIN_S = 50e-6  # --floor: spin before each deadline, as the controller's loop at FIFO does
+RUNQUEUE_EVERY_S = 0.02  # RunQueueWaits: how often the loops' run-queue waits are read
 WORKER_GRACE_S = 60.0  # a storm process answers its window's counts within this long after the window
 MOVE_RAD = 0.03  # each goal's move around the start position, per joint
 MOVE_S = 0.4
@@ -367,6 +377,56 @@ def worker(role: str, domain: int, large_points: int, seed: int) -> int:
         storm.close()
 
 
+def floor_loop(out: Path, seconds: float) -> int:
+    """``--floor``'s process: a bare Python loop paced as the controller's is (sleep until
+    ``FLOOR_SPIN_S`` before each deadline at ``RATE``, spin the rest), at the controller loop's
+    ``SCHED_FIFO`` priority with memory locked, one thread, no ROS: what the machine alone does to a
+    loop beside the storm. Runs until its stdin closes (at most ``seconds``); saves each tick's
+    (wall time, lateness after its deadline) to ``out``."""
+    with contextlib.suppress(OSError, AttributeError):
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(FLOOR_PRIORITY))
+    with contextlib.suppress(OSError, AttributeError):
+        ctypes.CDLL(None, use_errno=True).mlockall(3)  # MCL_CURRENT | MCL_FUTURE
+    rows = np.zeros((int(seconds * RATE) + 1, 2))
+    rows[:, 1] = 1.0  # touched now, never in the loop
+    ended = threading.Event()
+    threading.Thread(target=lambda: (sys.stdin.read(), ended.set()), daemon=True).start()
+    period = 1.0 / RATE
+    next_tick = time.perf_counter() + period
+    k = 0
+    while k < len(rows) and not ended.is_set():
+        sleep = next_tick - FLOOR_SPIN_S - time.perf_counter()
+        if sleep > 0.0:
+            time.sleep(sleep)
+        now = time.perf_counter()
+        while now < next_tick:
+            now = time.perf_counter()
+        rows[k, 0], rows[k, 1] = time.time(), now - next_tick
+        k += 1
+        next_tick += period
+        if now - next_tick > period:  # more than a period behind: resynchronise, as the serve loop does
+            next_tick = now + period
+    np.save(out, rows[:k])
+    return 0
+
+
+def floor_figures(rows: np.ndarray, windows: list[tuple[str, float, float, str]], period: float) -> str:
+    """The bare loop's lateness in each kind of window, pooled: missed deadlines, p99.9 and worst."""
+    told = []
+    for kind in ("idle", "storm"):
+        mask = np.zeros(len(rows), dtype=bool)
+        for name, a, b, _ in windows:
+            if name == kind:
+                mask |= (rows[:, 0] >= a) & (rows[:, 0] < b)
+        late = rows[mask, 1]
+        if len(late) < 2:
+            told.append(f"{kind}: no ticks")
+            continue
+        told.append(f"{kind}: {len(late)} ticks, missed {np.count_nonzero(missed(late, period))}, p99.9 "
+                    f"{1e6 * np.percentile(late, 99.9):.0f} us, worst {1e6 * late.max():.0f} us")
+    return f"a bare loop beside it (Python, SCHED_FIFO {FLOOR_PRIORITY}, no ROS): " + "; ".join(told)
+
+
 # --------------------------------------------------------------------------- #
 # The measurement (this process)
 # --------------------------------------------------------------------------- #
@@ -412,6 +472,68 @@ class TimingRows:
         self.thread.join(timeout=2)
         self.node.destroy_node()
         self.rclpy.try_shutdown(context=self.context)
+
+
+class RunQueueWaits:
+    """How long the processes' main threads (the controller's and the stand-in's loops) waited on
+    a run queue: runnable, but the CPU given to something else (``/proc/PID/schedstat``'s second
+    field, sampled every ``RUNQUEUE_EVERY_S``). A thread at ``SCHED_FIFO`` waits there only for a
+    thread of higher or equal priority, or for a kernel that does not preempt (``Dynamic Preempt:
+    none`` in the boot log: a task in a long system call keeps its CPU until it returns), never for
+    the GIL or a lock (a thread waiting for those sleeps)."""
+
+    def __init__(self, pids: dict[str, int]) -> None:
+        self.pids = pids
+        self.samples: list[tuple[float, ...]] = []  # (wall time, waited ns per pid)
+        self.stop = threading.Event()
+        self.thread = threading.Thread(target=self._sample, daemon=True)
+        self.thread.start()
+
+    @staticmethod
+    def waited(pid: int) -> float:
+        try:
+            return float(Path(f"/proc/{pid}/schedstat").read_text().split()[1])
+        except (OSError, IndexError, ValueError):
+            return float("nan")
+
+    def _sample(self) -> None:
+        while not self.stop.wait(RUNQUEUE_EVERY_S):
+            self.samples.append((time.time(), *(self.waited(pid) for pid in self.pids.values())))
+
+    def array(self) -> np.ndarray:
+        return np.array(self.samples) if self.samples else np.zeros((0, 1 + len(self.pids)))
+
+    def close(self) -> None:
+        self.stop.set()
+        self.thread.join(timeout=2)
+
+
+def runqueue_ms(samples: np.ndarray, names: list[str], start: float, end: float) -> dict[str, float]:
+    """The loops' run-queue waits (ms) between ``start`` and ``end`` (wall time), by the samples
+    around them, as ``{name}_rq_ms`` (``names``: the sampled processes, in their columns' order)."""
+    if len(samples) < 2:
+        return {}
+    at = np.interp([start, end], samples[:, 0], np.arange(len(samples)))
+    first, last = int(np.floor(at[0])), int(np.ceil(at[1]))
+    waited = (samples[last, 1:] - samples[first, 1:]) / 1e6
+    return {f"{name}_rq_ms": float(w) for name, w in zip(names, waited, strict=True)}
+
+
+def misses_on_run_queue(late: np.ndarray, samples: np.ndarray, windows: list[tuple[str, float, float, str]],
+                        period: float) -> str:
+    """The missed deadlines of each kind of window in a sampling interval where the controller's
+    loop waited on the run queue for at least a period (its CPU withheld, not its own work late)."""
+    counts = {kind: [0, 0] for kind in ("idle", "storm")}
+    for tick, _, _, _ in late[:, :4]:
+        kind = next((name for name, a, b, _ in windows if a <= tick < b), None)
+        if kind is None or len(samples) < 2:
+            continue
+        k = int(np.searchsorted(samples[:, 0], tick))
+        counts[kind][1] += 1
+        if 0 < k < len(samples) and (samples[k, 1] - samples[k - 1, 1]) / 1e9 >= period:
+            counts[kind][0] += 1
+    return "; ".join(f"missed deadlines {kind}: {on} of {n} where the controller's loop waited a period or more "
+                     f"on the run queue within {1e3 * RUNQUEUE_EVERY_S:g} ms" for kind, (on, n) in counts.items())
 
 
 def late_tick_causes(late: np.ndarray, windows: list[tuple[str, float, float, str]],
@@ -489,7 +611,8 @@ def window_figures(rows: np.ndarray, start: float, end: float, period: float) ->
 COLUMNS = (("ticks", "ticks", "{:.0f}"), ("p50_us", "p50 us", "{:.0f}"), ("p99_us", "p99 us", "{:.0f}"),
            ("p999_us", "p99.9 us", "{:.0f}"), ("worst_us", "worst us", "{:.0f}"), ("missed", "missed", "{:.0f}"),
            ("lost", "lost", "{:.0f}"), ("worst_period_us", "worst period us", "{:.0f}"),
-           ("compute_p50_us", "tick p50 us", "{:.0f}"), ("compute_p999_us", "tick p99.9 us", "{:.0f}"))
+           ("compute_p50_us", "tick p50 us", "{:.0f}"), ("compute_p999_us", "tick p99.9 us", "{:.0f}"),
+           ("controller_rq_ms", "loop rq ms", "{:.1f}"), ("driver_rq_ms", "stand-in rq ms", "{:.1f}"))
 
 
 def print_table(labelled: list[tuple[str, dict[str, float], str]]) -> None:
@@ -625,6 +748,10 @@ def main() -> int:
     parser.add_argument("--control", action="store_true",
                         help="a control run: the storm's processes stay connected but quiet in the storm windows "
                              "(the ratios' noise on this machine)")
+    parser.add_argument("--floor", action="store_true",
+                        help="a bare Python loop at the controller loop's SCHED_FIFO priority beside the run: the "
+                             "machine's own share of the lateness in each kind of window")
+    parser.add_argument("--floor-out", type=Path, help=argparse.SUPPRESS)
     parser.add_argument("--worker", choices=ROLES, help=argparse.SUPPRESS)
     parser.add_argument("--seed", type=int, default=37, help=argparse.SUPPRESS)
     args = parser.parse_args()
@@ -639,6 +766,8 @@ def main() -> int:
         parser.error(f"--roles must name some of {', '.join(ROLES)}, got {args.roles!r}")
     if args.worker:
         return worker(args.worker, args.domain, args.large_points, args.seed)
+    if args.floor_out:
+        return floor_loop(args.floor_out, args.rounds * 2 * (args.duration + WORKER_GRACE_S) + 60.0)
 
     env = dict(os.environ, ROS_DOMAIN_ID=str(args.domain), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
     logs = Path(tempfile.mkdtemp(prefix="storm-"))
@@ -646,6 +775,8 @@ def main() -> int:
     busy = None
     storms: list[subprocess.Popen[Any]] = []
     timing = None
+    runqueue = None
+    floor = None
     try:
         with open(logs / "driver.log", "w") as out:
             procs.append(subprocess.Popen(
@@ -665,6 +796,14 @@ def main() -> int:
         if len(timing.all()) < 1000:
             print(f"bench/storm.py: error: the controller did not command (logs in {logs})", file=sys.stderr)
             return 1
+        if args.floor:
+            floor = subprocess.Popen([sys.executable, __file__, "--floor-out", str(logs / "floor.npy"),
+                                      "--rounds", str(args.rounds), "--duration", str(args.duration)],
+                                     stdin=subprocess.PIPE, start_new_session=True)
+        sampled = {"controller": procs[1].pid, "driver": procs[0].pid}  # ros2 run execs: the same pid
+        if floor is not None:
+            sampled["floor"] = floor.pid
+        runqueue = RunQueueWaits(sampled)
         for role in roles:  # one after the other: participants created at the same instant hung here
             storms.append(subprocess.Popen(
                 [sys.executable, __file__, "--worker", role, "--domain", str(args.domain),
@@ -702,9 +841,15 @@ def main() -> int:
             time.sleep(1.0)  # the storm's tail (last answers, a hold) outside both windows
         time.sleep(0.5)  # the last timing batch
         rows = timing.all()
+        if floor is not None:
+            floor.stdin.close()  # type: ignore[union-attr]
+            with contextlib.suppress(subprocess.TimeoutExpired):
+                floor.wait(timeout=30)  # it saves its ticks; else killed below, and its figures are missing
         period = 1.0 / RATE
         label = {"idle": "idle", "storm": "control" if args.control else "storm"}  # the second window of each round
-        labelled = [(f"{label[kind]} {k // 2 + 1}", window_figures(rows, a, b, period), loaded)
+        samples = runqueue.array()
+        labelled = [(f"{label[kind]} {k // 2 + 1}",
+                     window_figures(rows, a, b, period) | runqueue_ms(samples, list(sampled), a, b), loaded)
                     for k, (kind, a, b, loaded) in enumerate(windows)]
         pooled = {}
         for kind in ("idle", "storm"):
@@ -713,6 +858,9 @@ def main() -> int:
                 if name == kind:
                     mask |= (rows[:, 0] >= a) & (rows[:, 0] < b)
             pooled[kind] = window_figures(rows[mask], -np.inf, np.inf, period)
+            for key in ("controller_rq_ms", "driver_rq_ms"):
+                pooled[kind][key] = sum(f.get(key, 0.0) for (name, *_), (_, f, _) in zip(windows, labelled, strict=True)
+                                        if name == kind)
         print(f"controller {args.law}, UR5 against the MuJoCo stand-in, {RATE:g} Hz real time, windows of "
               f"{args.duration:g} s{', one core kept busy' if args.busy else ''}; lateness of each commanding tick "
               "after its deadline")
@@ -723,8 +871,16 @@ def main() -> int:
         late = rows[missed(rows[:, 3], period)]
         print(late_tick_causes(late, windows, events))
         print(miss_origins(rows, windows, period))
+        print(misses_on_run_queue(late, samples, windows, period))
+        if (logs / "floor.npy").exists():
+            waited = {kind: sum(figures.get("floor_rq_ms", 0.0)
+                                for (name, *_), (_, figures, _) in zip(windows, labelled, strict=True) if name == kind)
+                      for kind in ("idle", "storm")}
+            print(floor_figures(np.load(logs / "floor.npy"), windows, period)
+                  + f"; its run-queue waits {waited['idle']:.1f} ms idle, {waited['storm']:.1f} ms in the storm")
         (logs / "storm.json").write_text(json.dumps({  # for a closer look: the late ticks and every storm event
-            "windows": windows, "late_ticks": late[:, :4].tolist(), "events": events}))
+            "windows": windows, "late_ticks": late[:, :4].tolist(), "events": events,
+            "runqueue_waits_ns": samples.tolist()}))
         np.save(logs / "timing.npy", rows)  # every commanding tick's row (LoopStatistics.row)
         empty = [name for name, figures, _ in labelled if figures["ticks"] < 2]
         if empty:  # the timing rows stopped reaching this process: no figure of those windows is known
@@ -761,11 +917,16 @@ def main() -> int:
             except subprocess.TimeoutExpired:
                 proc.kill()
                 proc.wait(timeout=10)
+        if floor is not None and floor.poll() is None:
+            floor.kill()
+            floor.wait(timeout=10)
         if busy is not None:
             busy.kill()
             busy.wait(timeout=10)
         if timing is not None:
             timing.close()
+        if runqueue is not None:
+            runqueue.close()
         for proc in reversed(procs):
             stop(proc)
         # the controller's closing line on its effort command's writer thread: how late the commands left

@@ -91,3 +91,41 @@ def test_miss_origins_tell_a_long_tick_from_a_late_start(storm) -> None:
     told = storm.miss_origins(np.array(rows), windows, period)
     assert "idle: 1 after a tick still running a period past the deadline, 0 started late" in told, told
     assert "storm: 0 after a tick still running a period past the deadline, 1 started late" in told, told
+
+
+def test_run_queue_waits_are_split_by_window(storm) -> None:
+    """Samples every 20 ms of two processes' cumulative run-queue waits (ns): the second waits 1 ms
+    in each sample of the storm window only; each window gets the waits between its edges."""
+    t = 100.0 + 0.02 * np.arange(101)  # 100.00 .. 102.00
+    controller = 1e5 * np.arange(101)  # 0.1 ms a sample throughout
+    driver = np.cumsum(np.where((t > 101.0) & (t <= 102.0), 1e6, 0.0))  # 1 ms a sample after 101 s
+    samples = np.column_stack([t, controller, driver])
+    idle = storm.runqueue_ms(samples, ["controller", "driver"], 100.0, 101.0)
+    busy = storm.runqueue_ms(samples, ["controller", "driver"], 101.0, 102.0)
+    assert idle == pytest.approx({"controller_rq_ms": 5.0, "driver_rq_ms": 0.0})
+    assert busy == pytest.approx({"controller_rq_ms": 5.0, "driver_rq_ms": 50.0})
+    assert storm.runqueue_ms(samples[:1], ["controller", "driver"], 100.0, 101.0) == {}
+
+
+def test_floor_figures_count_each_window_kind(storm) -> None:
+    period = 1e-3
+    t = 200.0 + period * np.arange(4000)
+    lateness = np.full(len(t), 20e-6)
+    lateness[[500, 2500, 3000]] = [1.5e-3, 2.5e-3, 0.9e-3]  # one miss idle, one in the storm, one late but not missed
+    windows = [("idle", 200.0, 202.0, ""), ("storm", 202.0, 204.0, "")]
+    told = storm.floor_figures(np.column_stack([t, lateness]), windows, period)
+    assert "idle: 2000 ticks, missed 1," in told and "worst 1500 us" in told, told
+    assert "storm: 2000 ticks, missed 1," in told and "worst 2500 us" in told, told
+
+
+def test_misses_on_run_queue_need_a_period_of_waiting_around_them(storm) -> None:
+    period = 1e-3
+    t = 100.0 + 0.02 * np.arange(101)
+    waited = np.zeros(len(t))
+    waited[26:] += 2e6  # 2 ms on the run queue between 100.50 and 100.52
+    samples = np.column_stack([t, waited, waited])
+    late = np.array([[100.51, period, 5e-5, 2e-3], [101.51, period, 5e-5, 2e-3]])  # (wall time at its end, ...)
+    windows = [("idle", 100.0, 101.0, ""), ("storm", 101.0, 102.0, "")]
+    told = storm.misses_on_run_queue(late, samples, windows, period)
+    assert told.startswith("missed deadlines idle: 1 of 1 where"), told
+    assert "missed deadlines storm: 0 of 1 where" in told, told
