@@ -29,7 +29,9 @@ Printed: per window the commanding ticks, the lateness p50, p99, p99.9 and worst
 deadlines (a tick started more than a period late), the ticks lost (periods without a tick), the
 longest period and how long the ticks took (p50, p99.9: a long tick makes the next one late),
 how long the controller's and the stand-in's loop threads waited on a run queue (runnable, their
-CPU given to something else), the load average at each window's start, and what the storm did.
+CPU given to something else), the machine's CPU time left idle and spent in the kernel and the
+time its host took the virtual CPUs away (steal), the load average at each window's start, and
+what the storm did.
 Then each missed deadline told by what came before it (a long tick, or a late start after a short
 one) and whether the controller's loop waited on the run queue then; at the end, the controller's
 line on its effort command's writer thread (how long after each tick its command was written).
@@ -508,6 +510,32 @@ class RunQueueWaits:
         self.thread.join(timeout=2)
 
 
+CPU_TIMES = ("user", "nice", "system", "idle", "iowait", "irq", "softirq", "steal")
+
+
+def cpu_times() -> np.ndarray:
+    """The machine's CPU time so far by kind (seconds over all CPUs: ``/proc/stat``'s first line,
+    in the order of ``CPU_TIMES``); NaN where it cannot be read."""
+    try:
+        fields = Path("/proc/stat").read_text().split("\n", 1)[0].split()[1:1 + len(CPU_TIMES)]
+        return np.array([float(f) for f in fields]) / os.sysconf("SC_CLK_TCK")
+    except (OSError, ValueError):
+        return np.full(len(CPU_TIMES), np.nan)
+
+
+def machine_figures(spent: np.ndarray) -> dict[str, float]:
+    """What the machine's CPUs did over a window (``spent``: a difference of :func:`cpu_times`):
+    the share left idle, the share in the kernel (system, interrupts) and the time the host took
+    the virtual CPUs away (steal, ms)."""
+    total = float(spent.sum())
+    if not total > 0.0:
+        return {}
+    kernel = spent[CPU_TIMES.index("system")] + spent[CPU_TIMES.index("irq")] + spent[CPU_TIMES.index("softirq")]
+    return {"cpu_idle_pct": 100.0 * float(spent[CPU_TIMES.index("idle")]) / total,
+            "cpu_kernel_pct": 100.0 * float(kernel) / total,
+            "steal_ms": 1e3 * float(spent[CPU_TIMES.index("steal")])}
+
+
 def runqueue_ms(samples: np.ndarray, names: list[str], start: float, end: float) -> dict[str, float]:
     """The loops' run-queue waits (ms) between ``start`` and ``end`` (wall time), by the samples
     around them, as ``{name}_rq_ms`` (``names``: the sampled processes, in their columns' order)."""
@@ -612,7 +640,9 @@ COLUMNS = (("ticks", "ticks", "{:.0f}"), ("p50_us", "p50 us", "{:.0f}"), ("p99_u
            ("p999_us", "p99.9 us", "{:.0f}"), ("worst_us", "worst us", "{:.0f}"), ("missed", "missed", "{:.0f}"),
            ("lost", "lost", "{:.0f}"), ("worst_period_us", "worst period us", "{:.0f}"),
            ("compute_p50_us", "tick p50 us", "{:.0f}"), ("compute_p999_us", "tick p99.9 us", "{:.0f}"),
-           ("controller_rq_ms", "loop rq ms", "{:.1f}"), ("driver_rq_ms", "stand-in rq ms", "{:.1f}"))
+           ("controller_rq_ms", "loop rq ms", "{:.1f}"), ("driver_rq_ms", "stand-in rq ms", "{:.1f}"),
+           ("cpu_idle_pct", "cpu idle %", "{:.1f}"), ("cpu_kernel_pct", "kernel %", "{:.1f}"),
+           ("steal_ms", "steal ms", "{:.0f}"))
 
 
 def print_table(labelled: list[tuple[str, dict[str, float], str]]) -> None:
@@ -819,11 +849,13 @@ def main() -> int:
         windows: list[tuple[str, float, float, str]] = []
         did: dict[str, int] = {}
         events: list[tuple[float, str]] = []  # (wall time, what) of everything the storm did
+        spent: list[np.ndarray] = []  # each window's CPU time by kind (cpu_times)
         for _ in range(args.rounds):
-            start, loaded = time.time(), load()
+            start, loaded, before = time.time(), load(), cpu_times()
             time.sleep(args.duration)
             windows.append(("idle", start, time.time(), loaded))
-            start, loaded = time.time(), load()
+            spent.append(cpu_times() - before)
+            start, loaded, before = time.time(), load(), cpu_times()
             for proc in storms:
                 proc.stdin.write(f"{'rest' if args.control else 'go'} {args.duration}\n")  # type: ignore[union-attr]
                 proc.stdin.flush()  # type: ignore[union-attr]
@@ -838,6 +870,7 @@ def main() -> int:
                 for key, value in counts.items():
                     did[key] = did.get(key, 0) + value
             windows.append(("storm", start, start + args.duration, loaded))
+            spent.append(cpu_times() - before)  # to the last answer, a moment past the window
             time.sleep(1.0)  # the storm's tail (last answers, a hold) outside both windows
         time.sleep(0.5)  # the last timing batch
         rows = timing.all()
@@ -849,7 +882,8 @@ def main() -> int:
         label = {"idle": "idle", "storm": "control" if args.control else "storm"}  # the second window of each round
         samples = runqueue.array()
         labelled = [(f"{label[kind]} {k // 2 + 1}",
-                     window_figures(rows, a, b, period) | runqueue_ms(samples, list(sampled), a, b), loaded)
+                     window_figures(rows, a, b, period) | runqueue_ms(samples, list(sampled), a, b)
+                     | machine_figures(spent[k]), loaded)
                     for k, (kind, a, b, loaded) in enumerate(windows)]
         pooled = {}
         for kind in ("idle", "storm"):
@@ -861,6 +895,8 @@ def main() -> int:
             for key in ("controller_rq_ms", "driver_rq_ms"):
                 pooled[kind][key] = sum(f.get(key, 0.0) for (name, *_), (_, f, _) in zip(windows, labelled, strict=True)
                                         if name == kind)
+            pooled[kind] |= machine_figures(sum((d for (name, *_), d in zip(windows, spent, strict=True)
+                                                 if name == kind), np.zeros(len(CPU_TIMES))))
         print(f"controller {args.law}, UR5 against the MuJoCo stand-in, {RATE:g} Hz real time, windows of "
               f"{args.duration:g} s{', one core kept busy' if args.busy else ''}; lateness of each commanding tick "
               "after its deadline")

@@ -129,3 +129,13 @@ def test_misses_on_run_queue_need_a_period_of_waiting_around_them(storm) -> None
     told = storm.misses_on_run_queue(late, samples, windows, period)
     assert told.startswith("missed deadlines idle: 1 of 1 where"), told
     assert "missed deadlines storm: 0 of 1 where" in told, told
+
+
+def test_machine_figures_share_the_cpu_time_of_a_window(storm) -> None:
+    # user nice system idle iowait irq softirq steal (s over all CPUs)
+    spent = np.array([10.0, 0.0, 5.0, 4.0, 0.0, 0.0, 1.0, 0.05])
+    figures = storm.machine_figures(spent)
+    assert figures == pytest.approx({"cpu_idle_pct": 400 / 20.05, "cpu_kernel_pct": 600 / 20.05, "steal_ms": 50.0})
+    assert storm.machine_figures(np.zeros(8)) == {}
+    now = storm.cpu_times()
+    assert len(now) == len(storm.CPU_TIMES) and np.all(now >= 0.0)
