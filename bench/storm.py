@@ -85,6 +85,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from pdsmc_ros.controller import joint_trajectory  # noqa: E402
+from pdsmc_ros.loop.rt_check import paced_loop  # noqa: E402
 from pdsmc_ros.loop.statistics import missed  # noqa: E402
 
 # the controller's size limit for a trajectory (a goal at the limit is validated); 5,000 where it has none
@@ -380,47 +381,42 @@ def worker(role: str, domain: int, large_points: int, seed: int) -> int:
 
 
 def floor_loop(out: Path, seconds: float) -> int:
-    """``--floor``'s process: a bare Python loop paced as the controller's is (sleep until
-    ``FLOOR_SPIN_S`` before each deadline at ``RATE``, spin the rest), at the controller loop's
-    ``SCHED_FIFO`` priority with memory locked, one thread, no ROS: what the machine alone does to a
-    loop beside the storm. Runs until its stdin closes (at most ``seconds``); saves each tick's
-    (wall time, lateness after its deadline) to ``out``."""
+    """``--floor``'s process: ``pdsmc rt-check``'s bare loop (:func:`~pdsmc_ros.loop.rt_check.paced_loop`:
+    paced as the serve loop paces the nodes, ``FLOOR_SPIN_S`` of spin before each deadline at
+    ``RATE``) at the controller loop's ``SCHED_FIFO`` priority with memory locked, one thread, no
+    ROS: what the machine alone does to a loop beside the storm. Runs until its stdin closes (at
+    most ``seconds``); saves each tick's (wall time, lateness after its deadline) to ``out``."""
     with contextlib.suppress(OSError, AttributeError):
         os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(FLOOR_PRIORITY))
     with contextlib.suppress(OSError, AttributeError):
-        ctypes.CDLL(None, use_errno=True).mlockall(3)  # MCL_CURRENT | MCL_FUTURE
-    rows = np.zeros((int(seconds * RATE) + 1, 2))
-    rows[:, 1] = 1.0  # touched now, never in the loop
+        ctypes.CDLL(None, use_errno=True).mlockall(3)  # MCL_CURRENT | MCL_FUTURE: the loop's arrays too
     ended = threading.Event()
     threading.Thread(target=lambda: (sys.stdin.read(), ended.set()), daemon=True).start()
-    period = 1.0 / RATE
-    next_tick = time.perf_counter() + period
-    k = 0
-    while k < len(rows) and not ended.is_set():
-        sleep = next_tick - FLOOR_SPIN_S - time.perf_counter()
-        if sleep > 0.0:
-            time.sleep(sleep)
-        now = time.perf_counter()
-        while now < next_tick:
-            now = time.perf_counter()
-        rows[k, 0], rows[k, 1] = time.time(), now - next_tick
-        k += 1
-        next_tick += period
-        if now - next_tick > period:  # more than a period behind: resynchronise, as the serve loop does
-            next_tick = now + period
-    np.save(out, rows[:k])
+    wall_offset = time.time() - time.perf_counter()
+    late, starts, _ = paced_loop(1.0 / RATE, seconds, FLOOR_SPIN_S, stop=ended)
+    np.save(out, np.column_stack([starts + wall_offset, late]))
     return 0
+
+
+def window_kind(t: float, windows: list[tuple[str, float, float, str]]) -> str | None:
+    """The kind of window (``idle``, ``storm``) wall time ``t`` lies in; None between windows."""
+    return next((name for name, a, b, _ in windows if a <= t < b), None)
+
+
+def kind_mask(times: np.ndarray, windows: list[tuple[str, float, float, str]], kind: str) -> np.ndarray:
+    """Which of the wall ``times`` lie in a window of ``kind``."""
+    mask = np.zeros(len(times), dtype=bool)
+    for name, a, b, _ in windows:
+        if name == kind:
+            mask |= (times >= a) & (times < b)
+    return mask
 
 
 def floor_figures(rows: np.ndarray, windows: list[tuple[str, float, float, str]], period: float) -> str:
     """The bare loop's lateness in each kind of window, pooled: missed deadlines, p99.9 and worst."""
     told = []
     for kind in ("idle", "storm"):
-        mask = np.zeros(len(rows), dtype=bool)
-        for name, a, b, _ in windows:
-            if name == kind:
-                mask |= (rows[:, 0] >= a) & (rows[:, 0] < b)
-        late = rows[mask, 1]
+        late = rows[kind_mask(rows[:, 0], windows, kind), 1]
         if len(late) < 2:
             told.append(f"{kind}: no ticks")
             continue
@@ -552,9 +548,9 @@ def misses_on_run_queue(late: np.ndarray, samples: np.ndarray, windows: list[tup
     """The missed deadlines of each kind of window in a sampling interval where the controller's
     loop waited on the run queue for at least a period (its CPU withheld, not its own work late)."""
     counts = {kind: [0, 0] for kind in ("idle", "storm")}
-    for tick, _, _, _ in late[:, :4]:
-        kind = next((name for name, a, b, _ in windows if a <= tick < b), None)
-        if kind is None or len(samples) < 2:
+    for tick in late[:, 0] if len(samples) >= 2 else ():
+        kind = window_kind(tick, windows)
+        if kind is None:
             continue
         k = int(np.searchsorted(samples[:, 0], tick))
         counts[kind][1] += 1
@@ -575,7 +571,7 @@ def late_tick_causes(late: np.ndarray, windows: list[tuple[str, float, float, st
     unexplained = 0
     times = np.array([t for t, _ in events])
     for tick, _, _, lateness in late[:, :4]:
-        kind = next((name for name, a, b, _ in windows if a <= tick < b), None)
+        kind = window_kind(tick, windows)
         if kind is None:
             continue
         ticks[kind] += 1
@@ -601,7 +597,7 @@ def miss_origins(rows: np.ndarray, windows: list[tuple[str, float, float, str]],
     counts = {kind: {"long": 0, "late": 0, "first": 0} for kind in ("idle", "storm")}
     for k in np.flatnonzero(missed(rows[:, 3], period)):
         end, _, compute, lateness = rows[k, :4]
-        kind = next((name for name, a, b, _ in windows if a <= end < b), None)
+        kind = window_kind(end, windows)
         if kind is None:
             continue
         if k == 0:
@@ -887,12 +883,8 @@ def main() -> int:
                     for k, (kind, a, b, loaded) in enumerate(windows)]
         pooled = {}
         for kind in ("idle", "storm"):
-            mask = np.zeros(len(rows), dtype=bool)
-            for name, a, b, _ in windows:
-                if name == kind:
-                    mask |= (rows[:, 0] >= a) & (rows[:, 0] < b)
-            pooled[kind] = window_figures(rows[mask], -np.inf, np.inf, period)
-            for key in ("controller_rq_ms", "driver_rq_ms"):
+            pooled[kind] = window_figures(rows[kind_mask(rows[:, 0], windows, kind)], -np.inf, np.inf, period)
+            for key in (f"{name}_rq_ms" for name in sampled):
                 pooled[kind][key] = sum(f.get(key, 0.0) for (name, *_), (_, f, _) in zip(windows, labelled, strict=True)
                                         if name == kind)
             pooled[kind] |= machine_figures(sum((d for (name, *_), d in zip(windows, spent, strict=True)
@@ -909,11 +901,9 @@ def main() -> int:
         print(miss_origins(rows, windows, period))
         print(misses_on_run_queue(late, samples, windows, period))
         if (logs / "floor.npy").exists():
-            waited = {kind: sum(figures.get("floor_rq_ms", 0.0)
-                                for (name, *_), (_, figures, _) in zip(windows, labelled, strict=True) if name == kind)
-                      for kind in ("idle", "storm")}
             print(floor_figures(np.load(logs / "floor.npy"), windows, period)
-                  + f"; its run-queue waits {waited['idle']:.1f} ms idle, {waited['storm']:.1f} ms in the storm")
+                  + f"; its run-queue waits {pooled['idle'].get('floor_rq_ms', 0.0):.1f} ms idle, "
+                  f"{pooled['storm'].get('floor_rq_ms', 0.0):.1f} ms in the storm")
         (logs / "storm.json").write_text(json.dumps({  # for a closer look: the late ticks and every storm event
             "windows": windows, "late_ticks": late[:, :4].tolist(), "events": events,
             "runqueue_waits_ns": samples.tolist()}))

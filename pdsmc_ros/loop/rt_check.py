@@ -20,6 +20,7 @@ import platform
 import re
 import resource
 import sys
+import threading
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -202,11 +203,12 @@ def _can_fifo() -> bool:
     return True
 
 
-def paced_loop(period: float, duration: float, busy_wait: float) -> tuple[np.ndarray, np.ndarray, LoopStatistics]:
-    """Tick at ``period`` for ``duration`` s: the lateness of each tick start and each achieved
-    period (seconds, after ``WARM_UP_S``), and the loop's statistics (the nodes' own
-    :class:`~pdsmc_ros.loop.statistics.LoopStatistics`, warmed up for ``WARM_UP_S``: missed
-    ticks, page faults).
+def paced_loop(period: float, duration: float, busy_wait: float, *,
+               stop: threading.Event | None = None) -> tuple[np.ndarray, np.ndarray, LoopStatistics]:
+    """Tick at ``period`` for ``duration`` s, or until ``stop`` is set: the lateness of each tick
+    start and the tick starts (``perf_counter`` seconds), both after ``WARM_UP_S``, and the loop's
+    statistics (the nodes' own :class:`~pdsmc_ros.loop.statistics.LoopStatistics`, warmed up for
+    ``WARM_UP_S``: missed ticks, page faults).
 
     Paced as the serve loop paces the nodes: sleep until ``busy_wait`` before the deadline,
     spin the rest; a tick more than a period behind resynchronises.
@@ -218,23 +220,25 @@ def paced_loop(period: float, duration: float, busy_wait: float) -> tuple[np.nda
     warm = max(min(int(WARM_UP_S / period), n - 2), 0)
     stats = LoopStatistics(period, warm_up=warm)
     deadline = clock() + period
-    for k in range(n):
+    ticks = 0
+    while ticks < n and (stop is None or not stop.is_set()):
         left = deadline - busy_wait - clock()
         if left > 0.0:
             sleep(left)
         while clock() < deadline:
             pass
         start = clock()
-        late[k] = start - deadline
-        starts[k] = start
-        stats.start(late[k], start)
-        if k == warm - 1:
+        late[ticks] = start - deadline
+        starts[ticks] = start
+        stats.start(late[ticks], start)
+        ticks += 1
+        if ticks == warm:
             stats.page_faults(minor_faults())  # the warm-up's end
         deadline += period
         if start - deadline > period:
             deadline = start + period
     stats.page_faults(minor_faults())
-    return late[warm:], np.diff(starts[warm:]), stats
+    return late[warm:ticks], starts[warm:ticks], stats
 
 
 def histogram(late_us: np.ndarray) -> str:
@@ -252,7 +256,7 @@ def run(args: argparse.Namespace) -> int:
     collector.start()
     applied = apply(settings)
     try:
-        late, periods, stats = paced_loop(period, duration, busy_wait)
+        late, starts, stats = paced_loop(period, duration, busy_wait)
         faults = stats.faults
         summary = applied.summary()
     finally:
@@ -269,7 +273,7 @@ def run(args: argparse.Namespace) -> int:
         print(applied.warning)
     print(f"loop: {len(late)} ticks at {1 / period:g} Hz after {WARM_UP_S:g} s of warm-up; {summary}; "
           f"busy-wait {1e6 * busy_wait:g} us")
-    late_us, jitter_us = 1e6 * late, 1e6 * np.abs(periods - period)
+    late_us, jitter_us = 1e6 * late, 1e6 * np.abs(np.diff(starts) - period)
     for label, values in (("late (tick start - deadline)", late_us), ("jitter |period - nominal|", jitter_us)):
         p50, p99, p999 = np.percentile(values, (50, 99, 99.9))
         print(f"{label}: p50 {p50:.1f} us, p99 {p99:.1f} us, p99.9 {p999:.1f} us, max {values.max():.1f} us, "
