@@ -23,6 +23,7 @@ from .tables import (
     node_parameters,
     package_parameter_names,
     parameter_names,
+    realism_parameters,
     realtime_parameters,
     run_parameters,
 )
@@ -47,6 +48,7 @@ __all__ = [
     "node_parameters",
     "package_parameter_names",
     "parameter_names",
+    "realism_parameters",
     "realtime_parameters",
     "run_parameters",
 ]

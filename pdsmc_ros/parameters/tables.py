@@ -218,6 +218,23 @@ def realtime_parameters(priority: int = DEFAULT_PRIORITY) -> tuple[ParameterSpec
     )
 
 
+def realism_parameters() -> tuple[ParameterSpec, ...]:
+    """The MuJoCo stand-in's nuisances, its ``realism`` preset and ``seed``, made from their
+    declarations (:data:`pdsmc_ros.sim.realism.NUISANCES`: the ``--plant mujoco`` runs' flags are made
+    from the same). Unset, a nuisance is the preset's; those the driver applies while it runs can be
+    set then, checked against the arm first (its node's on-set check)."""
+    from ..sim.realism import NUISANCES
+
+    return tuple(
+        P(n.name, n.kind + ("_array" if n.per_joint or n.size else ""), n.default,
+          n.description + (f" ({n.unit})" if n.unit else "") + ("; unset: the realism preset's" if n.default is None
+                                                               else ""),
+          lo=n.lo, hi=n.hi, lo_open=n.lo_open, choices=n.choices, per_joint=n.per_joint, one_for_all=n.per_joint,
+          read_only=not n.live, constraints=n.allowed() if n.size else "")
+        for n in NUISANCES
+    )
+
+
 def mujoco_driver_parameters() -> tuple[ParameterSpec, ...]:
     """The MuJoCo stand-in's (a driver of its own: no run, no gains)."""
     from ..robots.catalog import allowed_robots
@@ -235,6 +252,7 @@ def mujoco_driver_parameters() -> tuple[ParameterSpec, ...]:
         P("command_timeout", "double", DEFAULT_COMMAND_TIMEOUT_S,
           "seconds without a command after which the brakes close again, as a real driver's watchdog (0: never, "
           "as a forward command controller)", lo=0.0, hi=3600.0),
+        *realism_parameters(),
         BUSY_WAIT,
     )
 

@@ -36,7 +36,7 @@ from .divergence import DivergenceCheck, watch
 from .drive import S_QD, S_Q, Drive, apply_tick, mj_step_function, sense
 from .loop import LoopOutcome
 from .mujoco_model import MujocoArm, _mujoco, build_stand_in, set_state
-from .realism import PRESETS, Realism
+from .realism import PRESETS, ArmFacts, Realism
 
 
 @dataclass(frozen=True)
@@ -72,8 +72,9 @@ class StandIn:
         drawn = int(np.random.SeedSequence([int(seed), int(index)]).generate_state(1, dtype=np.uint64)[0] >> 1)
         return replace(self, seed=drawn)
 
-    def resolve(self, robot: str, rate: float, source: Manipulator | None = None) -> tuple[MujocoArm, Realism]:
-        """The MuJoCo model and the resolved nuisances of ``robot`` at ``rate``."""
+    def resolve(self, robot: str, rate: float, source: Manipulator | None = None
+                ) -> tuple[MujocoArm, Realism, ArmFacts]:
+        """The MuJoCo model, the resolved nuisances of ``robot`` at ``rate`` and what they were sized from."""
         return build_stand_in(robot, rate=rate, substeps=self.substeps, preset=self.preset, given=self.given,
                               seed=self.seed, source=source)
 
@@ -146,7 +147,7 @@ class MujocoLoop:
 
     def __init__(self, robot: str, rate: float, stand_in: StandIn, plant: Manipulator) -> None:
         mujoco = _mujoco()
-        self.arm, self.realism = stand_in.resolve(robot, rate, plant)
+        self.arm, self.realism, self.facts = stand_in.resolve(robot, rate, plant)
         self.rate = float(rate)
         self.plant = plant
         arm = self.arm

@@ -355,11 +355,12 @@ def arm_facts(arm: MujocoArm, robot: Manipulator, rate: float) -> ArmFacts:
 
 def build_stand_in(robot: str, *, rate: float, substeps: int = 1, preset: str = "ideal",
                    given: Mapping[str, Any] | None = None, seed: int = 0, source: Manipulator | None = None,
-                   integrator: str = "rk4") -> tuple[MujocoArm, Realism]:
+                   integrator: str = "rk4") -> tuple[MujocoArm, Realism, ArmFacts]:
     """The stand-in's MuJoCo model and its nuisances, resolved for the arm (one place for the
     driver node and the lockstep runs): the model at a step of ``1 / rate / substeps``, the
     nuisances of ``preset`` with ``given`` replacing theirs (:func:`~.realism.resolve_realism`),
-    the payload in the description and the friction on the joints.
+    the payload in the description and the friction on the joints. Also the facts they were sized
+    from (:func:`arm_facts` of the arm without the payload): what new values are resolved against.
 
     Raises
     ------
@@ -373,9 +374,10 @@ def build_stand_in(robot: str, *, rate: float, substeps: int = 1, preset: str = 
     ours = make_robot(resolve_robot(robot)) if source is None else source
     timestep = 1.0 / rate / int(substeps)
     arm = build_model(robot, timestep=timestep, integrator=integrator, source=source)
-    realism = resolve_realism(arm_facts(arm, ours, rate), preset, given, seed=seed)
+    facts = arm_facts(arm, ours, rate)
+    realism = resolve_realism(facts, preset, given, seed=seed)
     if realism.payload_mass > 0.0:
         arm = build_model(robot, timestep=timestep, integrator=integrator, source=source,
                           payload=(realism.payload_mass, realism.payload_com))
     set_friction(arm, realism.friction_coulomb, realism.friction_viscous)
-    return arm, realism
+    return arm, realism, facts

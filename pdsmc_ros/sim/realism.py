@@ -36,6 +36,7 @@ so a run repeats exactly.
 
 from __future__ import annotations
 
+import array
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -86,6 +87,8 @@ class Nuisance:
         (what changes the model MuJoCo compiled, or the run's identity).
     description : str
         What it is, for the parameter reference and ``--help``.
+    default : object
+        The value when not given: None for a nuisance (the preset's).
     """
 
     name: str
@@ -99,6 +102,7 @@ class Nuisance:
     lo_open: bool = False
     choices: tuple[str, ...] = ()
     live: bool = False
+    default: Any = None
 
     @property
     def flag(self) -> str:
@@ -112,9 +116,9 @@ class Nuisance:
             return "true or false"
         one = {"double": "a number", "int": "a whole number"}[self.kind]
         if self.lo is not None and self.hi is not None and not self.lo_open:
-            one += f" in [{self.lo:g}, {self.hi:g}]"
+            one += f" in [{_fmt(self.lo)}, {_fmt(self.hi)}]"
         elif self.lo is not None:
-            one += f" {'>' if self.lo_open else '>='} {self.lo:g}"
+            one += f" {'>' if self.lo_open else '>='} {_fmt(self.lo)}"
         if self.unit:
             one += f" ({self.unit})"
         if self.size:
@@ -124,19 +128,24 @@ class Nuisance:
         return one
 
 
+def _fmt(x: float) -> str:
+    """A bound as written: whole numbers in full (``2**40`` as 1099511627776), others ``%g``."""
+    return str(int(x)) if float(x).is_integer() and abs(x) < 1e16 else f"{x:g}"
+
+
 NUISANCES: tuple[Nuisance, ...] = (
     Nuisance("realism", "string", "the named preset of every nuisance below: ideal (every one off: the stand-in "
              "as a perfect arm) or bench (an arm like the one on the bench, docs/how-to/mujoco.md); a nuisance "
-             "given explicitly replaces the preset's", choices=PRESETS),
+             "given explicitly replaces the preset's", choices=PRESETS, default="ideal"),
     Nuisance("seed", "int", "seed of every random draw of the nuisances (the position noise): a run repeats "
-             "exactly", lo=0, hi=2**63 - 1),
+             "exactly", lo=0, hi=2**63 - 1, default=0),
     Nuisance("friction_coulomb", "double", "Coulomb (dry) friction of each joint, MuJoCo's frictionloss with a "
              "stiff solref_friction (two timesteps)", "N m", per_joint=True, lo=0.0, hi=1e6, live=True),
     Nuisance("friction_viscous", "double", "viscous friction of each joint, added to the URDF's <dynamics "
              "damping>", "N m s/rad", per_joint=True, lo=0.0, hi=1e6, live=True),
     Nuisance("encoder_counts", "int", "counts per revolution of each joint's encoder (per metre: a prismatic "
-             "joint): the published position is on its grid (0: exact)", "counts", per_joint=True, lo=0,
-             hi=2**40, live=True),
+             "joint): the published position is the nearest count (the ideal preset has no encoder: exact)",
+             "counts", per_joint=True, lo=1, hi=2**40, live=True),
     Nuisance("position_noise", "double", "standard deviation of the Gaussian noise added to each published "
              "position, before the encoder's quantisation", "rad", per_joint=True, lo=0.0, hi=1.0, live=True),
     Nuisance("velocity_source", "string", "the published velocity: exact (the simulator's) or difference (the "
@@ -409,7 +418,7 @@ def check_value(name: str, value: Any, n: int) -> Any:
     if spec.per_joint or spec.size:
         if scalar:
             values = [value] * (n if spec.per_joint else spec.size)
-        elif isinstance(value, str | bytes) or not isinstance(value, Sequence | np.ndarray):
+        elif isinstance(value, str | bytes) or not isinstance(value, Sequence | np.ndarray | array.array):
             raise refuse()
         else:
             values = list(value)
