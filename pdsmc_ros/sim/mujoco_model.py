@@ -275,6 +275,13 @@ def payload_urdf(urdf: str, frame: str, mass: float, com: ArrayLike) -> str:
     return ElementTree.tostring(root, encoding="unicode")
 
 
+FRICTION_SOLIMP = (0.9999, 0.9999, 0.001, 0.5, 2.0)
+"""The dry friction's impedance: with MuJoCo's default (0.9) a joint pushed by 90 % of its
+Coulomb friction creeps at a tenth of the acceleration it would have unresisted, over the
+constraint's damping (a UR5 wrist, 0.012 rad/s); at 0.9999 the creep is a ten-thousandth of it
+and the joint sticks, as Coulomb friction holds it (test/sim/test_drive.py)."""
+
+
 def set_friction(arm: MujocoArm, coulomb: ArrayLike, viscous: ArrayLike) -> None:
     """Give the actuated joints Coulomb and viscous friction (N m, N m s/rad) on top of the
     description's, in the compiled model (it may change between steps).
@@ -282,8 +289,9 @@ def set_friction(arm: MujocoArm, coulomb: ArrayLike, viscous: ArrayLike) -> None
     MuJoCo's dry friction (``frictionloss``) is a soft constraint; with its default
     ``solref_friction`` (0.02 s) it is far from Coulomb friction (the UR5's identified 5 N m read
     back as 4.3-4.8 N m, its viscous term up to twice what was set); a time constant of two
-    timesteps makes it read back within 2 %, so every actuated joint gets that. A joint's damping
-    is the description's plus ``viscous``.
+    timesteps makes it read back within 2 %, so every actuated joint gets that, and an impedance of
+    :data:`FRICTION_SOLIMP` so that a joint pushed below its friction sticks. A joint's damping is
+    the description's plus ``viscous``.
     """
     model = arm.model
     dof = arm.dof[:arm.n]
@@ -292,6 +300,7 @@ def set_friction(arm: MujocoArm, coulomb: ArrayLike, viscous: ArrayLike) -> None
     model.dof_frictionloss[dof] = base_friction + np.asarray(coulomb, dtype=float)
     model.dof_damping[dof] = base_damping + np.asarray(viscous, dtype=float)
     model.dof_solref[dof] = [2.0 * float(model.opt.timestep), 1.0]
+    model.dof_solimp[dof] = FRICTION_SOLIMP
 
 
 def _close_five_bar(spec: Any, mujoco: Any, params: Any) -> None:
