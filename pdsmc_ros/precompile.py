@@ -32,6 +32,7 @@ from .control.registry import law_names
 from .errors import ConfigError
 from .presets import make_run
 from .robots.catalog import resolve_robot
+from .sim.mujoco_lockstep import StandIn
 from .sim.plant import PlantStepper
 from .sim.simulator import simulate
 
@@ -61,6 +62,22 @@ def precompile(robots: Sequence[str] = ROBOTS) -> None:
         model.total_energy(q, rest)
         for name in law_names():
             ControlLaw.from_spec(make_run(robot, "circle", name, needs_gains=False)).warm_up(rest, rest)
+        # the MuJoCo stand-in: the lockstep loop (--plant mujoco) and the driver node's ticks
+        simulate(spec, check_stability=False, stand_in=StandIn("bench"))
+        _driver_ticks(robot)
+
+
+def _driver_ticks(robot: str) -> None:
+    """A few ticks of the ``mujoco_driver``'s drive (its kernels: the node does not compile at start-up)."""
+    from .sim.mujoco_driver import MujocoDriver, default_positions, initial_passive
+    from .sim.mujoco_model import build_stand_in
+
+    arm, realism, _ = build_stand_in(robot, rate=1000.0, preset="bench")
+    q0 = default_positions(robot)
+    driver = MujocoDriver(arm, q0, passive0=initial_passive(robot, q0), realism=realism)
+    driver.command([0.0] * arm.n, 0.0)
+    for k in range(1, 5):
+        driver.advance(k * 1e-3)
 
 
 def main(args: Sequence[str] | None = None) -> int:

@@ -140,7 +140,7 @@ def path_distance(points: FloatArray, path: FloatArray) -> FloatArray:
     points = np.asarray(points, dtype=float)
     path = np.asarray(path, dtype=float)
     if len(path) == 1:
-        return np.linalg.norm(points - path[0], axis=1)
+        return np.asarray(np.linalg.norm(points - path[0], axis=1), dtype=float)
     stride = max(1, len(path) // 1024)
     coarse = np.arange(0, len(path), stride)
     offsets = np.arange(-stride, stride + 1)

@@ -5,11 +5,12 @@ path). Publishes ``/joint_states`` (``sensor_msgs/JointState``: position, veloci
 the motors' torque; stamped with the wall clock, ``frame_id`` empty) at ``rate`` in its own
 ``joint_state_order`` -- what the drive reads, with the stand-in's nuisances (``realism:=bench``,
 :mod:`pdsmc_ros.sim.realism`) --, the exact state beside it on ``~/true_joint_states`` (same
-stamp and order), and ``/robot_description`` (transient local, as robot_state_publisher); takes ``/effort_controller/commands`` (``std_msgs/Float64MultiArray``,
-``data[i]`` -> ``joints[i]``; a wrong length or a non-finite value is dropped with a
-throttled warning, as forward_command_controller does). The arm is braked (MuJoCo does not
-step) until the first command, then the latest command is applied every step
-(:mod:`pdsmc_ros.sim.mujoco_driver`; the model: :mod:`pdsmc_ros.sim.mujoco_model`).
+stamp and order), and ``/robot_description`` (transient local, as robot_state_publisher); takes
+``/effort_controller/commands`` (``std_msgs/Float64MultiArray``, ``data[i]`` -> ``joints[i]``; a
+wrong length or a non-finite value is dropped with a throttled warning, as
+forward_command_controller does). The arm is braked (MuJoCo does not step) until the first
+command, then the latest command is applied every step (:mod:`pdsmc_ros.sim.mujoco_driver`; the
+model: :mod:`pdsmc_ros.sim.mujoco_model`).
 """
 
 from __future__ import annotations

@@ -96,7 +96,7 @@ def _libmujoco() -> ctypes.CDLL:
     return ctypes.CDLL(found[0])
 
 
-class MjStep(WrapperAddressProtocol):  # type: ignore[misc]
+class MjStep(WrapperAddressProtocol):
     """MuJoCo's ``mj_step(const mjModel*, mjData*)`` as a first-class function of numba: passed as an
     argument (a compiled caller stays cacheable), called with the addresses of an ``MjModel`` and an
     ``MjData`` (their ``_address``). The same C function ``mujoco.mj_step`` calls, from the wheel."""
@@ -178,10 +178,7 @@ def actuate(params, state, qvel, vadr, ctrl):  # noqa: ANN001, ANN201
     n = ctrl.shape[0]
     for i in range(n):
         a = params[P_LAG, i]
-        if a >= 1.0:
-            t = state[S_COMMAND, i]
-        else:
-            t = state[S_LAG, i] + a * (state[S_COMMAND, i] - state[S_LAG, i])
+        t = state[S_COMMAND, i] if a >= 1.0 else state[S_LAG, i] + a * (state[S_COMMAND, i] - state[S_LAG, i])
         state[S_LAG, i] = t
         v0 = params[P_NO_LOAD, i]
         if v0 < math.inf:

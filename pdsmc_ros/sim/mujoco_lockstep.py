@@ -33,7 +33,7 @@ from ..kernel_options import ALLOCATION_FREE
 from ..robots import compiled as robot_compiled
 from ..robots.base import FloatArray, Manipulator
 from .divergence import DivergenceCheck, watch
-from .drive import S_QD, S_Q, Drive, apply_tick, mj_step_function, sense
+from .drive import S_Q, S_QD, Drive, apply_tick, mj_step_function, sense
 from .loop import LoopOutcome
 from .mujoco_model import MujocoArm, _mujoco, build_stand_in, set_state
 from .realism import PRESETS, ArmFacts, Realism

@@ -271,7 +271,7 @@ def payload_urdf(urdf: str, frame: str, mass: float, com: ArrayLike) -> str:
     inertial = ElementTree.SubElement(link, "inertial")
     ElementTree.SubElement(inertial, "origin", {"xyz": "0 0 0", "rpy": "0 0 0"})
     ElementTree.SubElement(inertial, "mass", {"value": repr(float(mass))})
-    ElementTree.SubElement(inertial, "inertia", {k: "0" for k in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")})
+    ElementTree.SubElement(inertial, "inertia", dict.fromkeys(("ixx", "ixy", "ixz", "iyy", "iyz", "izz"), "0"))
     return ElementTree.tostring(root, encoding="unicode")
 
 

@@ -286,7 +286,7 @@ class Realism:
                 parts.append(f"{n.name} [{shown}]" if n.per_joint else f"{n.name} {shown}")
         if self.payload_mass > 0:
             parts[-1] += " at [" + ", ".join(f"{v:g}" for v in self.payload_com) + "] m"
-        return f"{self.preset} ({self.seed=}): " + "; ".join(parts)
+        return f"{self.preset} (seed {self.seed}): " + "; ".join(parts)
 
 
 # --------------------------------------------------------------------------- #
@@ -472,7 +472,7 @@ def resolve_realism(facts: ArmFacts, preset: str = "ideal", given: Mapping[str, 
     preset = check_value("realism", preset, facts.n)
     seed = check_value("seed", seed, facts.n)
     values = (bench_values if preset == "bench" else ideal_values)(facts)
-    sources = {name: "preset" for name in values}
+    sources = dict.fromkeys(values, "preset")
     for name, value in (given or {}).items():
         if name in SETTINGS:
             raise RealismError(f"{name} is not a nuisance: give it as preset= or seed=")

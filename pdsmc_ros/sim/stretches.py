@@ -12,9 +12,10 @@ bookkeeping (bench/long_run.py).
 
 from __future__ import annotations
 
-import numpy as np
 from collections.abc import Callable
+from typing import Any
 
+import numpy as np
 from numpy.typing import ArrayLike
 
 from ..control.law import ControlLaw
@@ -34,7 +35,7 @@ inverse kinematics' temporaries and its samples take tens of MB for a six-joint 
 def run_in_stretches(spec: RunSpec, robot: Manipulator, reference: JointReference,
                      initial_error: ArrayLike | None = None,
                      stretch_steps: int | None = None, *,
-                     loop: Callable[..., tuple] = run_loop) -> tuple[Metrics, int, LoopOutcome]:
+                     loop: Callable[..., tuple[Any, ...]] = run_loop) -> tuple[Metrics, int, LoopOutcome]:
     """The statistics of ``spec``'s run on ``robot`` and its loop's outcome, without its samples.
 
     ``stretch_steps``: control steps a stretch (default :data:`STRETCH_STEPS`). ``loop``: the closed

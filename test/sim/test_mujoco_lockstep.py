@@ -93,14 +93,14 @@ def test_the_commands_run_against_the_stand_in(capsys: pytest.CaptureFixture[str
 
 
 @pytest.mark.parametrize(("flags", "message"), [
-    (["--friction-coulomb", "1"], "pdsmc simulate: error: --friction-coulomb is for the MuJoCo stand-in: give "
-                                  "--plant mujoco with it"),
-    (["--plant", "mujoco", "--friction-coulomb", "-1"], "pdsmc simulate: error: parameter friction_coulomb must be "
-     "a number in [0, 1000000] (N m), one per joint or one for every joint, got [-1.0]"),
-    (["--plant", "mujoco", "--velocity-filter-hz", "1,2"], "pdsmc simulate: error: parameter velocity_filter_hz "
-     "needs 3 values, one per joint (or one for every joint), got 2"),
-    (["--plant", "mujoco", "--command-delay", "101"], "pdsmc simulate: error: parameter command_delay must be a "
-     "whole number in [0, 100] (ticks), got 101"),
+    (["--friction-coulomb", "1"], ("pdsmc simulate: error: --friction-coulomb is for the MuJoCo stand-in: give "
+                                  "--plant mujoco with it")),
+    (["--plant", "mujoco", "--friction-coulomb", "-1"], ("pdsmc simulate: error: parameter friction_coulomb must be "
+     "a number in [0, 1000000] (N m), one per joint or one for every joint, got [-1.0]")),
+    (["--plant", "mujoco", "--velocity-filter-hz", "1,2"], ("pdsmc simulate: error: parameter velocity_filter_hz "
+     "needs 3 values, one per joint (or one for every joint), got 2")),
+    (["--plant", "mujoco", "--command-delay", "101"], ("pdsmc simulate: error: parameter command_delay must be a "
+     "whole number in [0, 100] (ticks), got 101")),
 ])
 def test_a_bad_nuisance_is_one_line_and_exit_2(flags: list[str], message: str,
                                                capsys: pytest.CaptureFixture[str]) -> None:

@@ -61,19 +61,19 @@ def test_a_value_given_replaces_the_presets_and_one_value_stands_for_every_joint
 
 
 @pytest.mark.parametrize(("name", "value", "message"), [
-    ("friction_coulomb", -1.0, "parameter friction_coulomb must be a number in [0, 1000000] (N m), one per joint "
-                               "or one for every joint, got -1.0"),
-    ("encoder_counts", 0, "parameter encoder_counts must be a whole number in [1, 1099511627776] (counts), one per "
-                          "joint or one for every joint, got 0"),
+    ("friction_coulomb", -1.0, ("parameter friction_coulomb must be a number in [0, 1000000] (N m), one per joint "
+                               "or one for every joint, got -1.0")),
+    ("encoder_counts", 0, ("parameter encoder_counts must be a whole number in [1, 1099511627776] (counts), one per "
+                          "joint or one for every joint, got 0")),
     ("command_delay", 101, "parameter command_delay must be a whole number in [0, 100] (ticks), got 101"),
-    ("position_noise", [float("nan")] * 6, "parameter position_noise must be a number in [0, 1] (rad), one per "
-                                           "joint or one for every joint, got [nan, nan, nan, nan, nan, nan]"),
-    ("friction_viscous", [1.0, 2.0], "parameter friction_viscous needs 6 values, one per joint (or one for every "
-                                     "joint), got 2"),
+    ("position_noise", [float("nan")] * 6, ("parameter position_noise must be a number in [0, 1] (rad), one per "
+                                           "joint or one for every joint, got [nan, nan, nan, nan, nan, nan]")),
+    ("friction_viscous", [1.0, 2.0], ("parameter friction_viscous needs 6 values, one per joint (or one for every "
+                                     "joint), got 2")),
     ("velocity_source", "filtered", "parameter velocity_source must be one of: exact, difference, got 'filtered'"),
     ("torque_speed", 1, "parameter torque_speed must be true or false, got 1"),
-    ("no_load_speed", 0.0, "parameter no_load_speed must be a number > 0 (rad/s), one per joint or one for every "
-                           "joint, got 0.0"),
+    ("no_load_speed", 0.0, ("parameter no_load_speed must be a number > 0 (rad/s), one per joint or one for every "
+                           "joint, got 0.0")),
     ("payload_com", [0.0, 0.1], "parameter payload_com needs 3 values, got 2"),
     ("command_delay", 1.5, "parameter command_delay must be a whole number in [0, 100] (ticks), got 1.5"),
 ])
