@@ -17,7 +17,7 @@ __version__ = "0.1.0"
 
 def _venv_kernel_cache() -> None:
     """numba's kernel cache in the venv (``<prefix>/numba-cache``, which ``make setup`` fills:
-    :mod:`pdsmc_ros.precompile`) unless ``NUMBA_CACHE_DIR`` names another.
+    :mod:`pdsmc_ros.kernels.precompile`) unless ``NUMBA_CACHE_DIR`` names another.
 
     Without it a command run as ``.venv/bin/pdsmc`` or from a script, with no ``make`` around it,
     compiled every kernel again into the installed package's ``__pycache__`` instead of loading

@@ -21,8 +21,8 @@ from conftest import next_domain
 
 from pdsmc_ros.errors import ConfigError, InvalidInputError
 from pdsmc_ros.experiments.analysis import find_bags
-from pdsmc_ros.presets import MAX_CONTROL_STEPS, control_steps
 from pdsmc_ros.resources import config_dir, data_root, ros_environment, script_path
+from pdsmc_ros.runs.builder import MAX_CONTROL_STEPS, control_steps
 
 BIN = Path(sys.prefix) / "bin"
 
@@ -169,7 +169,7 @@ def test_demo_hint_pasted_verbatim(tmp_path: Path) -> None:
     """A short demo from an empty directory, clean environment; its printed analyze command works."""
     installed()
     env = {"ROS_DOMAIN_ID": str(next_domain())}
-    demo = run([str(BIN / "python"), "-m", "pdsmc_ros.demo", "--duration-factor", "0.02",
+    demo = run([str(BIN / "python"), "-m", "pdsmc_ros.cli.demo", "--duration-factor", "0.02",
                 "--out", "demo"], tmp_path, timeout=540, **env)
     assert demo.returncode == 0, demo.stdout + demo.stderr
     hint = [line for line in demo.stdout.splitlines() if "analyse again with: " in line]

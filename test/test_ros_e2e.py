@@ -13,8 +13,8 @@ import pytest
 from conftest import node_log_tails
 
 from pdsmc_ros.bag.reader import read_run, run_metrics
-from pdsmc_ros.presets import make_run
-from pdsmc_ros.scores import SCORE_NAMES
+from pdsmc_ros.metrics.scores import SCORE_NAMES
+from pdsmc_ros.runs.builder import make_run
 from pdsmc_ros.sim import simulate
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -71,7 +71,7 @@ def test_lockstep_run_equals_in_process_simulation(ros_env: dict, tmp_path: Path
     assert np.max(np.abs(run.tau[::every] - sim.samples.tau)) <= 1e-9
     recorded = run_metrics(run)
     assert recorded.contour_mean == pytest.approx(sim.metrics.contour_mean, rel=1e-9)
-    # the scores (from every step: pdsmc_ros/scores.py) of the bag are the in-process run's
+    # the scores (from every step: pdsmc_ros/metrics/scores.py) of the bag are the in-process run's
     for name in SCORE_NAMES:
         assert len(getattr(sim.metrics, name)) == 3, name
         assert getattr(recorded, name) == pytest.approx(getattr(sim.metrics, name), rel=1e-9, abs=0), name

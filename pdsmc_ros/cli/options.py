@@ -1,6 +1,6 @@
 """The arguments the ``pdsmc`` subcommands share: value types that refuse bad input in one line,
 the run's flags, and the run they name (:func:`spec_from_args`, through the one run builder
-:func:`~pdsmc_ros.presets.make_run`)."""
+:func:`~pdsmc_ros.runs.builder.make_run`)."""
 
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ from ..arguments import gain_value, positive_float
 from ..errors import ConfigError
 
 if TYPE_CHECKING:
-    from ..presets import RunSpec
+    from ..runs.builder import RunSpec
 
 
 def whole_number(text: str, lowest: int) -> int:
@@ -146,7 +146,7 @@ FILE_SETTINGS = {"robot": "--robot", "contour": "--contour", "type": "--controll
 
 def spec_from_args(args: argparse.Namespace) -> RunSpec:
     from ..control import law
-    from ..presets import make_run, smc_reading
+    from ..runs.builder import make_run, smc_reading
 
     params = None
     rate = args.rate

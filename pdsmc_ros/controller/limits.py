@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..trajectories.polynomials import segment
+from ..contours.polynomials import segment
 from .joint_trajectory import JointTrajectoryReference
 
 FloatArray = np.ndarray

@@ -50,7 +50,7 @@ from ..loop.log import LoopLog
 from ..loop.process import run_node
 from ..loop.realtime_params import declare_realtime_parameters
 from ..loop.statistics import LoopStatistics
-from ..parameters.run import declare_node_run, description_json
+from ..parameters.node_run import declare_node_run, description_json
 from ..robots.base import FloatArray
 from ..ros import topics
 from ..ros.diagnostics import Diagnostics, InputReport

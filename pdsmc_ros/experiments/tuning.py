@@ -27,11 +27,11 @@ from ..control.gains import Gains
 from ..control.registry import gain_names, law
 from ..control.stability import THEOREM_LAWS, check_gains, loop_delay, plant_step
 from ..errors import ConfigError, PdsmcError
-from ..presets import RunSpec, make_run
+from ..parameters.params_file import CONTROLLER_PARAMETERS, node_parameters
 from ..robots import make_robot
 from ..robots.catalog import resolve_robot
 from ..robots.options import robot_key
-from ..settings import CONTROLLER_PARAMETERS, node_parameters
+from ..runs.builder import RunSpec, make_run
 
 SWEPT = ("kp", "kd", "ks", "lam", "omega_n", "k1", "k2")
 """The gains the recipe sweeps, in its order; then any other gain the law needs but :data:`KEPT`
@@ -211,7 +211,7 @@ def tune(
     Parameters
     ----------
     robot, contour, controller : str
-        As for :func:`~pdsmc_ros.presets.make_run`.
+        As for :func:`~pdsmc_ros.runs.builder.make_run`.
     rate : float, optional
         Control rate (Hz); the robot's default otherwise.
     rounds : int
@@ -293,7 +293,7 @@ def _evaluator(spec: RunSpec, limit: np.ndarray, scheduler: str | None, requirem
     if scheduler is None:
         yield lambda batch: [evaluate(spec, gains, limit, requirement, also) for gains in batch]
         return
-    from ..engine import dask_client, run_tasks
+    from ..sim.engine import dask_client, run_tasks
 
     with dask_client(scheduler) as client:
         def remote(batch: list[Gains]) -> list[Candidate]:
@@ -354,7 +354,7 @@ def controller_parameters(path: str | Path, *, node: str = NODE_NAME) -> dict[st
 def read_params_file(path: str | Path, n: int, controller: str, *, node: str = NODE_NAME) -> dict[str, list[float]]:
     """The gains a params file gives ``controller`` (as :func:`write_params_file` writes, or any with the
     gain names): checked against the law's declaration, the others left to the presets (the
-    params-file layer of :func:`~pdsmc_ros.presets.make_run`).
+    params-file layer of :func:`~pdsmc_ros.runs.builder.make_run`).
 
     Raises
     ------

@@ -21,9 +21,9 @@ from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 
 from ..errors import ConfigError, InvalidInputError, PdsmcError
 from ..parameters.overrides import check_overrides, warn_unknown_arguments
+from ..parameters.params_file import given_value
 from ..resources import config_dir
-from ..settings import given_value
-from . import intra
+from ..ros import intra
 from .inputs import Inputs
 from .lifecycle import DRAIN_TIMEOUT_S, EXIT_BAD_INPUT, EXIT_FAILURE, EXIT_OK, arm_teardown_watch
 from .realtime_params import LoopReport, loop_reports

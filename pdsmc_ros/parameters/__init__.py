@@ -2,7 +2,7 @@
 
 From each node's table derive the rclpy declarations and descriptors and the on-set guard
 (:mod:`.ros`, the only module here that imports rclpy), the params-file checks of every entry
-point (:mod:`pdsmc_ros.settings`) and the documentation's parameter reference (:func:`catalog`).
+point (:mod:`pdsmc_ros.parameters.params_file`) and the documentation's parameter reference (:func:`catalog`).
 """
 
 from .declaration import TYPES, ParameterSpec, check_values

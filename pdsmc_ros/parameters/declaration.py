@@ -295,7 +295,7 @@ class ParameterSpec:
 
 def check_values(specs: Sequence[ParameterSpec], values: Mapping[str, Any], *,
                  types_only: Collection[str] = ()) -> None:
-    """The start-up check of ``values`` (a params file's, :func:`pdsmc_ros.settings.node_parameters`):
+    """The start-up check of ``values`` (a params file's, :func:`pdsmc_ros.parameters.params_file.node_parameters`):
     a ConfigError for the first its spec refuses; of ``types_only`` (the gains: the resolver's
     messages name the law) only the type is checked."""
     for spec in specs:

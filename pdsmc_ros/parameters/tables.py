@@ -3,7 +3,7 @@
 Each node's table is a tuple of :class:`~.declaration.ParameterSpec` built by a function, so
 what changes with the registries -- the gains every registered law declares (a plugin law's
 ``ki`` among them), the laws and robots a parameter accepts -- is read when a node starts
-or the documentation is generated. :mod:`.ros` declares a table on a node; :mod:`pdsmc_ros.settings`
+or the documentation is generated. :mod:`.ros` declares a table on a node; :mod:`pdsmc_ros.parameters.params_file`
 checks params files against the names; :func:`catalog` is the parameter reference.
 
 Groups shared by several nodes: :func:`run_parameters` (the run: every node of a run takes the
@@ -44,7 +44,7 @@ MAX_LOOKAHEAD_STEPS = 5000
 
 
 def _scenarios() -> tuple[str, ...]:
-    from ..presets import scenario_names
+    from ..runs.builder import scenario_names
 
     return scenario_names()
 
@@ -220,8 +220,8 @@ def realtime_parameters(priority: int = DEFAULT_PRIORITY) -> tuple[ParameterSpec
 
 def mujoco_driver_parameters() -> tuple[ParameterSpec, ...]:
     """The MuJoCo stand-in's (a driver of its own: no run, no gains)."""
+    from ..mujoco_driver.driver import DEFAULT_COMMAND_TIMEOUT_S, JOINT_STATE_ORDERS
     from ..robots.catalog import allowed_robots
-    from ..sim.mujoco_driver import DEFAULT_COMMAND_TIMEOUT_S, JOINT_STATE_ORDERS
 
     return (
         P("robot", "string", "serial_3r", "the arm: " + allowed_robots()),

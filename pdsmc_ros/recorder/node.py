@@ -57,9 +57,8 @@ from ..loop.lifecycle import EXIT_FAILURE, EXIT_OK
 from ..loop.process import run_node
 from ..parameters import RECORDER
 from ..parameters.descriptors import descriptor
+from ..parameters.node_run import declare_node_run, description_json
 from ..parameters.ros import declare
-from ..parameters.run import declare_node_run, description_json
-from ..presets import control_steps
 from ..ros.topics import (
     LATCHED_QOS,
     LOCKSTEP_QOS,
@@ -74,6 +73,7 @@ from ..ros.topics import (
     TOPIC_ROBOT_DESCRIPTION,
     TOPIC_TIMING,
 )
+from ..runs.builder import control_steps
 from .graph_types import interface_class, message_class, type_definition
 
 # topic -> (rclpy type, ROS type name, QoS)

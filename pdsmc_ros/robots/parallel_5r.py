@@ -118,8 +118,8 @@ class Parallel5R(Manipulator):
         return np.concatenate([np.asarray(x, dtype=float).ravel() for x in parts])
 
     def description(self, payload: float | None = None) -> str:
-        """The mechanism's URDF, its open tree (:func:`pdsmc_ros.urdf.five_bar_urdf`)."""
-        from ..urdf import five_bar_urdf  # the URDF writer reads robots' parameters
+        """The mechanism's URDF, its open tree (:func:`pdsmc_ros.robots.urdf.five_bar_urdf`)."""
+        from .urdf import five_bar_urdf  # the URDF writer reads robots' parameters
 
         return five_bar_urdf(self.name, self.params, self.payload if payload is None else payload)
 

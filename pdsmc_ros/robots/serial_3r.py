@@ -13,7 +13,7 @@ from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
 from ..errors import InvalidInputError, UnreachableError
-from ..kernel_options import ALLOCATION_FREE
+from ..kernels.options import ALLOCATION_FREE
 from .base import FloatArray, Manipulator, RobotParams, as_vector, diag
 from .chain import PlanarChain, chain_coriolis_times
 from .kernel_math import entry_at
@@ -74,8 +74,8 @@ class Serial3R(Manipulator):
         return np.concatenate([np.asarray(x, dtype=float).ravel() for x in parts])
 
     def description(self, payload: float | None = None) -> str:
-        """The arm's URDF (:func:`pdsmc_ros.urdf.serial_urdf`)."""
-        from ..urdf import serial_urdf  # the URDF writer reads robots' parameters
+        """The arm's URDF (:func:`pdsmc_ros.robots.urdf.serial_urdf`)."""
+        from .urdf import serial_urdf  # the URDF writer reads robots' parameters
 
         return serial_urdf(self.name, self.params, self.payload if payload is None else payload)
 

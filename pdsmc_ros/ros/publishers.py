@@ -16,7 +16,7 @@ from rclpy.node import Node
 from rclpy.serialization import serialize_message
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 
-from ..loop import intra
+from . import intra
 from .topics import STREAM_QOS
 
 RCLError = _rclpy_impl.RCLError

@@ -15,7 +15,7 @@ from pdsmc_ros.controller.joint_trajectory import JointTrajectoryReference, Traj
 from pdsmc_ros.controller.joints import JointSelector, check_joint_names
 from pdsmc_ros.errors import CdrError, ConfigError
 from pdsmc_ros.robots import Parallel5R, Serial3R, robot_params
-from pdsmc_ros.urdf import robot_urdf
+from pdsmc_ros.robots.urdf import robot_urdf
 
 JOINTS = ("joint1", "joint2", "joint3")
 

@@ -21,8 +21,8 @@ from pdsmc_ros.loop.process import (  # noqa: E402
     TRANSPORTS_CHOSEN_BY,
     choose_middleware,
 )
+from pdsmc_ros.parameters.params_file import given_value  # noqa: E402
 from pdsmc_ros.resources import config_dir  # noqa: E402
-from pdsmc_ros.settings import given_value  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
 

@@ -1,6 +1,6 @@
 """What the laws and their checks read of a run: a protocol, so the laws need not know how runs are built.
 
-:class:`pdsmc_ros.presets.RunSpec` provides it; :mod:`.law`, :mod:`.stability` and :mod:`.lyapunov`
+:class:`pdsmc_ros.runs.builder.RunSpec` provides it; :mod:`.law`, :mod:`.stability` and :mod:`.lyapunov`
 take any object that does (they import nothing from the run builder above them).
 """
 
@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING, Protocol
 from ..robots.base import FloatArray, Manipulator
 
 if TYPE_CHECKING:
-    from ..trajectories import JointReference
+    from ..contours import JointReference
     from .gains import Gains
 
 

@@ -5,7 +5,7 @@ numba compiles a kernel on its first call in a process and keeps it in its cache
 command after an install compiles for tens of seconds per robot kind before it computes
 anything, and the nodes a launch starts together each compile the same kernels at once
 (figures: docs/PERFORMANCE.md).
-``make setup`` runs ``python -m pdsmc_ros.precompile`` after installing: every compiled
+``make setup`` runs ``python -m pdsmc_ros.kernels.precompile`` after installing: every compiled
 robot kind (the thesis's serial arm, the five-bar, a URDF chain) runs a short closed
 loop (every law's branch is in it), its plant step, every law's torque as the
 controller node computes it, and the run statistics, so later commands load them.
@@ -26,14 +26,14 @@ from pathlib import Path
 
 import numpy as np
 
-from .arguments import EXIT_USAGE, OneLineParser
-from .control.law import ControlLaw
-from .control.registry import law_names
-from .errors import ConfigError
-from .presets import make_run
-from .robots.catalog import resolve_robot
-from .sim.plant import PlantStepper
-from .sim.simulator import simulate
+from ..arguments import EXIT_USAGE, OneLineParser
+from ..control.law import ControlLaw
+from ..control.registry import law_names
+from ..errors import ConfigError
+from ..robots.catalog import resolve_robot
+from ..runs.builder import make_run
+from ..sim.plant import PlantStepper
+from ..sim.simulator import simulate
 
 # one robot of each compiled kind: the kernels are compiled per kind, not per arm
 ROBOTS = ("serial_3r", "parallel_5r", "ur5")

@@ -11,7 +11,7 @@ from pdsmc_ros.errors import InvalidInputError
 
 pytest.importorskip("mujoco")
 
-from pdsmc_ros.sim import mujoco_driver as md  # noqa: E402
+from pdsmc_ros.mujoco_driver import driver as md  # noqa: E402
 from pdsmc_ros.sim.mujoco_model import MujocoArm, build_model  # noqa: E402
 
 

@@ -14,8 +14,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from ..controller.joints import check_joint_names
 from ..errors import ConfigError
-from .joints import check_joint_names
 
 FloatArray = np.ndarray
 

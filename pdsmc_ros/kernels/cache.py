@@ -22,13 +22,13 @@ import hashlib
 import re
 from pathlib import Path
 
-PACKAGE_DIR = Path(__file__).resolve().parent
+PACKAGE_DIR = Path(__file__).resolve().parent.parent
 MARKER_PREFIX = "pdsmc_ros-kernels-"
 KERNEL = re.compile(r"^@njit\b", re.MULTILINE)
 _done = False
 
 
-OPTIONS = PACKAGE_DIR / "kernel_options.py"
+OPTIONS = PACKAGE_DIR / "kernels" / "options.py"
 """The kernels' compile options: a change there changes every kernel, and no kernel's file."""
 
 

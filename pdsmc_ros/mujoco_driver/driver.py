@@ -24,7 +24,7 @@ from numpy.typing import ArrayLike
 
 from ..errors import InvalidInputError
 from ..robots.base import FloatArray
-from .mujoco_model import MujocoArm, _mujoco, set_state
+from ..sim.mujoco_model import MujocoArm, _mujoco, set_state
 
 DEFAULT_COMMAND_TIMEOUT_S = 0.1
 """Seconds without a command after which the stand-in's brakes close: a real arm's driver stops
@@ -195,9 +195,9 @@ def default_positions(robot: str) -> FloatArray:
     """Where the driver's arm starts unless told: a URDF arm's ``home`` (its options), a thesis
     arm at the start of its ``circle`` contour -- where the ``plant`` node starts it, so a
     thesis run against the driver begins without an initial error."""
-    from ..presets import build_contour
+    from ..contours import JointReference
     from ..robots.registry import make_robot
-    from ..trajectories import JointReference
+    from ..runs.builder import build_contour
 
     model = make_robot(robot)
     home = model.home_configuration()

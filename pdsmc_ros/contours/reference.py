@@ -8,9 +8,9 @@ from numpy.typing import ArrayLike
 
 from ..errors import InvalidInputError, UnreachableError
 from ..robots.base import Manipulator
-from .contours import Contour
 from .joint_paths import JointPathContour
 from .samples import JointSample
+from .shapes import Contour
 
 MAX_GRID_INTERVALS = 200_000
 """The grid's intervals at the most: ``grid_rate`` over the first 100 s of a contour, sparser in time

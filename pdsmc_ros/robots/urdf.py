@@ -21,7 +21,7 @@ from __future__ import annotations
 
 from xml.sax.saxutils import escape
 
-from .robots.base import LinkParams, RobotParams
+from .base import LinkParams, RobotParams
 
 AXIS = "0 -1 0"  # thesis angles are counter-clockwise in the x-z plane seen from -y
 THIN = 1e-6  # inertia about the axes out of the plane (planar model: irrelevant, must be > 0)
@@ -85,7 +85,7 @@ def robot_urdf(robot: str, params: RobotParams, payload: float = 0.0) -> str:
     ValueError
         For an unknown robot, one without a URDF, or a link count that does not fit it.
     """
-    from .robots.registry import ROBOTS, make_robot
+    from .registry import ROBOTS, make_robot
 
     if robot not in ROBOTS:
         raise ValueError(f"no URDF for robot {robot!r}: not a registered robot ({', '.join(ROBOTS)})")

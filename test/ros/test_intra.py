@@ -1,4 +1,4 @@
-"""Intra-process delivery between composed nodes (pdsmc_ros.loop.intra)."""
+"""Intra-process delivery between composed nodes (pdsmc_ros.ros.intra)."""
 
 from __future__ import annotations
 
@@ -18,8 +18,8 @@ from sensor_msgs.msg import JointState  # noqa: E402
 from std_msgs.msg import String  # noqa: E402
 
 from pdsmc_ros.bag import cdr  # noqa: E402
-from pdsmc_ros.loop import intra  # noqa: E402
 from pdsmc_ros.loop.inputs import Inputs, take_local  # noqa: E402
+from pdsmc_ros.ros import intra  # noqa: E402
 from pdsmc_ros.ros.publishers import GuardedPublisher  # noqa: E402
 from pdsmc_ros.ros.topics import LATCHED_QOS, LATEST_QOS, LOCKSTEP_QOS, STREAM_QOS  # noqa: E402
 

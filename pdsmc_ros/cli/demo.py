@@ -17,9 +17,9 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 
-from .arguments import EXIT_USAGE, OneLineParser, positive_float
-from .experiments.analysis import analyze_bag, comparison_table
-from .resources import ros_environment, script_path, scripts_dir
+from ..arguments import EXIT_USAGE, OneLineParser, positive_float
+from ..experiments.analysis import analyze_bag, comparison_table
+from ..resources import ros_environment, script_path, scripts_dir
 
 
 def command_hint(argv: list[str]) -> str:
@@ -34,7 +34,7 @@ def command_hint(argv: list[str]) -> str:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = OneLineParser(prog="python -m pdsmc_ros.demo", description=__doc__.splitlines()[0])
+    parser = OneLineParser(prog="python -m pdsmc_ros.cli.demo", description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=None,
                         help="a new directory for the three bags (default: bags/demo-<date>-<time>)")
     parser.add_argument("--duration-factor", type=positive_float, default=1.0,

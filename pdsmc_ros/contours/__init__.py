@@ -2,11 +2,11 @@
 joint references a contour gives through the inverse kinematics, and the polynomial time
 scalings they share (the thesis's quintic; joint_trajectory_controller's segments)."""
 
-from .contours import Contour, EllipseContour, SegmentContour, ellipse_distance, load_waypoints_csv, polyline_distance
 from .joint_paths import JointPath, JointPathContour, load_joint_waypoints
 from .polynomials import quintic, segment
 from .reference import JointReference
 from .samples import JointSample, TaskSample
+from .shapes import Contour, EllipseContour, SegmentContour, ellipse_distance, load_waypoints_csv, polyline_distance
 
 __all__ = [
     "Contour",

@@ -7,10 +7,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from pdsmc_ros.contours import JointPath, load_joint_waypoints
 from pdsmc_ros.errors import ConfigError
-from pdsmc_ros.presets import make_run
+from pdsmc_ros.runs.builder import make_run
 from pdsmc_ros.sim import simulate
-from pdsmc_ros.trajectories import JointPath, load_joint_waypoints
 
 
 def test_the_path_rests_at_every_via_point_and_its_rates_are_its_derivatives() -> None:

@@ -19,10 +19,10 @@ from typing import Any
 
 import numpy as np
 
-from .checks import is_real, is_whole
-from .errors import InvalidInputError
-from .metrics_kernel import accumulate_instants, accumulate_steps, new_accumulator
-from .robots.base import FloatArray
+from ..checks import is_real, is_whole
+from ..errors import InvalidInputError
+from ..robots.base import FloatArray
+from .kernel import accumulate_instants, accumulate_steps, new_accumulator
 from .scores import DEFAULT_CUTOFF_HZ, SCORE_NAMES, Scores, high_frequency_power, high_frequency_share
 
 
@@ -151,7 +151,7 @@ class RunStatistics:
     """A run's statistics and scores, accumulated over consecutive blocks of its signals.
 
     The thesis's statistics come from its statistics instants (:meth:`add`, :meth:`add_samples`),
-    the scores (:mod:`pdsmc_ros.scores`) from its control steps (:meth:`add_steps`): the torque of
+    the scores (:mod:`pdsmc_ros.metrics.scores`) from its control steps (:meth:`add_steps`): the torque of
     every period, so that switching faster than the statistics' rate is seen. The same numbers
     whether the signals come at once or a stretch at a time (:mod:`pdsmc_ros.sim.stretches`):
     every sum runs row by row in the run's order (:mod:`.metrics_kernel`), the spectrum's segments
@@ -281,7 +281,7 @@ class RunStatistics:
         self._power += power / len(torque)
 
     def scores(self) -> Scores | None:
-        """The scores of the steps so far (:mod:`pdsmc_ros.scores`): None without a rate or with
+        """The scores of the steps so far (:mod:`pdsmc_ros.metrics.scores`): None without a rate or with
         fewer than two steps (no applied period)."""
         count = self.steps
         if self.rate is None or count < 2:
@@ -353,7 +353,7 @@ class RunStatistics:
 
 
 def compute_scores(error: FloatArray, torque: FloatArray, rate: float, cutoff: float = DEFAULT_CUTOFF_HZ) -> Scores:
-    """The scores of signals (:mod:`pdsmc_ros.scores`, docs/SCORES.md) through :class:`RunStatistics`.
+    """The scores of signals (:mod:`pdsmc_ros.metrics.scores`, docs/SCORES.md) through :class:`RunStatistics`.
 
     Parameters
     ----------

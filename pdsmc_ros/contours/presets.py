@@ -5,11 +5,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from .config import choice, load_config
-from .errors import ConfigError
-from .robots import make_robot
-from .robots.catalog import resolve_robot
-from .trajectories import (
+from ..config import choice, load_config
+from ..errors import ConfigError
+from ..robots import make_robot
+from ..robots.catalog import resolve_robot
+from . import (
     Contour,
     EllipseContour,
     JointPath,

@@ -17,11 +17,11 @@ from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
-from .config import read_yaml
-from .errors import ConfigError
-from .parameters.declaration import JOINT, check_values, joint_name_matches
-from .parameters.tables import NODES, gain_parameters, package_parameter_names, parameter_names
-from .parameters.tables import node_parameters as node_table
+from ..config import read_yaml
+from ..errors import ConfigError
+from .declaration import JOINT, check_values, joint_name_matches
+from .tables import NODES, gain_parameters, package_parameter_names, parameter_names
+from .tables import node_parameters as node_table
 
 ALWAYS_DECLARED = ("use_sim_time", "start_type_description_service")
 """Parameters rclpy declares on every node itself."""

@@ -3,7 +3,7 @@
 The thesis compares its laws on error statistics and peak torque only (:mod:`.metrics`).
 These are the costs a control engineer weighs as well, each per actuated joint and for the
 run, of a signal sampled evenly at ``rate`` (a run's control steps, every one of them:
-:meth:`pdsmc_ros.metrics.RunStatistics.add_steps`, docs/SCORES.md). With ``N``
+:meth:`pdsmc_ros.metrics.statistics.RunStatistics.add_steps`, docs/SCORES.md). With ``N``
 periods of ``h = 1/rate`` (``T = N h``), the tracking error ``e_k = q_d(t_k) - q(t_k)`` at
 ``k = 0..N`` and the torque ``u_k`` held over ``[t_k, t_{k+1})`` for ``k = 0..N-1`` (the command
 at ``t_N`` closes the run and is never applied):
@@ -19,9 +19,9 @@ at ``t_N`` closes the run and is never applied):
 - ``control_energy``: ``int u^2 dt = sum_k u_k^2 h``, exact for the held torque (run: summed);
 - ``torque_rate_peak``: ``max_k |u_k - u_{k-1}| / h`` (run: over joints).
 
-:class:`pdsmc_ros.metrics.RunStatistics` computes them beside the statistics, instant by instant
+:class:`pdsmc_ros.metrics.statistics.RunStatistics` computes them beside the statistics, instant by instant
 (compensated sums; only the applied torque is kept, for its spectrum);
-:func:`pdsmc_ros.metrics.compute_scores` scores two signals.
+:func:`pdsmc_ros.metrics.statistics.compute_scores` scores two signals.
 """
 
 from __future__ import annotations
@@ -30,7 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .robots.base import FloatArray
+from ..robots.base import FloatArray
 
 DEFAULT_CUTOFF_HZ = 50.0
 """The default cutoff of the high-frequency share (docs/SCORES.md): far above the references'

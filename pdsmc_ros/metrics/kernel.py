@@ -1,6 +1,6 @@
 """The statistics and scores of a run, accumulated instant by instant (compiled).
 
-:class:`pdsmc_ros.metrics.RunStatistics` calls :func:`accumulate_instants` on consecutive
+:class:`pdsmc_ros.metrics.statistics.RunStatistics` calls :func:`accumulate_instants` on consecutive
 blocks of the statistics instants (the thesis's statistics) and :func:`accumulate_steps` on
 consecutive blocks of the control steps (the scores): a run's signals at once, or a long run's
 stretches one by one (:mod:`pdsmc_ros.sim.stretches`). Every quantity is updated row by row in
@@ -31,7 +31,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .kernel_options import ALLOCATION_FREE
+from ..kernels.options import ALLOCATION_FREE
 
 MOMENT_COLUMNS = 6
 """Columns of ``moments`` after the joints' (x, y, magnitude, contour, signed x, signed y)."""

@@ -11,9 +11,9 @@ from numpy.typing import ArrayLike
 from ..config import read_yaml
 from ..errors import ConfigError
 from ..robots.base import FloatArray, Manipulator
-from .contours import Contour, polyline_distance
 from .polynomials import quintic
 from .samples import JointSample, TaskSample
+from .shapes import Contour, polyline_distance
 
 
 def load_joint_waypoints(path: str | Path, n: int) -> tuple[FloatArray, FloatArray]:

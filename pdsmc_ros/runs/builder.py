@@ -14,16 +14,16 @@ from typing import Any
 
 import numpy as np
 
-from . import __version__
-from .config import choice, load_config
-from .contour_presets import build_contour, contour_names, contour_set
-from .control.gains import Gains
-from .control.registry import SMC_MODEL_KEYS, law, smc_model_vector
-from .errors import ConfigError, InvalidInputError, MissingGainsError
-from .robots import ROBOTS, Manipulator, RobotParams, make_robot, robot_settings
-from .robots.base import FloatArray
-from .robots.catalog import resolve_robot
-from .trajectories import Contour, JointReference
+from .. import __version__
+from ..config import choice, load_config
+from ..contours import Contour, JointReference
+from ..contours.presets import build_contour, contour_names, contour_set
+from ..control.gains import Gains
+from ..control.registry import SMC_MODEL_KEYS, law, smc_model_vector
+from ..errors import ConfigError, InvalidInputError, MissingGainsError
+from ..robots import ROBOTS, Manipulator, RobotParams, make_robot, robot_settings
+from ..robots.base import FloatArray
+from ..robots.catalog import resolve_robot
 
 __all__ = [
     "MAX_CONTROL_STEPS",

@@ -21,8 +21,8 @@ import uuid
 from collections.abc import Callable, Iterator, Sequence
 from typing import Any, TextIO
 
-from .errors import ConfigError
-from .glibc import M_MMAP_THRESHOLD, M_TRIM_THRESHOLD, mallopt
+from ..errors import ConfigError
+from ..glibc import M_MMAP_THRESHOLD, M_TRIM_THRESHOLD, mallopt
 
 SCHEDULER_ADDRESS = re.compile(r"^(tcp|tls|inproc|ws|wss)://[^\s/]+(:\d+)?/?$")
 CONNECT_TIMEOUT_S = 10

@@ -1,5 +1,5 @@
 """Run parameters of the nodes: declared from the tables (:mod:`pdsmc_ros.parameters`), turned
-into a :class:`~pdsmc_ros.presets.RunSpec`; nothing here computes physics, control or metrics."""
+into a :class:`~pdsmc_ros.runs.builder.RunSpec`; nothing here computes physics, control or metrics."""
 
 from __future__ import annotations
 
@@ -11,13 +11,13 @@ from typing import Any
 from rclpy.node import Node
 
 from ..control import law
-from ..controller.joint_map import JointMap
 from ..errors import ConfigError
-from ..presets import RunSpec, make_run, smc_reading
 from ..robots import make_robot
 from ..robots.catalog import ROBOT_DESCRIPTION, register_description, resolve_robot
 from ..ros.robot_description import receive_robot_description
+from ..runs.builder import RunSpec, make_run, smc_reading
 from . import BUSY_WAIT, CONTROLLER, STABILITY, gain_parameters, run_parameters
+from .joint_map import JointMap
 from .ros import declare, guard, value_of
 
 
@@ -46,7 +46,7 @@ def declare_node_run(node: Node, *, gains: bool = False) -> NodeRun:
     tables is read-only but the controller's gains (:func:`~pdsmc_ros.parameters.ros.guard`).
 
     The gains (``-p kp:=``, a params file) go through :func:`spec_from_values` to the one resolver
-    (:func:`~pdsmc_ros.presets.resolve_gains`) into ``spec``; the controller node hands ``spec`` to
+    (:func:`~pdsmc_ros.runs.builder.resolve_gains`) into ``spec``; the controller node hands ``spec`` to
     its core (:class:`~pdsmc_ros.controller.core.ControllerCore`), which runs the law with them."""
     values = declare_run_parameters(node, gains=gains)
     values.update(declare(node, (BUSY_WAIT,)))  # used in real time
@@ -114,7 +114,7 @@ def spec_from_values(values: dict[str, Any], *, needs_gains: bool = True,
     """Build and validate the RunSpec the parameter ``values`` name.
 
     The gains given (``-p kp:=``, a params file: rcl merges both) are the overrides layer of
-    :func:`~pdsmc_ros.presets.make_run`, the one builder ``pdsmc simulate`` uses too, in
+    :func:`~pdsmc_ros.runs.builder.make_run`, the one builder ``pdsmc simulate`` uses too, in
     ``joint_order`` (the controller's ``joints``): its resolver puts them in robot order, replaces
     the preset's with them and scales them by the scenario's factors, as in-process. An arm
     without preset gains needs them all given when ``needs_gains`` (the controller); the other

@@ -42,7 +42,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"ros2 run: error: package and executable are required ({USAGE})", file=sys.stderr)
         return 2
     package, executable, rest = argv[1], argv[2], argv[3:]
-    from .resources import ensure_ros_environment
+    from ..resources import ensure_ros_environment
 
     ensure_ros_environment()
     from ament_index_python.packages import PackageNotFoundError, get_package_prefix

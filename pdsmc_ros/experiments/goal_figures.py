@@ -3,10 +3,10 @@
 For each action goal: the tracking error against the controller's desired state, the time to
 settle, the largest joint velocity against the arm's limits, the torque and its scores,
 the saturated and late periods, and the goal's result. Where a simulated run has the same
-figure, it comes from the same code (:class:`~pdsmc_ros.metrics.RunStatistics`): the axial
+figure, it comes from the same code (:class:`~pdsmc_ros.metrics.statistics.RunStatistics`): the axial
 error statistics (mean and population S.D. of ``|q_d - q|``), the largest torque, the
 saturated periods (``|tau| >= effort limit``, as ``pdsmc analyze`` counts a recorded run's)
-and the scores of :mod:`pdsmc_ros.scores`.
+and the scores of :mod:`pdsmc_ros.metrics.scores`.
 
 The signals are put on an even grid at the joint states' rate from the goal's first desired
 state to its end (the scores need one): the measured position linearly interpolated, the
@@ -36,7 +36,7 @@ import numpy as np
 
 from ..bag.graph import GoalRecord, GraphRun, ReferenceSamples
 from ..errors import InvalidInputError
-from ..metrics import Metrics, RunStatistics
+from ..metrics.statistics import Metrics, RunStatistics
 from ..robots.base import FloatArray
 
 DEFAULT_SETTLE_BAND = 0.01

@@ -1,0 +1,1 @@
+"""pdsmc_ros.runs."""
