@@ -23,14 +23,10 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ..errors import InvalidInputError
+from ..parameters.tables import DEFAULT_COMMAND_TIMEOUT_S, JOINT_STATE_ORDERS
 from ..robots.base import FloatArray
 from ..sim.mujoco_model import MujocoArm, _mujoco, set_state
 
-DEFAULT_COMMAND_TIMEOUT_S = 0.1
-"""Seconds without a command after which the stand-in's brakes close: a real arm's driver stops
-the arm when its commands stop (a watchdog), where ros2_control's forward command controller
-would apply the last command forever. 0.1 s is 100 periods of a 1 kHz controller, far beyond its
-late ticks, and short enough that a dead controller's last torque moves the arm little."""
 MAX_CATCH_UP_S = 0.1
 """The longest stretch of wall time one :meth:`MujocoDriver.advance` integrates; beyond it
 (the process was stopped, say) the physics' clock jumps to the wall clock's."""
@@ -218,7 +214,6 @@ def initial_passive(robot: str, q0: ArrayLike) -> FloatArray:
     return np.asarray(robot_model.passive_joints(q, np.zeros_like(q))[0], dtype=float)
 
 
-JOINT_STATE_ORDERS = ("alphabetical", "urdf", "reversed")
 
 
 def joint_state_order(names: Sequence[str], order: str) -> list[int]:

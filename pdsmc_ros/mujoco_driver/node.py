@@ -27,13 +27,13 @@ from std_msgs.msg import Float64MultiArray, String
 
 from ..bag.cdr import decode_float64_multi_array, encode_joint_state
 from ..checks import are_real
-from ..controller.joints import check_joint_names
 from ..errors import CdrError, ConfigError, InvalidInputError
 from ..loop.inputs import Inputs
 from ..loop.lifecycle import EXIT_OK
 from ..loop.process import run_node
 from ..loop.realtime import PLANT_PRIORITY
 from ..parameters import mujoco_driver_parameters
+from ..parameters.joint_map import check_joint_names
 from ..parameters.ros import declare, guard
 from ..robots.catalog import resolve_robot
 from ..robots.registry import make_robot

@@ -14,10 +14,28 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ..controller.joints import check_joint_names
 from ..errors import ConfigError
 
 FloatArray = np.ndarray
+
+
+def check_joint_names(joints: object, n: int, *, name: str = "joints") -> tuple[str, ...]:
+    """Validate a ``joints`` parameter: ``n`` distinct, non-empty names.
+
+    Raises
+    ------
+    ConfigError
+        Naming the parameter and what is allowed.
+    """
+    if isinstance(joints, str) or not isinstance(joints, Sequence) \
+            or not all(isinstance(j, str) for j in joints):
+        raise ConfigError(f"parameter {name} must be a list of {n} joint names, got {joints!r}")
+    names = tuple(joints)
+    if len(names) != n or len(set(names)) != n or not all(names):
+        raise ConfigError(
+            f"parameter {name} needs {n} distinct non-empty joint names (one per actuated joint), "
+            f"got {list(names)}")
+    return names
 
 
 class JointMap:

@@ -18,6 +18,7 @@ from .base import FloatArray, Manipulator, RobotParams, as_vector, diag
 from .chain import PlanarChain, chain_coriolis_times
 from .kernel_math import entry_at
 from .registry import robot_params
+from .urdf import serial_urdf
 
 SERIAL_3R = 0
 """Code of the compiled form (:mod:`pdsmc_ros.robots.compiled`)."""
@@ -75,8 +76,6 @@ class Serial3R(Manipulator):
 
     def description(self, payload: float | None = None) -> str:
         """The arm's URDF (:func:`pdsmc_ros.robots.urdf.serial_urdf`)."""
-        from .urdf import serial_urdf  # the URDF writer reads robots' parameters
-
         return serial_urdf(self.name, self.params, self.payload if payload is None else payload)
 
     def _fk(self, q: FloatArray) -> FloatArray:

@@ -12,6 +12,7 @@ from pdsmc_ros.errors import InvalidInputError
 pytest.importorskip("mujoco")
 
 from pdsmc_ros.mujoco_driver import driver as md  # noqa: E402
+from pdsmc_ros.parameters.tables import DEFAULT_COMMAND_TIMEOUT_S  # noqa: E402
 from pdsmc_ros.sim.mujoco_model import MujocoArm, build_model  # noqa: E402
 
 
@@ -29,7 +30,7 @@ def driver(arm: MujocoArm, **kwargs: object) -> md.MujocoDriver:
 
 def test_the_stand_in_brakes_after_a_tenth_of_a_second_without_a_command_by_default(arm: MujocoArm) -> None:
     d = md.MujocoDriver(arm, md.default_positions("serial_3r"))
-    assert d.command_timeout == md.DEFAULT_COMMAND_TIMEOUT_S == 0.1
+    assert d.command_timeout == DEFAULT_COMMAND_TIMEOUT_S == 0.1
     d.command([0.0, 0.0, 0.0], 1.0)
     d.advance(1.05)
     assert not d.braked
