@@ -39,8 +39,6 @@ KNOWN_UPWARD: set[tuple[str, str]] = {
     # the real-time defaults (priorities, busy-wait) are still defined by the loop: loop/realtime.py is
     # being reworked for "Real time that serves the ordinary run"; they move into the table after it
     ("pdsmc_ros.parameters.tables", "pdsmc_ros.loop.realtime"),
-    ("pdsmc_ros.parameters.node_run", "pdsmc_ros.runs.builder"),
-    ("pdsmc_ros.parameters.node_run", "pdsmc_ros.ros.robot_description"),
 }
 """Imports against the direction still in the package, each (importer, imported)."""
 

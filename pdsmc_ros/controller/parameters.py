@@ -65,8 +65,9 @@ class ControllerParameters:
 
 
 def declare_controller_parameters(node: Node, robot: Manipulator) -> ControllerParameters:
-    """Declare the controller's parameters (if :func:`~pdsmc_ros.parameters.node_run.declare_node_run` has
-    not) and return them validated; a ConfigError naming the parameter if bad (an unknown joint name lists the robot's)."""
+    """Declare the controller's parameters (if :func:`~pdsmc_ros.ros.node_run.declare_node_run` has
+    not) and return them validated; a ConfigError naming the parameter if bad (an unknown joint name
+    lists the robot's)."""
     values = declare(node, CONTROLLER, defaults={"joints": list(robot.joint_names)})
     joint_map = JointMap(robot.joint_names, values["joints"])
     limit = values["torque_limit"]

@@ -45,8 +45,8 @@ from ..loop.lifecycle import EXIT_FAILURE, EXIT_OK
 from ..loop.process import run_node
 from ..loop.realtime import PLANT_PRIORITY
 from ..parameters.descriptors import decimation
-from ..parameters.node_run import declare_node_run
 from ..ros.diagnostics import Diagnostics
+from ..ros.node_run import declare_node_run
 from ..ros.publishers import GuardedPublisher
 from ..ros.topics import (
     LATCHED_QOS,

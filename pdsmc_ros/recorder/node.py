@@ -57,8 +57,8 @@ from ..loop.lifecycle import EXIT_FAILURE, EXIT_OK
 from ..loop.process import run_node
 from ..parameters import RECORDER
 from ..parameters.descriptors import descriptor
-from ..parameters.node_run import declare_node_run, description_json
 from ..parameters.ros import declare
+from ..ros.node_run import declare_node_run, description_json
 from ..ros.topics import (
     LATCHED_QOS,
     LOCKSTEP_QOS,

@@ -12,13 +12,13 @@ from rclpy.node import Node
 
 from ..control import law
 from ..errors import ConfigError
+from ..parameters import BUSY_WAIT, CONTROLLER, STABILITY, gain_parameters, run_parameters
+from ..parameters.joint_map import JointMap
+from ..parameters.ros import declare, guard, value_of
 from ..robots import make_robot
 from ..robots.catalog import ROBOT_DESCRIPTION, register_description, resolve_robot
-from ..ros.robot_description import receive_robot_description
 from ..runs.builder import RunSpec, make_run, smc_reading
-from . import BUSY_WAIT, CONTROLLER, STABILITY, gain_parameters, run_parameters
-from .joint_map import JointMap
-from .ros import declare, guard, value_of
+from .robot_description import receive_robot_description
 
 
 @dataclass(frozen=True)
