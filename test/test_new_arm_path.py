@@ -15,7 +15,8 @@ from pdsmc_ros.cli import main as pdsmc
 from pdsmc_ros.control.gains import Gains
 from pdsmc_ros.control.stability import RK4_REAL_LIMIT, plant_step
 from pdsmc_ros.errors import ConfigError
-from pdsmc_ros.experiments.tuning import tune, write_params_file
+from pdsmc_ros.experiments.tuning import tune
+from pdsmc_ros.parameters.params_file import write_params_file
 from pdsmc_ros.robots import make_robot
 from pdsmc_ros.robots.catalog import example_robot_data_dir, resolve_robot
 from pdsmc_ros.robots.options import robot_key

@@ -128,9 +128,9 @@ def law_specs(robot: str, contour: str, laws: Sequence[str], *, scenario: str = 
         (naming it and how to give them); gains that cannot be stable at the rate.
     """
     from ..control.stability import check_rate
+    from ..parameters.params_file import read_gains
     from ..robots import make_robot
     from ..robots.catalog import resolve_robot
-    from .tuning import read_params_file
 
     for name in laws:
         law(name)
@@ -138,7 +138,7 @@ def law_specs(robot: str, contour: str, laws: Sequence[str], *, scenario: str = 
     out = []
     for name in laws:
         path = files.get(name)
-        params = read_params_file(path, make_robot(resolve_robot(robot)).n, name) if path else None
+        params = read_gains(path, make_robot(resolve_robot(robot)).n, name) if path else None
         try:
             spec = make_run(robot, contour, name, scenario=scenario, rate=rate, params=params,
                             smc_model=smc_reading(reading) if law(name).model_based else None)
@@ -240,11 +240,11 @@ def params_by_law(paths: Sequence[str], laws: Sequence[str]) -> dict[str, str]:
     ConfigError
         A file without ``type``, for a law not compared, or two files for one law.
     """
-    from .tuning import controller_parameters
+    from ..parameters.params_file import controller_values
 
     out: dict[str, str] = {}
     for path in paths:
-        name = controller_parameters(path).get("type")
+        name = controller_values(path).get("type")
         if name not in laws:
             raise ConfigError(f"params file {path!r} holds gains for type {name!r}; --laws is {','.join(laws)}: "
                               "name the law there (or set type: in the file)")

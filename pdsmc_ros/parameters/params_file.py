@@ -1,4 +1,7 @@
-"""ROS 2 params files and parameter names checked against what a node declares (ROS-free).
+"""ROS 2 params files, read and written, and parameter names checked against what a node declares
+(ROS-free): the one module that reads or writes a params file (``pdsmc tune`` writes one; ``pdsmc
+simulate/check-gains/compare/montecarlo --params-file`` read the controller's gains from one; the
+nodes check every file they are given against what they declare, :mod:`.overrides`).
 
 A params file (``--ros-args --params-file``, ``pdsmc ... --params-file``) maps node names to
 ``ros__parameters``. rcl applies every section whose name matches the node -- its name,
@@ -17,8 +20,13 @@ from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
+import yaml
+
 from ..config import read_yaml
+from ..control.gains import Gains
+from ..control.registry import gain_names, law
 from ..errors import ConfigError
+from ..robots.options import robot_key
 from .declaration import JOINT, check_values, joint_name_matches
 from .tables import NODES, gain_parameters, package_parameter_names, parameter_names
 from .tables import node_parameters as node_table
@@ -197,3 +205,57 @@ def param_arguments(args: Iterable[str]) -> list[tuple[str, str, str]]:
             node, _, name = key.rpartition(":")
             found.append((node, name, value))
     return found
+
+
+CONTROLLER_NODE = "controller"
+"""The node whose section of a params file holds the gains (:func:`write_params_file`)."""
+
+
+def controller_values(path: str | Path, *, node: str = CONTROLLER_NODE) -> dict[str, Any]:
+    """What a params file gives the controller node (its section and ``/**``, merged as rcl does),
+    checked against what the controller declares (:func:`controller_parameters`).
+
+    Raises
+    ------
+    ConfigError
+        One line naming the file: not a params file, no section for the controller, or a key the
+        controller does not declare (the closest one suggested).
+    """
+    return node_parameters(path, "/" + node, controller_parameters())
+
+
+def read_gains(path: str | Path, n: int, controller: str, *, node: str = CONTROLLER_NODE) -> dict[str, list[float]]:
+    """The gains a params file gives ``controller`` (as :func:`write_params_file` writes, or any with the
+    gain names): checked against the law's declaration, the others left to the presets (the
+    params-file layer of :func:`~pdsmc_ros.runs.builder.make_run`).
+
+    Raises
+    ------
+    ConfigError
+        One line naming the file and what is wrong.
+    """
+    params = controller_values(path, node=node)
+    values = {k: params[k] for k in gain_names() if k in params and params[k]}
+    try:
+        checked = Gains.from_mapping(values, n, controller, partial=True)
+    except ConfigError as exc:
+        raise ConfigError(f"params file {str(path)!r}: {exc}") from None
+    return {k: list(checked[k]) for k in values}
+
+
+def write_params_file(path: str | Path, gains: Gains, *, controller: str, robot: str, contour: str,
+                      rate: float, node: str = CONTROLLER_NODE, accepted_by: str = "") -> None:
+    """A ROS 2 params file for every node of a run (``--ros-args --params-file``).
+
+    The run (robot, contour, type, rate) in ``/**``, which every node reads, and the gains in the
+    controller's section, the only node that needs them: the same file serves ``ros2 run`` of
+    any node, ``scripts/run_experiment.sh --params-file`` and ``pdsmc simulate --params-file``.
+    ``accepted_by``: the check the gains passed, in the header (``pdsmc tune``'s).
+    """
+    robot = robot_key(robot)  # a .urdf path absolute: the file serves from any directory (analyze, ros2 run)
+    run: dict[str, Any] = {"robot": robot, "contour": contour, "type": controller, "rate": float(rate)}
+    own = {k: [float(x) for x in v] for k, v in gains.as_dict().items() if k in law(controller).gain_names}
+    header = f"# pdsmc tune: {controller} gains for {robot}/{contour} at {float(rate):g} Hz"
+    header += f", accepted by\n# {accepted_by}\n" if accepted_by else "\n"
+    body = yaml.safe_dump({"/**": {"ros__parameters": run}, node: {"ros__parameters": own}}, sort_keys=False)
+    Path(path).write_text(header + body)

@@ -17,14 +17,13 @@ from __future__ import annotations
 from collections.abc import Collection
 from typing import Any
 
-from ..config import load_config
-from ..control.registry import GAINS, law_names
+from ..control.registry import GAINS
 from ..control.soft_limits import DEFAULT_K_POSITION, SOFT_VELOCITY_BAND
-from ..control.stability import MODES
 from ..errors import ConfigError
 from ..loop.realtime import AUTO_BUSY_WAIT, DEFAULT_PRIORITY, MAX_PRIORITY, PLANT_PRIORITY, TRAJECTORY_PRIORITY
 from ..robots.catalog import allowed_robots
 from .declaration import JOINT, ParameterSpec
+from .run_table import run_parameters
 
 P = ParameterSpec
 
@@ -74,35 +73,6 @@ LOOKAHEAD_STEPS = 500
 """The trajectory's ``lookahead_steps`` default (lockstep: 50 ms at 10 kHz)."""
 MAX_LOOKAHEAD_STEPS = 5000
 """Half the depth of the lockstep streams' queues (:data:`pdsmc_ros.ros.topics.STREAM_DEPTH`)."""
-
-
-def _scenarios() -> tuple[str, ...]:
-    return tuple(load_config("scenarios"))
-
-
-def _smc_readings() -> tuple[str, ...]:
-    return tuple(load_config("smc_readings"))
-
-
-def run_parameters() -> tuple[ParameterSpec, ...]:
-    """The parameters that define a run (every node of it but the MuJoCo stand-in)."""
-    return (
-        P("robot", "string", "serial_3r", "manipulator", constraints="one of: " + allowed_robots()),
-        P("contour", "string", "circle", "contour preset (config/contours.yaml) or csv"),
-        P("type", "string", "pdsmc", "controller type", constraints="one of: " + ", ".join(law_names())),
-        P("scenario", "string", "nominal", "robustness scenario (config/scenarios.yaml)",
-          constraints="one of: " + ", ".join(_scenarios())),
-        P("mode", "string", "lockstep", "timing mode", choices=MODES),
-        P("rate", "double", 0.0, "control rate in Hz (0: preset, 10 kHz serial / 5 kHz parallel)", lo=0.0, hi=1.0e6),
-        P("sample_rate", "double", 0.0, "statistics rate in Hz (0: thesis value)", lo=0.0, hi=1.0e6),
-        P("duration_factor", "double", 1.0, "multiplies the contour duration", lo=0.001, hi=1000.0),
-        P("smc_reading", "string", "literal", "SMC model estimate (config/smc_readings.yaml)",
-          constraints="one of: " + ", ".join(_smc_readings())),
-        P("ellipse_error", "string", "nearest", "ellipse contour error", choices=("nearest", "osculating")),
-        P("waypoints_file", "string", "", "CSV of task-space waypoints for contour csv"),
-        P("segment_duration", "double", 2.0, "seconds per CSV segment", lo=0.001, hi=1000.0),
-        P("clock_rate", "double", 100.0, "lockstep: /clock publication rate in sim-time Hz", lo=1.0, hi=1.0e6),
-    )
 
 
 def gain_parameters(*, applied: bool | Collection[str]) -> tuple[ParameterSpec, ...]:

@@ -17,7 +17,7 @@ from ..parameters.joint_map import JointMap
 from ..parameters.ros import declare, guard, value_of
 from ..robots import make_robot
 from ..robots.catalog import ROBOT_DESCRIPTION, register_description, resolve_robot
-from ..runs.builder import RunSpec, make_run, smc_reading
+from ..runs.builder import RunSpec, run_from_settings
 from .robot_description import receive_robot_description
 
 
@@ -125,20 +125,12 @@ def spec_from_values(values: dict[str, Any], *, needs_gains: bool = True,
     ConfigError
         With a message naming the parameter and what is allowed.
     """
-    p = values
-    overrides = {g.name: p[g.name] for g in gain_parameters(applied=False) if p.get(g.name) is not None}
+    overrides = {g.name: values[g.name] for g in gain_parameters(applied=False) if values.get(g.name) is not None}
+    settings = {spec.name: values[spec.name] for spec in run_parameters()}
     try:
-        spec = make_run(p["robot"], p["contour"], p["type"], scenario=p["scenario"], rate=p["rate"] or None,
-                        sample_rate=p["sample_rate"] or None,
-                        smc_model=smc_reading(p["smc_reading"]) if law(p["type"]).model_based else None,
-                        ellipse_error=p["ellipse_error"], waypoints_file=p["waypoints_file"] or None,
-                        segment_duration=p["segment_duration"], overrides=overrides, needs_gains=needs_gains,
-                        joint_order=joint_order)
+        return run_from_settings(settings, overrides=overrides, needs_gains=needs_gains, joint_order=joint_order)
     except ConfigError as exc:
         raise ConfigError(f"parameters: {exc}") from None
-    if p["duration_factor"] != 1.0:
-        spec = dataclasses.replace(spec, duration_factor=spec.duration_factor * p["duration_factor"])
-    return spec
 
 
 def stability_from_values(values: dict[str, Any], mode: str) -> dict[str, Any]:

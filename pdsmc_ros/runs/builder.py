@@ -21,6 +21,7 @@ from ..contours.presets import build_contour, contour_names, contour_set
 from ..control.gains import Gains
 from ..control.registry import SMC_MODEL_KEYS, law, smc_model_vector
 from ..errors import ConfigError, InvalidInputError, MissingGainsError
+from ..parameters.run_table import PAYLOAD_READINGS, RUN_DEFAULTS
 from ..robots import ROBOTS, Manipulator, RobotParams, make_robot, robot_settings
 from ..robots.base import FloatArray
 from ..robots.catalog import resolve_robot
@@ -37,6 +38,7 @@ __all__ = [
     "make_run",
     "preset_gains",
     "resolve_gains",
+    "run_from_settings",
     "scenario_gain_factors",
     "scenario_names",
     "smc_model_default",
@@ -48,14 +50,8 @@ MAX_CONTROL_STEPS = 10_000_000
 """Control steps one run may hold: the sampled reference and its temporaries take about
 400 bytes a step (4 GB here), 200 times the thesis's 50,001-step serial runs."""
 
-PAYLOAD_READINGS = {
-    "tip": "a point mass at the end-effector; the SMC's model estimate stays the nominal robot's",
-    "link_com": "the load added to the mass of the link that carries the end-effector (serial "
-    "link 3, five-bar link 3), at that link's centre of mass with its inertia unchanged; the "
-    "SMC's model estimate is rebuilt with it",
-}
-"""Readings of Section 4.5.2's "a simulated load of 1.5 kg was added at the end-effector"
-(``--payload-reading``); ``tip`` is the physical one and the default."""
+DEFAULT = RUN_DEFAULTS
+"""The run's defaults: the parameter table's (:data:`pdsmc_ros.parameters.tables.RUN`), written there once."""
 
 
 def smc_model_default() -> dict[str, float]:
@@ -107,12 +103,12 @@ class RunSpec:
     rate: float
     sample_rate: float
     payload: float = 0.0
-    payload_reading: str = "tip"
-    duration_factor: float = 1.0
+    payload_reading: str = DEFAULT["payload_reading"]
+    duration_factor: float = DEFAULT["duration_factor"]
     smc_model: Mapping[str, float] = field(default_factory=smc_model_default)
-    ellipse_error: str = "nearest"
+    ellipse_error: str = DEFAULT["ellipse_error"]
     waypoints_file: str | None = None
-    segment_duration: float = 2.0
+    segment_duration: float = DEFAULT["segment_duration"]
     bound: float = 0.0
     enforce_limits: bool = True
 
@@ -212,17 +208,17 @@ class RunSpec:
             robot=robot,
             contour=data["contour"],
             controller=data["controller"],
-            scenario=data.get("scenario", "nominal"),
+            scenario=data.get("scenario", DEFAULT["scenario"]),
             gains=Gains.from_mapping(data["gains"], make_robot(robot).n, data["controller"]),
             rate=float(data["control_rate_hz"]),
             sample_rate=float(data["sample_rate_hz"]),
             payload=float(data.get("payload_kg", 0.0)),
-            payload_reading=data.get("payload_reading", "tip"),
-            duration_factor=float(data.get("duration_factor", 1.0)),
+            payload_reading=data.get("payload_reading", DEFAULT["payload_reading"]),
+            duration_factor=float(data.get("duration_factor", DEFAULT["duration_factor"])),
             smc_model=dict(data.get("smc_model", {})),
-            ellipse_error=data.get("ellipse_error", "nearest"),
+            ellipse_error=data.get("ellipse_error", DEFAULT["ellipse_error"]),
             waypoints_file=data.get("waypoints_file"),
-            segment_duration=float(data.get("segment_duration", 2.0)),
+            segment_duration=float(data.get("segment_duration", DEFAULT["segment_duration"])),
             bound=float(data.get("contour_bound_m", robot_settings(robot).contour_bound)),
             enforce_limits=bool(data.get("enforce_limits", True)),
         )
@@ -365,7 +361,7 @@ def make_run(
     contour: str,
     controller: str,
     *,
-    scenario: str = "nominal",
+    scenario: str = DEFAULT["scenario"],
     rate: float | None = None,
     gains: Gains | None = None,
     params: Mapping[str, Any] | None = None,
@@ -373,18 +369,22 @@ def make_run(
     needs_gains: bool = True,
     joint_order: Sequence[int] | None = None,
     smc_model: Mapping[str, float] | None = None,
-    ellipse_error: str = "nearest",
+    ellipse_error: str = DEFAULT["ellipse_error"],
     waypoints_file: str | None = None,
-    segment_duration: float = 2.0,
+    segment_duration: float = DEFAULT["segment_duration"],
     sample_rate: float | None = None,
-    payload_reading: str = "tip",
+    payload_reading: str = DEFAULT["payload_reading"],
+    duration_factor: float = DEFAULT["duration_factor"],
 ) -> RunSpec:
     """The one run builder (the CLI, the nodes, tune, sweep, Monte Carlo and reproduce use it).
 
     The gains come from :func:`resolve_gains`: ``gains`` or the presets, then ``params`` (a params
     file's gains), then ``overrides`` (explicit ``-p``/``--gain`` values), both in ``joint_order``
     if given (the controller's ``joints``), then the scenario's gain factors; the scenario of
-    Section 4.5 also sets the payload and the duration factor. Rates not given are the robot's settings.
+    Section 4.5 also sets the payload and its duration factor, which ``duration_factor``
+    multiplies. Rates not given are the robot's settings. The defaults are the parameter table's
+    (:data:`DEFAULT`); :func:`run_from_settings` builds the run a node's parameters or the
+    command line's options name.
     """
     choice(contour, contour_names(robot), f"contour for {robot}")
     settings = robot_settings(robot)
@@ -405,13 +405,37 @@ def make_run(
         sample_rate=float(sample_rate or settings.sample_rate),
         payload=float(sc.get("payload", 0.0)),
         payload_reading=payload_reading,
-        duration_factor=float(sc.get("duration_factor", 1.0)),
+        duration_factor=float(sc.get("duration_factor", 1.0)) * float(duration_factor),
         smc_model=model,
         ellipse_error=ellipse_error,
         waypoints_file=waypoints_file,
         segment_duration=segment_duration,
         bound=settings.contour_bound,
     )
+
+
+def run_from_settings(settings: Mapping[str, Any], *, params: Mapping[str, Any] | None = None,
+                      overrides: Mapping[str, Any] | None = None, needs_gains: bool = True,
+                      joint_order: Sequence[int] | None = None) -> RunSpec:
+    """The run that the run table's settings name (:data:`pdsmc_ros.parameters.tables.RUN`, by
+    parameter name: a node's declared values, the command line's options): :func:`make_run` with
+    each setting not given (absent or None) at its default, a rate of 0 the robot's, an empty
+    ``waypoints_file`` none, and the SMC reading's model estimate for a model-based law. ``params``,
+    ``overrides``, ``needs_gains`` and ``joint_order``: as :func:`make_run` takes them.
+
+    Raises
+    ------
+    ConfigError
+        A setting the builder refuses (an unknown robot, contour, law, scenario or reading).
+    """
+    v = {**DEFAULT, **{k: x for k, x in settings.items() if x is not None}}
+    return make_run(v["robot"], v["contour"], v["type"], scenario=v["scenario"], rate=v["rate"] or None,
+                    sample_rate=v["sample_rate"] or None,
+                    smc_model=smc_reading(v["smc_reading"]) if law(v["type"]).model_based else None,
+                    ellipse_error=v["ellipse_error"], waypoints_file=v["waypoints_file"] or None,
+                    segment_duration=v["segment_duration"], payload_reading=v["payload_reading"],
+                    duration_factor=v["duration_factor"], params=params, overrides=overrides,
+                    needs_gains=needs_gains, joint_order=joint_order)
 
 
 def scenario_gain_factors(scenario: str, controller: str) -> dict[str, float]:
