@@ -9,6 +9,8 @@ from typing import Any
 from rclpy.logging import LoggingSeverity
 from rclpy.node import Node
 
+from ..rclpy_internals import rcutils_log
+
 LOOP_LOG_KEPT = 1_000  # lines waiting for the executor at most (more: the oldest are dropped and counted)
 _logs: weakref.WeakSet[LoopLog] = weakref.WeakSet()  # this process's loop logs
 _looping = False  # a serve loop runs in this process (before and after it, lines are written at once)
@@ -61,12 +63,8 @@ def lines_of(logger: Any) -> Any:
     """``logger`` (rclpy's) as :class:`RcutilsLines` where this rclpy offers the write rclpy's own
     logger ends in (a private function: should its arguments change, the lines go through
     ``logger`` again), else ``logger`` itself."""
-    try:
-        from rclpy.impl.implementation_singleton import rclpy_implementation
-        write = rclpy_implementation.rclpy_logging_rcutils_log
-    except (ImportError, AttributeError):  # another rclpy: its public logger
-        return logger
-    return RcutilsLines(logger, write)
+    write = rcutils_log()
+    return logger if write is None else RcutilsLines(logger, write)  # None: another rclpy, its public logger
 
 
 def loop_running(running: bool) -> None:

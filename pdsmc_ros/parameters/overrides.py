@@ -15,6 +15,7 @@ from collections.abc import Sequence
 
 from rclpy.node import Node
 
+from ..rclpy_internals import parameter_overrides
 from . import package_parameter_names
 from .params_file import (
     ALWAYS_DECLARED,
@@ -51,7 +52,10 @@ def check_overrides(nodes: Sequence[Node], args: Sequence[str] | None) -> None:
             node_parameters(path, node.get_fully_qualified_name(), declared_names(node), sections=sections)
     for node in nodes:
         declared = declared_names(node)
-        overrides = getattr(node, "_parameter_overrides", {})  # rclpy keeps no public list of them
+        try:
+            overrides = parameter_overrides(node)
+        except AttributeError:  # another rclpy: no warning rather than no node
+            overrides = {}
         for name in overrides:
             if not is_declared(name, declared):
                 node.get_logger().warning(f"{unknown_parameter(name, declared)}: ignored")

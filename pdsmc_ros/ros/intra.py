@@ -34,8 +34,9 @@ from collections import deque
 from collections.abc import Callable
 from typing import Any
 
-from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy_impl
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile
+
+from .. import rclpy_internals as _rclpy_impl
 
 COUNT_REFRESH_S = 0.05  # how often a route re-reads its DDS subscriber count while publishing (a read
 # costs about a step; the start-up waits read the count directly)
