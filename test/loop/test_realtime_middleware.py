@@ -1,6 +1,6 @@
 """Real-time processes write asynchronously and over UDP only (pdsmc_ros/loop/process.py
 choose_middleware): the mode each node is given, read before rclpy starts as rcl will resolve it,
-chooses; the environment's own choices are kept. bench/storm.py measures why (a synchronous write
+chooses; the environment's own choices are kept. bench/storm/ measures why (a synchronous write
 stood the loop still 13-22 ms while clients subscribed, a shared-memory port's health check 333 ms)."""
 
 from __future__ import annotations

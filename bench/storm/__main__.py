@@ -57,7 +57,7 @@ timing row).
 Last line: ``idle_p99_us=A storm_p99_us=B ratio_p99=C idle_worst_us=D storm_worst_us=E ratio_worst=F``
 (each window kind pooled over the rounds).
 
-Usage: python bench/storm.py [--duration 10] [--rounds 1 (12 for a verdict)] [--busy] [--large-points 10000]
+Usage: python bench/storm/ [--duration 10] [--rounds 1 (12 for a verdict)] [--busy] [--large-points 10000]
        [--domain N] [--law pd] [--roles goals,params,large,connections] [--control] [--floor]
        (inside the venv, the venv's bin first on PATH)
 """
@@ -81,7 +81,7 @@ from typing import Any
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parent.parent.parent
 sys.path.insert(0, str(ROOT))
 
 from pdsmc_ros.controller import joint_trajectory  # noqa: E402
@@ -820,7 +820,7 @@ def main() -> int:
                 break
             time.sleep(0.2)
         if len(timing.all()) < 1000:
-            print(f"bench/storm.py: error: the controller did not command (logs in {logs})", file=sys.stderr)
+            print(f"bench/storm/: error: the controller did not command (logs in {logs})", file=sys.stderr)
             return 1
         if args.floor:
             floor = subprocess.Popen([sys.executable, __file__, "--floor-out", str(logs / "floor.npy"),
@@ -837,7 +837,7 @@ def main() -> int:
                 env=env, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, start_new_session=True))
             hello = answer(storms[-1])
             if not hello.get("ready"):
-                print(f"bench/storm.py: error: the storm's {role} clients did not connect: {hello}", file=sys.stderr)
+                print(f"bench/storm/: error: the storm's {role} clients did not connect: {hello}", file=sys.stderr)
                 return 1
         if args.busy:
             busy = subprocess.Popen([sys.executable, "-c", "while True: pass"])
@@ -858,7 +858,7 @@ def main() -> int:
             for role, proc in zip(roles, storms, strict=True):
                 # a client that hangs (rclpy once stood still destroying a guest node) fails the run, never hangs it
                 if not select.select([proc.stdout], [], [], args.duration + WORKER_GRACE_S)[0]:
-                    print(f"bench/storm.py: error: the storm's {role} clients did not answer within "
+                    print(f"bench/storm/: error: the storm's {role} clients did not answer within "
                           f"{args.duration + WORKER_GRACE_S:g} s of their window (logs in {logs})", file=sys.stderr)
                     return 1
                 counts = answer(proc)
@@ -911,7 +911,7 @@ def main() -> int:
         empty = [name for name, figures, _ in labelled if figures["ticks"] < 2]
         if empty:  # the timing rows stopped reaching this process: no figure of those windows is known
             last = f"{rows[-1, 0]:.3f}" if len(rows) else "none"
-            print(f"bench/storm.py: error: no timing rows in windows {', '.join(empty)} (the last row's wall time "
+            print(f"bench/storm/: error: no timing rows in windows {', '.join(empty)} (the last row's wall time "
                   f"{last}; logs in {logs}): the run is not measured", file=sys.stderr)
             return 1
         idle, busy_figures = pooled["idle"], pooled["storm"]
