@@ -84,6 +84,29 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent.parent
 sys.path.insert(0, str(ROOT))
 
+from bench.storm.figures import (  # noqa: E402
+    CPU_TIMES,
+    FLOOR_PRIORITY,
+    RUNQUEUE_EVERY_S,
+    cpu_times,
+    floor_figures,
+    kind_mask,
+    late_tick_causes,
+    machine_figures,
+    miss_origins,
+    misses_on_run_queue,
+    print_table,
+    runqueue_ms,
+    window_figures,
+)
+from bench.storm.verdict import (  # noqa: E402
+    LEVEL,
+    VERDICT_ROUNDS,
+    ratio,
+    ratio_intervals,
+    round_lateness,
+    verdict,
+)
 from pdsmc_ros.controller import joint_trajectory  # noqa: E402
 from pdsmc_ros.loop.rt_check import paced_loop  # noqa: E402
 from pdsmc_ros.loop.statistics import missed  # noqa: E402
@@ -98,10 +121,7 @@ PARAM_EVERY_S = 0.1
 NODE_EVERY_S = 0.4
 NODE_LIFE_S = 0.3
 PARTICIPANT_EVERY_S = 2.0
-CAUSE_WINDOW_S = 0.005  # late_tick_causes: how long before a late tick's deadline an event may have caused it
-FLOOR_PRIORITY = 50  # --floor: the controller loop's SCHED_FIFO priority (thread_priority's default)
 FLOOR_SPIN_S = 50e-6  # --floor: spin before each deadline, as the controller's loop at FIFO does
-RUNQUEUE_EVERY_S = 0.02  # RunQueueWaits: how often the loops' run-queue waits are read
 WORKER_GRACE_S = 60.0  # a storm process answers its window's counts within this long after the window
 MOVE_RAD = 0.03  # each goal's move around the start position, per joint
 MOVE_S = 0.4
@@ -398,33 +418,6 @@ def floor_loop(out: Path, seconds: float) -> int:
     return 0
 
 
-def window_kind(t: float, windows: list[tuple[str, float, float, str]]) -> str | None:
-    """The kind of window (``idle``, ``storm``) wall time ``t`` lies in; None between windows."""
-    return next((name for name, a, b, _ in windows if a <= t < b), None)
-
-
-def kind_mask(times: np.ndarray, windows: list[tuple[str, float, float, str]], kind: str) -> np.ndarray:
-    """Which of the wall ``times`` lie in a window of ``kind``."""
-    mask = np.zeros(len(times), dtype=bool)
-    for name, a, b, _ in windows:
-        if name == kind:
-            mask |= (times >= a) & (times < b)
-    return mask
-
-
-def floor_figures(rows: np.ndarray, windows: list[tuple[str, float, float, str]], period: float) -> str:
-    """The bare loop's lateness in each kind of window, pooled: missed deadlines, p99.9 and worst."""
-    told = []
-    for kind in ("idle", "storm"):
-        late = rows[kind_mask(rows[:, 0], windows, kind), 1]
-        if len(late) < 2:
-            told.append(f"{kind}: no ticks")
-            continue
-        told.append(f"{kind}: {len(late)} ticks, missed {np.count_nonzero(missed(late, period))}, p99.9 "
-                    f"{1e6 * np.percentile(late, 99.9):.0f} us, worst {1e6 * late.max():.0f} us")
-    return f"a bare loop beside it (Python, SCHED_FIFO {FLOOR_PRIORITY}, no ROS): " + "; ".join(told)
-
-
 # --------------------------------------------------------------------------- #
 # The measurement (this process)
 # --------------------------------------------------------------------------- #
@@ -506,149 +499,6 @@ class RunQueueWaits:
         self.thread.join(timeout=2)
 
 
-CPU_TIMES = ("user", "nice", "system", "idle", "iowait", "irq", "softirq", "steal")
-
-
-def cpu_times() -> np.ndarray:
-    """The machine's CPU time so far by kind (seconds over all CPUs: ``/proc/stat``'s first line,
-    in the order of ``CPU_TIMES``); NaN where it cannot be read."""
-    try:
-        fields = Path("/proc/stat").read_text().split("\n", 1)[0].split()[1:1 + len(CPU_TIMES)]
-        return np.array([float(f) for f in fields]) / os.sysconf("SC_CLK_TCK")
-    except (OSError, ValueError):
-        return np.full(len(CPU_TIMES), np.nan)
-
-
-def machine_figures(spent: np.ndarray) -> dict[str, float]:
-    """What the machine's CPUs did over a window (``spent``: a difference of :func:`cpu_times`):
-    the share left idle, the share in the kernel (system, interrupts) and the time the host took
-    the virtual CPUs away (steal, ms)."""
-    total = float(spent.sum())
-    if not total > 0.0:
-        return {}
-    kernel = spent[CPU_TIMES.index("system")] + spent[CPU_TIMES.index("irq")] + spent[CPU_TIMES.index("softirq")]
-    return {"cpu_idle_pct": 100.0 * float(spent[CPU_TIMES.index("idle")]) / total,
-            "cpu_kernel_pct": 100.0 * float(kernel) / total,
-            "steal_ms": 1e3 * float(spent[CPU_TIMES.index("steal")])}
-
-
-def runqueue_ms(samples: np.ndarray, names: list[str], start: float, end: float) -> dict[str, float]:
-    """The loops' run-queue waits (ms) between ``start`` and ``end`` (wall time), by the samples
-    around them, as ``{name}_rq_ms`` (``names``: the sampled processes, in their columns' order)."""
-    if len(samples) < 2:
-        return {}
-    at = np.interp([start, end], samples[:, 0], np.arange(len(samples)))
-    first, last = int(np.floor(at[0])), int(np.ceil(at[1]))
-    waited = (samples[last, 1:] - samples[first, 1:]) / 1e6
-    return {f"{name}_rq_ms": float(w) for name, w in zip(names, waited, strict=True)}
-
-
-def misses_on_run_queue(late: np.ndarray, samples: np.ndarray, windows: list[tuple[str, float, float, str]],
-                        period: float) -> str:
-    """The missed deadlines of each kind of window in a sampling interval where the controller's
-    loop waited on the run queue for at least a period (its CPU withheld, not its own work late)."""
-    counts = {kind: [0, 0] for kind in ("idle", "storm")}
-    for tick in late[:, 0] if len(samples) >= 2 else ():
-        kind = window_kind(tick, windows)
-        if kind is None:
-            continue
-        k = int(np.searchsorted(samples[:, 0], tick))
-        counts[kind][1] += 1
-        if 0 < k < len(samples) and (samples[k, 1] - samples[k - 1, 1]) / 1e9 >= period:
-            counts[kind][0] += 1
-    return "; ".join(f"missed deadlines {kind}: {on} of {n} where the controller's loop waited a period or more "
-                     f"on the run queue within {1e3 * RUNQUEUE_EVERY_S:g} ms" for kind, (on, n) in counts.items())
-
-
-def late_tick_causes(late: np.ndarray, windows: list[tuple[str, float, float, str]],
-                     events: list[tuple[float, str]]) -> str:
-    """What the storm did just before each of its missed deadlines (``late``: the timing rows of the
-    ticks that missed theirs): the events from ``CAUSE_WINDOW_S`` before the late tick's deadline
-    to the tick, counted by kind (a tick late in an idle window has no storm event to blame; the
-    idle windows' count is the base rate)."""
-    kinds: dict[str, int] = {}
-    ticks = {"idle": 0, "storm": 0}
-    unexplained = 0
-    times = np.array([t for t, _ in events])
-    for tick, _, _, lateness in late[:, :4]:
-        kind = window_kind(tick, windows)
-        if kind is None:
-            continue
-        ticks[kind] += 1
-        if kind == "idle":
-            continue
-        near = np.flatnonzero((times >= tick - lateness - CAUSE_WINDOW_S) & (times <= tick)) if len(times) else []
-        if not len(near):
-            unexplained += 1
-        for k in near:
-            kinds[events[k][1]] = kinds.get(events[k][1], 0) + 1
-    listed = ", ".join(f"{what} {n}" for what, n in sorted(kinds.items(), key=lambda item: -item[1]))
-    return (f"missed deadlines: {ticks['idle']} idle, {ticks['storm']} in the storm; storm events in the "
-            f"{1e3 * CAUSE_WINDOW_S:g} ms before them: {listed or 'none'}; with none: {unexplained}")
-
-
-def miss_origins(rows: np.ndarray, windows: list[tuple[str, float, float, str]], period: float) -> str:
-    """Where each missed deadline came from, per kind of window: the tick before it still running
-    a period past the missed tick's deadline (a long tick: the loop's own work, or a lock it
-    waited for, made the next one late), or the loop starting late after a short tick (its thread
-    not scheduled, or waiting for the GIL before the tick). ``rows``: timing rows in tick order
-    (:meth:`~pdsmc_ros.loop.statistics.LoopStatistics.row`: wall time at the tick's end, achieved
-    period, compute time, lateness)."""
-    counts = {kind: {"long": 0, "late": 0, "first": 0} for kind in ("idle", "storm")}
-    for k in np.flatnonzero(missed(rows[:, 3], period)):
-        end, _, compute, lateness = rows[k, :4]
-        kind = window_kind(end, windows)
-        if kind is None:
-            continue
-        if k == 0:
-            counts[kind]["first"] += 1
-            continue
-        deadline = end - compute - lateness  # the missed tick's deadline, on the wall clock
-        previous_end = rows[k - 1, 0]
-        counts[kind]["long" if previous_end - deadline > period else "late"] += 1
-    return "; ".join(
-        f"missed deadlines {kind}: {c['long']} after a tick still running a period past the deadline, "
-        f"{c['late']} started late after a short tick" + (f", {c['first']} first rows" if c["first"] else "")
-        for kind, c in counts.items())
-
-
-def window_figures(rows: np.ndarray, start: float, end: float, period: float) -> dict[str, float]:
-    """The lateness of the commanding ticks whose wall time lies in ``[start, end)``."""
-    inside = rows[(rows[:, 0] >= start) & (rows[:, 0] < end)]
-    if len(inside) < 2:
-        return {"ticks": float(len(inside))}
-    lateness = inside[:, 3]
-    achieved = inside[1:, 1]
-    compute = inside[:, 2]
-    return {"ticks": float(len(inside)),
-            "p50_us": 1e6 * float(np.percentile(lateness, 50)),
-            "p99_us": 1e6 * float(np.percentile(lateness, 99)),
-            "p999_us": 1e6 * float(np.percentile(lateness, 99.9)),
-            "worst_us": 1e6 * float(lateness.max()),
-            "missed": float(np.count_nonzero(missed(lateness, period))),
-            "lost": float(np.maximum(np.round(achieved / period) - 1.0, 0.0).sum()),
-            "worst_period_us": 1e6 * float(achieved.max()),
-            "compute_p50_us": 1e6 * float(np.percentile(compute, 50)),
-            "compute_p999_us": 1e6 * float(np.percentile(compute, 99.9))}
-
-
-COLUMNS = (("ticks", "ticks", "{:.0f}"), ("p50_us", "p50 us", "{:.0f}"), ("p99_us", "p99 us", "{:.0f}"),
-           ("p999_us", "p99.9 us", "{:.0f}"), ("worst_us", "worst us", "{:.0f}"), ("missed", "missed", "{:.0f}"),
-           ("lost", "lost", "{:.0f}"), ("worst_period_us", "worst period us", "{:.0f}"),
-           ("compute_p50_us", "tick p50 us", "{:.0f}"), ("compute_p999_us", "tick p99.9 us", "{:.0f}"),
-           ("controller_rq_ms", "loop rq ms", "{:.1f}"), ("driver_rq_ms", "stand-in rq ms", "{:.1f}"),
-           ("cpu_idle_pct", "cpu idle %", "{:.1f}"), ("cpu_kernel_pct", "kernel %", "{:.1f}"),
-           ("steal_ms", "steal ms", "{:.0f}"))
-
-
-def print_table(labelled: list[tuple[str, dict[str, float], str]]) -> None:
-    header = f"{'window':14s}" + "".join(f"{title:>16s}" for _, title, _ in COLUMNS) + "  load average"
-    print(header)
-    for label, figures, load in labelled:
-        cells = "".join(f"{(fmt.format(figures[key]) if key in figures else '-'):>16s}" for key, _, fmt in COLUMNS)
-        print(f"{label:14s}{cells}  {load}")
-
-
 def answer(proc: subprocess.Popen[Any]) -> dict[str, Any]:
     """A storm process's next answer: its next line that is a JSON object. Fast DDS logs its own
     errors to the standard output, which is the answers' pipe; such lines go to stderr."""
@@ -657,90 +507,6 @@ def answer(proc: subprocess.Popen[Any]) -> dict[str, Any]:
             return json.loads(line)
         print(f"storm process: {line.rstrip()}", file=sys.stderr)
     return {}
-
-
-def ratio(storm: float, idle: float) -> float:
-    return storm / idle if idle > 0 else float("inf") if storm > 0 else 1.0
-
-
-TARGET = 1.2  # issue 37: the storm's lateness within this factor of idle
-LEVEL = 0.95  # the intervals' coverage
-RESAMPLES = 2000  # bootstrap resamples of the rounds
-SEED = 37
-VERDICT_ROUNDS = 8  # fewer rounds: a bootstrap over so few draws understates the spread between them
-
-
-def round_lateness(rows: np.ndarray, windows: list[tuple[str, float, float, str]]) -> dict[str, list[np.ndarray]]:
-    """Each window's lateness (s), by kind, in round order (round ``k`` is the ``k``-th of each kind)."""
-    found: dict[str, list[np.ndarray]] = {"idle": [], "storm": []}
-    for kind, a, b, _ in windows:
-        found[kind].append(rows[(rows[:, 0] >= a) & (rows[:, 0] < b), 3])
-    return found
-
-
-def ratio_intervals(idle: list[np.ndarray], storm: list[np.ndarray], period: float, *,
-                    resamples: int = RESAMPLES, level: float = LEVEL, seed: int = SEED
-                    ) -> dict[str, tuple[float, float, float]]:
-    """Each metric's storm/idle ratio, pooled over the rounds, with its ``level`` interval.
-
-    p99, p99.9 and worst: a percentile bootstrap over the rounds (Efron and Tibshirani 1993,
-    Section 13.3), paired: a resample draws ``R`` rounds with replacement and pools both kinds of
-    window of the rounds drawn, so that what drifts between rounds (the machine's load, the host)
-    moves both sides of a ratio. Missed deadlines: rare events, a Poisson count in each kind of
-    window; given their total, the storm's share is binomial, and the Clopper-Pearson interval of
-    that share gives the exact interval of the rate ratio (Clopper and Pearson 1934).
-    """
-    rounds = len(idle)
-    rng = np.random.default_rng(seed)
-    draws = rng.integers(0, rounds, (resamples, rounds))
-    metrics = {"p99": 99.0, "p99.9": 99.9, "worst": 100.0}
-    found: dict[str, tuple[float, float, float]] = {}
-    both = {"idle": idle, "storm": storm}
-    pooled = {kind: np.concatenate(parts) for kind, parts in both.items()}
-    boot = {name: np.empty(resamples) for name in metrics}
-    for i, drawn in enumerate(draws):
-        taken = {kind: np.concatenate([parts[k] for k in drawn]) for kind, parts in both.items()}
-        values = {kind: np.percentile(taken[kind], list(metrics.values())) for kind in both}
-        for j, name in enumerate(metrics):
-            boot[name][i] = ratio(values["storm"][j], values["idle"][j])
-    tail = 100.0 * (1.0 - level) / 2.0
-    for name, q in metrics.items():
-        point = ratio(float(np.percentile(pooled["storm"], q)), float(np.percentile(pooled["idle"], q)))
-        low, high = np.percentile(boot[name], [tail, 100.0 - tail])
-        found[name] = (point, float(low), float(high))
-    found["missed"] = rate_ratio_interval(int(np.count_nonzero(missed(pooled["storm"], period))), len(pooled["storm"]),
-                                          int(np.count_nonzero(missed(pooled["idle"], period))), len(pooled["idle"]),
-                                          level=level)
-    return found
-
-
-def rate_ratio_interval(storm: int, storm_ticks: int, idle: int, idle_ticks: int, *, level: float = LEVEL
-                        ) -> tuple[float, float, float]:
-    """The ratio of two Poisson rates, ``(storm / storm_ticks) / (idle / idle_ticks)``, and its exact
-    ``level`` interval: given ``storm + idle`` events, the storm's share is binomial, and the
-    Clopper-Pearson interval of that share maps onto the ratio (Clopper and Pearson 1934)."""
-    from scipy.stats import beta
-
-    total = storm + idle
-    if total == 0:
-        return 1.0, 0.0, float("inf")
-    alpha = 1.0 - level
-    share_low = float(beta.ppf(alpha / 2, storm, idle + 1)) if storm > 0 else 0.0
-    share_high = float(beta.ppf(1 - alpha / 2, storm + 1, idle)) if idle > 0 else 1.0
-
-    def rate_ratio(share: float) -> float:  # the storm's share of the events -> the ratio of the rates
-        return share / (1.0 - share) * idle_ticks / storm_ticks if share < 1.0 else float("inf")
-
-    return rate_ratio(storm / total), rate_ratio(share_low), rate_ratio(share_high)
-
-
-def verdict(low: float, high: float, target: float = TARGET) -> str:
-    """Whether an interval shows the ratio within ``target``, beyond it, or neither."""
-    if high <= target:
-        return f"within {target:g}x"
-    if low > target:
-        return f"beyond {target:g}x"
-    return "undecided (the interval holds the target)"
 
 
 def stop(proc: subprocess.Popen[Any] | None, signal_first: int = 2) -> None:
