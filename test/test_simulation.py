@@ -340,7 +340,7 @@ def test_cli_simulate_json_has_documented_keys() -> None:
         ),
         (
             ["--robot", "serial_3r", "--contour", "circle", "--controller", "pd", "--rate", "abc"],
-            "expected a positive number",
+            "--rate: expected a number in [0, 1e+06]",
         ),
         (["--robot", "serial_3r", "--contour", "circle", "--controller", "pd", "--rate", "9999"], "whole multiple"),
     ],

@@ -23,7 +23,7 @@ class RcutilsLines:
     rclpy's ``RcutilsLogger.log`` finds its caller's file, function and line with ``inspect``
     for every line: 0.4 ms of Python here against 6 us for the write itself. In real time the
     executor's thread writes the loop's lines and holds the GIL while it does, which the loop's
-    thread waits for. A storm of goals and parameter sets (``bench/storm.py``) logs about 30
+    thread waits for. A storm of goals and parameter sets (``bench/storm``) logs about 30
     lines a second. The location written is this module's: the lines come from the loop's
     queue, not from a call site.
     """
