@@ -166,7 +166,7 @@ def test_cached_kernels_built_from_other_sources_are_dropped(tmp_path: Path, mon
     sources = kernel_cache.kernel_sources()
     assert {p.name for p in sources} >= {"compiled.py", "loop.py", "spatial_layout.py", "spatial_kernels.py",
                                          "spatial_dynamics.py", "ik_kernels.py", "kernel_math.py",
-                                         "kernel_options.py"}
+                                         "options.py"}
     cache = tmp_path / "cache"
     cache.mkdir()
     stale = cache / "loop._closed_loop_compiled-22.py311.nbi"
