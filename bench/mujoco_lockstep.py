@@ -30,7 +30,7 @@ import numpy as np
 from numba import njit
 
 from pdsmc_ros.control import ControlLaw
-from pdsmc_ros.presets import make_run
+from pdsmc_ros.runs.builder import make_run
 from pdsmc_ros.sim import simulate
 from pdsmc_ros.sim.drive import mj_step_function
 from pdsmc_ros.sim.mujoco_lockstep import StandIn

@@ -11,12 +11,12 @@ from collections.abc import Iterator
 import numpy as np
 import pytest
 
-from pdsmc_ros import settings
 from pdsmc_ros.control import GainSpec, LawEntry, LawSetup, register_law, unregister_law
 from pdsmc_ros.errors import ConfigError
 from pdsmc_ros.parameters import NODES, ParameterSpec, catalog, gain_parameters, node_parameters
+from pdsmc_ros.parameters import params_file as settings
 from pdsmc_ros.parameters.tables import MAX_LOOKAHEAD_STEPS
-from pdsmc_ros.presets import make_run, resolve_gains
+from pdsmc_ros.runs.builder import make_run, resolve_gains
 
 ODD_VALUES = [None, True, False, 0, -1, 3, 2.5, math.nan, math.inf, -math.inf, 1e308, "", "abc", b"\x01",
               [], [True], [True] * 6, [1, 2], [1.0], [1e308] * 6, [math.nan] * 3, ["a"], [[1.0]], {"a": 1},
@@ -56,9 +56,9 @@ def test_the_findings_of_issue_37_are_refused_by_the_table() -> None:
     # what the controller does not apply at run time is read-only (rclpy refuses the set)
     writable = {s.name for s in node_parameters("controller") if not s.read_only}
     assert writable == {g.name for g in gain_parameters(applied=True)}
-    from pdsmc_ros.sim.realism import NUISANCES
+    from pdsmc_ros.parameters.tables import REALISM
 
-    live = {n.name for n in NUISANCES if n.live}  # the stand-in's nuisances it applies while running
+    live = {s.name for s in REALISM if not s.read_only}  # the stand-in's nuisances it applies while running
     for node in NODES:
         if node != "controller":
             writable = {s.name for s in node_parameters(node) if not s.read_only}

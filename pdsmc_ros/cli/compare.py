@@ -31,7 +31,7 @@ from .stand_in import add_stand_in_arguments, describe_plant, stand_in_from_args
 if TYPE_CHECKING:
     from ..experiments.compare import Column, LawRow, LawSpec
     from ..experiments.montecarlo import Spread
-    from ..metrics import Samples
+    from ..metrics.statistics import Samples
 
 EXIT_DIVERGED = 1
 
@@ -111,8 +111,8 @@ def run(args: argparse.Namespace) -> int:
     mc: dict[str, Any] | None = None
     mc_rows = None
     if spreads is not None:
-        from ..engine import Progress
         from ..experiments.compare_mc import intervals, run_plants
+        from ..sim.engine import Progress
 
         progress = Progress(args.runs, "compare")
         mc_rows = run_plants([e.spec for e in entries], spreads, args.runs, args.seed, scheduler=args.scheduler,

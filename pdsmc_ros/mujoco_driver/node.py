@@ -9,7 +9,7 @@ stamp and order), and ``/robot_description`` (transient local, as robot_state_pu
 ``/effort_controller/commands`` (``std_msgs/Float64MultiArray``, ``data[i]`` -> ``joints[i]``; a
 wrong length or a non-finite value is dropped with a throttled warning, as
 forward_command_controller does). The arm is braked (MuJoCo does not step) until the first
-command, then the latest command is applied every step (:mod:`pdsmc_ros.sim.mujoco_driver`; the
+command, then the latest command is applied every step (:mod:`pdsmc_ros.mujoco_driver.driver`; the
 model: :mod:`pdsmc_ros.sim.mujoco_model`).
 """
 
@@ -29,21 +29,21 @@ from std_msgs.msg import Float64MultiArray, String
 
 from ..bag.cdr import decode_float64_multi_array, encode_joint_state
 from ..checks import are_real
-from ..controller.joints import check_joint_names
 from ..errors import CdrError, ConfigError, InvalidInputError
 from ..loop.inputs import Inputs
 from ..loop.lifecycle import EXIT_OK
 from ..loop.process import run_node
 from ..loop.realtime import PLANT_PRIORITY
 from ..parameters import mujoco_driver_parameters
+from ..parameters.joint_map import check_joint_names
 from ..parameters.ros import declare, guard
 from ..robots.catalog import resolve_robot
 from ..robots.registry import make_robot
 from ..ros.publishers import GuardedPublisher
 from ..ros.topics import LATCHED_QOS, STREAM_QOS, TOPIC_EFFORT, TOPIC_JOINT_STATES, TOPIC_ROBOT_DESCRIPTION
-from ..sim.mujoco_driver import MujocoDriver, default_positions, initial_passive, joint_state_order
 from ..sim.mujoco_model import build_stand_in
 from ..sim.realism import BY_NAME, SETTINGS, RealismError, resolve_realism
+from .driver import MujocoDriver, default_positions, initial_passive, joint_state_order
 
 TOPIC_TRUE_JOINT_STATES = "~/true_joint_states"
 """MuJoCo's exact state, beside what the drive publishes on ``/joint_states`` (the truth a run's

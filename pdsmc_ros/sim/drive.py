@@ -42,7 +42,7 @@ from numba import njit, types
 from numba.core.types import WrapperAddressProtocol
 
 from ..errors import InvalidInputError
-from ..kernel_options import ALLOCATION_FREE
+from ..kernels.options import ALLOCATION_FREE
 from ..robots.base import FloatArray
 from .realism import MAX_COMMAND_DELAY, Realism, _encoder_step
 

@@ -29,7 +29,7 @@ from numba import njit
 from ..control.law import ControlLaw, law_torque
 from ..control.soft_limits import effort_only_table, soft_limit
 from ..errors import InvalidInputError
-from ..kernel_options import ALLOCATION_FREE
+from ..kernels.options import ALLOCATION_FREE
 from ..robots import compiled as robot_compiled
 from ..robots.base import FloatArray, Manipulator
 from .divergence import DivergenceCheck, watch

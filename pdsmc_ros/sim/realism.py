@@ -6,10 +6,10 @@ its drive publishes the position an encoder counts and a velocity it differentia
 filters, a command reaches the motors some cycles after the state it was computed from and
 the motor's torque follows it with the lag of its current loop, the motor's torque falls with
 speed, and the tool the arm carries is not in the model. Each of these is one *nuisance* here,
-declared once as data (:data:`NUISANCES`: name, type, unit, bounds, what it is): the
-``mujoco_driver`` node's parameters (:mod:`pdsmc_ros.parameters.tables`) and the ``--plant
-mujoco`` runs' flags (:mod:`pdsmc_ros.cli.options`) are made from these declarations, and
-:func:`resolve_realism` checks every value against them.
+declared once in the parameter table (:data:`pdsmc_ros.parameters.tables.REALISM`: name, type,
+bounds, what it is): the ``mujoco_driver`` node declares them, the ``--plant mujoco`` runs' flags
+are made from them (:mod:`pdsmc_ros.cli.stand_in`), and :func:`resolve_realism` checks every value
+with them (the same one-line refusal everywhere).
 
 A run's nuisances are resolved in one place, :func:`resolve_realism`: the named preset
 (``realism``, :data:`PRESETS`) gives every value, each nuisance given explicitly replaces the
@@ -38,140 +38,32 @@ from __future__ import annotations
 
 import array
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
-from ..checks import is_real, is_whole
 from ..errors import InvalidInputError
+from ..parameters.tables import MAX_COMMAND_DELAY, REALISM, REALISM_PRESETS, VELOCITY_SOURCES
 from ..robots.base import FloatArray
 
-PRESETS = ("ideal", "bench")
+__all__ = ["MAX_COMMAND_DELAY", "VELOCITY_SOURCES"]
+
+PRESETS = REALISM_PRESETS
 """Named presets of the nuisances (``realism:=``, ``--realism``)."""
-VELOCITY_SOURCES = ("exact", "difference")
-"""``exact``: the simulator's joint velocity; ``difference``: the backward difference of the
-published positions over one period, as many drives compute it (then ``velocity_filter_hz``)."""
-MAX_COMMAND_DELAY = 100
-"""Ticks a command may be delayed at most (0.1 s at 1 kHz; the delay line holds this many)."""
+BY_NAME = {spec.name: spec for spec in REALISM}
+"""The declarations (:data:`pdsmc_ros.parameters.tables.REALISM`), by name."""
+SETTINGS = ("realism", "seed")
+"""The declarations that are not nuisances themselves: the preset and the seed."""
+NUISANCES = tuple(name for name in BY_NAME if name not in SETTINGS)
+"""Every nuisance's name, in the table's order."""
+SIZES = {"payload_com": 3}
+"""Arrays of a fixed size (not one value per joint)."""
 
 
 class RealismError(InvalidInputError):
     """A nuisance's value is refused: one line naming the parameter and what it allows."""
-
-
-@dataclass(frozen=True)
-class Nuisance:
-    """One nuisance, declared once: what the node's parameter, the command's flag and the
-    checks of :func:`resolve_realism` are made from.
-
-    Attributes
-    ----------
-    name : str
-        The parameter (``-p NAME:=``) and, with dashes, the flag (``--name``).
-    kind : str
-        ``double``, ``int``, ``string`` or ``bool``: one value's type.
-    per_joint : bool
-        One value per actuated joint (one value stands for every joint).
-    size : int
-        A fixed number of values (``payload_com``: 3); 0: a scalar or per joint.
-    unit : str
-        The unit of a value.
-    lo, hi : float or None
-        Inclusive bounds (``lo_open``: ``lo`` itself refused).
-    choices : tuple of str
-        The strings allowed.
-    live : bool
-        The driver applies a new value while it runs (``ros2 param set``); False: read at start-up
-        (what changes the model MuJoCo compiled, or the run's identity).
-    description : str
-        What it is, for the parameter reference and ``--help``.
-    default : object
-        The value when not given: None for a nuisance (the preset's).
-    """
-
-    name: str
-    kind: str
-    description: str
-    unit: str = ""
-    per_joint: bool = False
-    size: int = 0
-    lo: float | None = None
-    hi: float | None = None
-    lo_open: bool = False
-    choices: tuple[str, ...] = ()
-    live: bool = False
-    default: Any = None
-
-    @property
-    def flag(self) -> str:
-        return "--" + self.name.replace("_", "-")
-
-    def allowed(self) -> str:
-        """What it allows, as the end of ``NAME must be ...``."""
-        if self.choices:
-            return "one of: " + ", ".join(self.choices)
-        if self.kind == "bool":
-            return "true or false"
-        one = {"double": "a number", "int": "a whole number"}[self.kind]
-        if self.lo is not None and self.hi is not None and not self.lo_open:
-            one += f" in [{_fmt(self.lo)}, {_fmt(self.hi)}]"
-        elif self.lo is not None:
-            one += f" {'>' if self.lo_open else '>='} {_fmt(self.lo)}"
-        if self.unit:
-            one += f" ({self.unit})"
-        if self.size:
-            return f"{self.size} numbers" + (f", each {one.split(' ', 2)[2]}" if " in " in one else "")
-        if self.per_joint:
-            return f"{one}, one per joint or one for every joint"
-        return one
-
-
-def _fmt(x: float) -> str:
-    """A bound as written: whole numbers in full (``2**40`` as 1099511627776), others ``%g``."""
-    return str(int(x)) if float(x).is_integer() and abs(x) < 1e16 else f"{x:g}"
-
-
-NUISANCES: tuple[Nuisance, ...] = (
-    Nuisance("realism", "string", "the named preset of every nuisance below: ideal (every one off: the stand-in "
-             "as a perfect arm) or bench (an arm like the one on the bench, docs/how-to/mujoco.md); a nuisance "
-             "given explicitly replaces the preset's", choices=PRESETS, default="ideal"),
-    Nuisance("seed", "int", "seed of every random draw of the nuisances (the position noise): a run repeats "
-             "exactly", lo=0, hi=2**63 - 1, default=0),
-    Nuisance("friction_coulomb", "double", "Coulomb (dry) friction of each joint, MuJoCo's frictionloss with a "
-             "stiff solref_friction (two timesteps)", "N m", per_joint=True, lo=0.0, hi=1e6, live=True),
-    Nuisance("friction_viscous", "double", "viscous friction of each joint, added to the URDF's <dynamics "
-             "damping>", "N m s/rad", per_joint=True, lo=0.0, hi=1e6, live=True),
-    Nuisance("encoder_counts", "int", "counts per revolution of each joint's encoder (per metre: a prismatic "
-             "joint): the published position is the nearest count (the ideal preset has no encoder: exact)",
-             "counts", per_joint=True, lo=1, hi=2**40, live=True),
-    Nuisance("position_noise", "double", "standard deviation of the Gaussian noise added to each published "
-             "position, before the encoder's quantisation", "rad", per_joint=True, lo=0.0, hi=1.0, live=True),
-    Nuisance("velocity_source", "string", "the published velocity: exact (the simulator's) or difference (the "
-             "backward difference of the published positions over one period, as many drives compute it)",
-             choices=VELOCITY_SOURCES, live=True),
-    Nuisance("velocity_filter_hz", "double", "cut-off of the first-order low-pass filter of the differenced "
-             "velocity (libfranka's discretisation; 0: none)", "Hz", per_joint=True, lo=0.0, hi=1e6, live=True),
-    Nuisance("command_delay", "int", "ticks between a command's arrival and the torque it sets: the motors "
-             "apply the command that arrived this many periods earlier", "ticks", lo=0, hi=MAX_COMMAND_DELAY,
-             live=True),
-    Nuisance("torque_bandwidth_hz", "double", "bandwidth of a first-order lag of each motor's torque behind "
-             "its command (the drive's current loop; 0: none)", "Hz", per_joint=True, lo=0.0, hi=1e6, live=True),
-    Nuisance("torque_speed", "bool", "the motors' torque falls linearly with speed, from the effort limit at "
-             "rest to zero at no_load_speed (a DC motor's torque-speed line)", live=True),
-    Nuisance("no_load_speed", "double", "speed at which each motor's torque reaches zero (torque_speed; "
-             "default: twice the joint's URDF velocity limit)", "rad/s", per_joint=True, lo=0.0, hi=1e6,
-             lo_open=True, live=True),
-    Nuisance("payload_mass", "double", "a load fixed to the tool frame that the controller's model does not know",
-             "kg", lo=0.0, hi=1e4),
-    Nuisance("payload_com", "double", "where the load's centre of mass is, in the tool frame", "m", size=3,
-             lo=-10.0, hi=10.0),
-)
-"""Every nuisance, in the order of the parameter reference."""
-BY_NAME = {n.name: n for n in NUISANCES}
-SETTINGS = ("realism", "seed")
-"""The declarations that are not nuisances themselves: the preset and the seed."""
 
 
 @dataclass(frozen=True)
@@ -258,7 +150,7 @@ class Realism:
     def describe(self) -> dict[str, Any]:
         """Plain data: every nuisance's value and where it came from (logs, bags, reports)."""
         out: dict[str, Any] = {"realism": self.preset, "seed": self.seed}
-        out.update({n.name: self.value(n.name) for n in NUISANCES if n.name not in SETTINGS})
+        out.update({name: self.value(name) for name in NUISANCES})
         out["sources"] = dict(self.sources)
         return out
 
@@ -267,23 +159,24 @@ class Realism:
         if self.is_ideal:
             return f"{self.preset}: every nuisance off"
         parts = []
-        for n in NUISANCES:
-            if n.name in SETTINGS or n.name == "payload_com":
+        for name in NUISANCES:
+            if name == "payload_com":
                 continue
-            value = getattr(self, n.name)
-            if n.name == "velocity_source":
+            value = getattr(self, name)
+            if name == "velocity_source":
                 if value != "exact":
                     parts.append(f"velocity {value}")
                 continue
-            if n.name == "torque_speed":
+            if name == "torque_speed":
                 if value:
                     parts.append("torque-speed line")
                 continue
-            if n.name == "no_load_speed" and not self.torque_speed:
+            if name == "no_load_speed" and not self.torque_speed:
                 continue
             if np.any(np.asarray(value) > 0):
-                shown = ", ".join(f"{v:g}" for v in np.atleast_1d(value))
-                parts.append(f"{n.name} [{shown}]" if n.per_joint else f"{n.name} {shown}")
+                values = np.atleast_1d(value)
+                shown = f"{values[0]:g}" if np.all(values == values[0]) else ", ".join(f"{v:g}" for v in values)
+                parts.append(f"{name} [{shown}]" if BY_NAME[name].per_joint else f"{name} {shown}")
         if self.payload_mass > 0:
             parts[-1] += " at [" + ", ".join(f"{v:g}" for v in self.payload_com) + "] m"
         return f"{self.preset} (seed {self.seed}): " + "; ".join(parts)
@@ -390,8 +283,9 @@ def _encoder_step(counts: np.ndarray, revolute: np.ndarray) -> FloatArray:
 # Checks and resolution
 # --------------------------------------------------------------------------- #
 def check_value(name: str, value: Any, n: int) -> Any:
-    """One nuisance's value, checked against its declaration and brought to its type (an array of
-    ``n`` for a per-joint one, one value standing for every joint).
+    """One nuisance's value, checked by its declaration in the table (the node's start-up and on-set
+    checks: the same one-line refusal) and brought to its type: an array of ``n`` for a per-joint
+    one (one value standing for every joint).
 
     Raises
     ------
@@ -402,50 +296,23 @@ def check_value(name: str, value: Any, n: int) -> Any:
     if name not in BY_NAME:
         raise RealismError(f"unknown nuisance {name!r}; known: {', '.join(BY_NAME)}")
     spec = BY_NAME[name]
-
-    def refuse(extra: str = "") -> RealismError:
-        return RealismError(f"parameter {name} must be {spec.allowed()}{extra}, got {value!r}")
-
-    if spec.kind == "string":
-        if not isinstance(value, str) or value not in spec.choices:
-            raise refuse()
-        return value
-    if spec.kind == "bool":
-        if not isinstance(value, bool | np.bool_):
-            raise refuse()
-        return bool(value)
-    scalar = is_real(value)
-    if spec.per_joint or spec.size:
-        if scalar:
-            values = [value] * (n if spec.per_joint else spec.size)
-        elif isinstance(value, str | bytes) or not isinstance(value, Sequence | np.ndarray | array.array):
-            raise refuse()
-        else:
-            values = list(value)
-        want = spec.size or n
-        if spec.per_joint and len(values) == 1:
-            values = values * n
-        if len(values) != want:
-            what = f"{want} values, one per joint (or one for every joint)" if spec.per_joint else f"{want} values"
-            raise RealismError(f"parameter {name} needs {what}, got {len(values)}")
-    elif scalar:
-        values = [value]
-    else:
-        raise refuse()
-    checked = []
-    for v in values:
-        if spec.kind == "int" and not is_whole(v) and not (is_real(v) and float(v).is_integer()):
-            raise refuse()
-        if not is_real(v) or not math.isfinite(float(v)):
-            raise refuse()
-        x = float(v)
-        if (spec.lo is not None and (x < spec.lo or (spec.lo_open and x == spec.lo))) or \
-                (spec.hi is not None and x > spec.hi):
-            raise refuse()
-        checked.append(int(v) if spec.kind == "int" else x)
-    if spec.per_joint or spec.size:
-        return np.array(checked, dtype=np.int64 if spec.kind == "int" else float)
-    return checked[0]
+    if isinstance(value, np.ndarray | array.array | tuple):
+        value = value.tolist() if isinstance(value, np.ndarray) else list(value)
+    elif isinstance(value, np.generic):
+        value = value.item()
+    try:
+        value = spec.coerce(value)
+    except InvalidInputError as exc:
+        raise RealismError(str(exc)) from None
+    reason = spec.problem(value, n if spec.per_joint else None)
+    if reason:
+        raise RealismError(reason)
+    if name in SIZES and len(value) != SIZES[name]:
+        raise RealismError(f"parameter {name} needs {SIZES[name]} values, got {len(value)}")
+    if spec.is_array:
+        values = value * n if spec.per_joint and len(value) == 1 else value
+        return np.array(values, dtype=np.int64 if spec.element == "int" else float)
+    return value
 
 
 def resolve_realism(facts: ArmFacts, preset: str = "ideal", given: Mapping[str, Any] | None = None, *,

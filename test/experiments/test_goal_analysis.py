@@ -202,7 +202,7 @@ def test_the_contour_error_comes_from_the_true_state_where_the_bag_has_it(tmp_pa
     """The arm follows the goal 10 ms late (on the desired path: no contour error) and its encoder
     reads 1 mrad off (an offset of the end effector): the true state's contour error is nil, the
     measured one's is the offset's; each says where it came from."""
-    from pdsmc_ros.experiments.goals import path_distance
+    from pdsmc_ros.experiments.goal_figures import path_distance
 
     write_bag(tmp_path / "plain")
     write_bag(tmp_path / "truth", truth=True)

@@ -14,9 +14,9 @@ import pytest
 
 pytest.importorskip("mujoco")
 
+from pdsmc_ros.mujoco_driver import driver as md  # noqa: E402
 from pdsmc_ros.robots.catalog import resolve_robot  # noqa: E402
 from pdsmc_ros.robots.registry import make_robot  # noqa: E402
-from pdsmc_ros.sim import mujoco_driver as md  # noqa: E402
 from pdsmc_ros.sim.drive import lowpass_gain  # noqa: E402
 from pdsmc_ros.sim.mujoco_model import bias_forces, build_stand_in  # noqa: E402
 

@@ -14,7 +14,7 @@ import pytest
 pytest.importorskip("mujoco")
 
 from pdsmc_ros.cli import main  # noqa: E402
-from pdsmc_ros.presets import make_run  # noqa: E402
+from pdsmc_ros.runs.builder import make_run  # noqa: E402
 from pdsmc_ros.sim import simulate  # noqa: E402
 from pdsmc_ros.sim.mujoco_lockstep import StandIn  # noqa: E402
 
@@ -96,11 +96,11 @@ def test_the_commands_run_against_the_stand_in(capsys: pytest.CaptureFixture[str
     (["--friction-coulomb", "1"], ("pdsmc simulate: error: --friction-coulomb is for the MuJoCo stand-in: give "
                                   "--plant mujoco with it")),
     (["--plant", "mujoco", "--friction-coulomb", "-1"], ("pdsmc simulate: error: parameter friction_coulomb must be "
-     "a number in [0, 1000000] (N m), one per joint or one for every joint, got [-1.0]")),
+     "a list of numbers (one per joint, or one for every joint), each in [0, 1000000], got [-1.0]")),
     (["--plant", "mujoco", "--velocity-filter-hz", "1,2"], ("pdsmc simulate: error: parameter velocity_filter_hz "
      "needs 3 values, one per joint (or one for every joint), got 2")),
     (["--plant", "mujoco", "--command-delay", "101"], ("pdsmc simulate: error: parameter command_delay must be a "
-     "whole number in [0, 100] (ticks), got 101")),
+     "whole number in [0, 100], got 101")),
 ])
 def test_a_bad_nuisance_is_one_line_and_exit_2(flags: list[str], message: str,
                                                capsys: pytest.CaptureFixture[str]) -> None:
