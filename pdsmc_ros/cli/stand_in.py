@@ -58,9 +58,12 @@ def add_stand_in_arguments(p: argparse.ArgumentParser, *, seed: bool = True) -> 
         elif spec.is_array:
             group.add_argument(flag, type=_values(spec.element), default=None, metavar="V[,V...]",
                                help=spec.description)
+        elif spec.type == "bool":
+            group.add_argument(flag, type=_values("bool"), default=spec.default, metavar="true|false",
+                               help=spec.description)
         else:
-            group.add_argument(flag, type=_values(spec.type) if spec.type == "bool" else
-                               (int if spec.type == "int" else float), default=spec.default, help=spec.description)
+            group.add_argument(flag, type=int if spec.type == "int" else float, default=spec.default,
+                               metavar="N" if spec.type == "int" else "X", help=spec.description)
 
 
 def stand_in_from_args(args: argparse.Namespace, *, seed: int | None = None) -> StandIn | None:
