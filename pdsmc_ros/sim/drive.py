@@ -43,8 +43,9 @@ from numba.core.types import WrapperAddressProtocol
 
 from ..errors import InvalidInputError
 from ..kernels.options import ALLOCATION_FREE
+from ..parameters.tables import MAX_COMMAND_DELAY
 from ..robots.base import FloatArray
-from .realism import MAX_COMMAND_DELAY, Realism, _encoder_step
+from .realism import Realism, _encoder_step
 
 # rows of the drive's parameters (ROWS x n)
 P_STEP = 0  # the encoder's grid (rad or m; 0: exact)

@@ -20,9 +20,9 @@ joint. ``ideal`` (the default) is the stand-in as it was before the nuisances: e
 
 Where each nuisance acts:
 
-* ``friction_coulomb`` and ``friction_viscous`` are physics: MuJoCo's joint ``frictionloss`` (with
-  ``solref_friction`` two timesteps, so that it behaves as Coulomb friction) and joint damping
-  added to the URDF's (:func:`pdsmc_ros.sim.mujoco_model.build_model`);
+* ``friction_coulomb`` and ``friction_viscous`` are physics: MuJoCo's joint ``frictionloss`` (stiff
+  enough to act as Coulomb friction) and joint damping added to the URDF's
+  (:func:`pdsmc_ros.sim.mujoco_model.set_friction`);
 * ``payload_mass`` and ``payload_com`` are physics too: a fixed link under the arm's tool frame
   in the description MuJoCo is given, which the controller's model does not have;
 * the others are the drive's, between the physics and the wire (:mod:`pdsmc_ros.sim.drive`):
@@ -45,10 +45,8 @@ from typing import Any
 import numpy as np
 
 from ..errors import InvalidInputError
-from ..parameters.tables import MAX_COMMAND_DELAY, REALISM, REALISM_PRESETS, VELOCITY_SOURCES
+from ..parameters.tables import REALISM, REALISM_PRESETS
 from ..robots.base import FloatArray
-
-__all__ = ["MAX_COMMAND_DELAY", "VELOCITY_SOURCES"]
 
 PRESETS = REALISM_PRESETS
 """Named presets of the nuisances (``realism:=``, ``--realism``)."""
