@@ -130,9 +130,7 @@ def run(args: argparse.Namespace) -> int:
         print(json.dumps(data))
     else:
         if stand_in is not None:
-            from .simulate import _realism_line
-
-            print(f"plant: the MuJoCo stand-in in lockstep, realism {plant['realism']}: {_realism_line(plant)}")
+            print(f"plant: the MuJoCo stand-in in lockstep, realism {plant['summary']}")
         print(text_table(rows, cols))
         if mc is not None:
             print(_interval_table(mc, rows, cols))
@@ -191,5 +189,5 @@ def _write(out: Path, args: argparse.Namespace, entries: Sequence[LawSpec], runs
         labels = {e.name: e.label for e in entries}
         spread.append(plot_distributions(mc_rows, args.laws, labels, cols, out / mc["figure"],
                                          f"{args.robot}/{args.contour}: {mc['runs']} drawn plants"))
-    report = build_report(entries, [r for r, _ in runs], cols, figures, mc)
+    report = build_report(entries, [r for r, _ in runs], cols, figures, mc, plant=data["setup"])
     return [*figures, *spread, *write_report(report, data, mc_rows, out, args.format or "md")]

@@ -60,30 +60,9 @@ def run(args: argparse.Namespace) -> int:
     )
     if stand_in is not None:
         print(f"plant: the MuJoCo stand-in in lockstep ({stand_in.substeps} step{'s' if stand_in.substeps > 1 else ''} "
-              f"a period), realism {plant['realism']}: {_realism_line(plant)}")
+              f"a period), realism {plant['summary']}")
     print(format_metrics(result.metrics.as_dict(), spec.gains.n))
     return 0
-
-
-def _realism_line(plant: dict[str, Any]) -> str:
-    """The nuisances that are on, in a few words (``every nuisance off``)."""
-    from ..sim.realism import NUISANCES, SETTINGS
-
-    on = []
-    for n in NUISANCES:
-        value = plant.get(n.name)
-        if n.name in SETTINGS or n.name == "payload_com" or value is None:
-            continue
-        if n.name == "no_load_speed" and not plant.get("torque_speed"):
-            continue
-        values = value if isinstance(value, list) else [value]
-        if n.name == "velocity_source":
-            if value != "exact":
-                on.append(f"velocity {value}")
-        elif any(v not in (0, False) for v in values):
-            shown = ",".join(f"{v:.4g}" if isinstance(v, float) else str(v) for v in values)
-            on.append(f"{n.name}={shown}")
-    return "; ".join(on) + f" (seed {plant['seed']})" if on else "every nuisance off"
 
 
 def format_metrics(metrics: dict[str, Any], robot_n: int) -> str:

@@ -99,4 +99,4 @@ def describe_plant(stand_in: StandIn | None, robot: str, rate: float) -> dict[st
     if stand_in is None:
         return {"plant": "model"}
     _, realism, _ = stand_in.resolve(robot, rate)
-    return {"plant": "mujoco", "substeps": stand_in.substeps, **realism.describe()}
+    return {"plant": "mujoco", "substeps": stand_in.substeps, **realism.describe(), "summary": realism.summary()}
