@@ -8,6 +8,7 @@
 #                          [--respawn controller] [--nice N] [--intra-process] [--from-description]
 #                          [--viewer [--viewer-port PORT]]
 #        run_experiment.sh --stand-in ROBOT --controller K --out bags/NAME [--seconds S] [--rate HZ (1000)]
+#                          [--realism ideal|bench]
 #                          [--param NAME:=VALUE ...] [--params-file FILE] [--timeout SECONDS]
 #
 # Starts the four nodes (each with `ros2 run pdsmc_ros ...`; with --composed, all four in one
@@ -28,8 +29,9 @@
 # --intra-process (with --composed or --compose) hands messages between the composed nodes
 # without DDS, like rclcpp's intra-process comms; nodes in other processes still get them.
 # --stand-in ROBOT: a real arm's graph instead of the pipeline: the MuJoCo stand-in for the arm
-# (mujoco_driver), the controller in real time (--controller; --param, --params-file: its gains,
-# joints...) and the recorder in graph mode beside them (/joint_states, the commands,
+# (mujoco_driver; --realism PRESET: its nuisances, ideal by default or bench), the controller in real
+# time (--controller; --param, --params-file: its gains, joints...) and the recorder in graph mode
+# beside them (/joint_states, the stand-in's true state, the commands,
 # /controller/controller_state, the /controller/follow_joint_trajectory action's status, feedback
 # and results, /diagnostics, /robot_description: docs/recording.md). It runs for --seconds (default:
 # until Ctrl-C or --timeout) while any FollowJointTrajectory client sends goals, then stops the
@@ -41,7 +43,7 @@ die() { echo "run_experiment.sh: error: $*" >&2; exit 2; }
 
 ROBOT="" CONTOUR="" CONTROLLER="" OUT="" SCENARIO="nominal" MODE="lockstep" RATE=""
 FACTOR="" SMC_READING="" TIMEOUT="600" COMPOSE="" KEEP_GOING=0 NICE="" INTRA=0 FROM_DESCRIPTION=0
-VIEWER=0 VIEWER_PORT=8765 STAND_IN="" RUN_SECONDS=""
+VIEWER=0 VIEWER_PORT=8765 STAND_IN="" RUN_SECONDS="" REALISM=""
 EXTRA=()
 FILES=()  # ROS 2 params files: each node reads its own section (e.g. `pdsmc tune`'s controller gains)
 declare -A RESPAWN=()
@@ -71,6 +73,7 @@ while [[ $# -gt 0 ]]; do
     --from-description) FROM_DESCRIPTION=1; shift ;;
     --viewer) VIEWER=1; shift ;;
     --stand-in) STAND_IN="${2:-}"; [[ -n "$STAND_IN" ]] || die "--stand-in needs a robot (e.g. serial_3r, ur5)"; shift 2 ;;
+    --realism) REALISM="${2:-}"; [[ "$REALISM" == ideal || "$REALISM" == bench ]] || die "--realism must be ideal or bench, got '$REALISM'"; shift 2 ;;
     --seconds)
       [[ "${2:-}" =~ ^[0-9]+$ && "${2:-}" -gt 0 ]] || die "--seconds must be a whole number of seconds > 0, got '${2:-}'"
       RUN_SECONDS="$2"; shift 2 ;;
@@ -91,6 +94,7 @@ if [[ -z "$STAND_IN" ]]; then
   [[ -n "$ROBOT" ]] || die "--robot is required (serial_3r or parallel_5r)"
   [[ -n "$CONTOUR" ]] || die "--contour is required"
   [[ -z "$RUN_SECONDS" ]] || die "--seconds goes with --stand-in (a pipeline run ends with its trajectory)"
+  [[ -z "$REALISM" ]] || die "--realism goes with --stand-in (the pipeline's plant is the arm's own model)"
 else
   [[ -z "$ROBOT" && -z "$CONTOUR" && -z "$COMPOSE" && "$FROM_DESCRIPTION" == 0 && "$VIEWER" == 0 ]] \
     || die "--stand-in runs the driver, the controller and the recorder apart; it takes no --robot, --contour, --composed, --compose, --from-description or --viewer"
@@ -245,9 +249,9 @@ if [[ -n "$STAND_IN" ]]; then
     ORDER+=("$name")
   }
   start_own recorder -p "output:=$OUT" \
-    -p "topics:=[/joint_states,/effort_controller/commands,/controller/controller_state,/diagnostics,/robot_description]" \
+    -p "topics:=[/joint_states,/mujoco_driver/true_joint_states,/effort_controller/commands,/controller/controller_state,/diagnostics,/robot_description]" \
     -p "actions:=[/controller/follow_joint_trajectory]"
-  start_own mujoco_driver -p "robot:=$STAND_IN" "${RATE_PARAM[@]}"
+  start_own mujoco_driver -p "robot:=$STAND_IN" "${RATE_PARAM[@]}" ${REALISM:+-p "realism:=$REALISM"}
   start_own controller "${FILES[@]}" -p "robot:=$STAND_IN" -p "type:=$CONTROLLER" -p mode:=realtime \
     "${RATE_PARAM[@]}" "${EXTRA[@]}"
   START=$SECONDS

@@ -4,7 +4,9 @@ A real arm's run: a driver's ``sensor_msgs/JointState`` topic, a controller's
 ``control_msgs/JointTrajectoryControllerState``, a ``FollowJointTrajectory`` action's status,
 feedback and results (the latter as ``get_result`` service events), its accepted goals'
 trajectories (``send_goal`` service events, which the project's controller publishes),
-``/robot_description``.
+``/robot_description``, and where the MuJoCo stand-in ran, its exact state beside what it
+published (``/mujoco_driver/true_joint_states``: a joint-state topic whose name ends in
+:data:`TRUTH_SUFFIX`).
 Topics are found by their types, not their names (a driver may publish on
 ``/joint_states`` or elsewhere; a controller has a name of its own). ROS-free: the bag's own
 message definitions decode it (rosbags); the joint states, by far the most messages, with
@@ -30,6 +32,8 @@ RECORDING_KEY = "pdsmc_ros.recording"
 """``metadata.yaml`` custom data of a graph recording: JSON of its topics, types and counts."""
 
 JOINT_STATE_TYPE = "sensor_msgs/msg/JointState"
+TRUTH_SUFFIX = "/true_joint_states"
+"""A joint-state topic of the true state beside the measured one (the MuJoCo stand-in's ``~/true_joint_states``)."""
 CONTROLLER_STATE_TYPE = "control_msgs/msg/JointTrajectoryControllerState"
 STATUS_TYPE = "action_msgs/msg/GoalStatusArray"
 FEEDBACK_SUFFIX = "FollowJointTrajectory_FeedbackMessage"
@@ -100,6 +104,9 @@ class GraphRun:
     urdf: str | None = None
     truncated: bool = False
     origin: float = 0.0  # the first joint state's stamp (s): every time here counts from it
+    truth_topic: str = ""  # the true state's topic, if the bag has one (:data:`TRUTH_SUFFIX`)
+    truth_t: FloatArray = field(default_factory=lambda: np.zeros(0))  # its stamps (s from ``origin``)
+    truth_q: FloatArray = field(default_factory=lambda: np.zeros((0, 0)))  # its positions, ``names`` order
 
 
 def deserialize(typestore: Any, data: bytes, type_name: str) -> tuple[Any, int]:
@@ -156,7 +163,8 @@ def list_topics(path: str | Path) -> dict[str, str]:
 
 
 def _state_topic(topics: dict[str, str]) -> str:
-    found = sorted(t for t, kind in topics.items() if kind == JOINT_STATE_TYPE)
+    found = sorted(t for t, kind in topics.items() if kind == JOINT_STATE_TYPE and not t.endswith(TRUTH_SUFFIX))
+    found = found or sorted(t for t, kind in topics.items() if kind == JOINT_STATE_TYPE)
     if not found:
         raise BagError("no sensor_msgs/msg/JointState topic")
     return "/joint_states" if "/joint_states" in found else found[0]
@@ -194,6 +202,9 @@ def _read(path: Path, reader: Any, joints: Sequence[str] | None) -> GraphRun:
     except BagError as exc:
         raise BagError(f"bag {str(path)!r}: {exc}") from None
     counts = {c.topic: c.msgcount for c in reader.connections}
+    truth_topic = next((t for t in sorted(topics) if topics[t] == JOINT_STATE_TYPE and t.endswith(TRUTH_SUFFIX)
+                        and t != state_topic), "")
+    truth_rows: list[tuple[int, tuple[str, ...], Sequence[float]]] = []
     rows: list[tuple[int, int, tuple[str, ...], Sequence[float], Sequence[float], Sequence[float]]] = []
     urdf = None
     status_msgs: list[tuple[str, int, Any]] = []
@@ -201,7 +212,7 @@ def _read(path: Path, reader: Any, joints: Sequence[str] | None) -> GraphRun:
     results: list[tuple[str, Any]] = []
     sent_goals: list[tuple[str, Any]] = []
     reference_rows: list[tuple[int, tuple[str, ...], Any, Any]] = []
-    wanted = [c for c in reader.connections if c.topic == state_topic or c.topic == "/robot_description"
+    wanted = [c for c in reader.connections if c.topic in (state_topic, truth_topic, "/robot_description")
               or c.msgtype in (CONTROLLER_STATE_TYPE, STATUS_TYPE) or c.msgtype.endswith(FEEDBACK_SUFFIX)
               or c.msgtype.endswith(RESULT_EVENT_SUFFIX) or c.msgtype.endswith(GOAL_EVENT_SUFFIX)]
     for conn, log_ns, raw in reader.messages(connections=wanted):
@@ -210,6 +221,10 @@ def _read(path: Path, reader: Any, joints: Sequence[str] | None) -> GraphRun:
             if conn.topic == state_topic:
                 names, sec, nanosec, position, velocity, torque = decode_joint_state_named(data)
                 rows.append((sec * 1_000_000_000 + nanosec, log_ns, tuple(names), position, velocity, torque))
+                continue
+            if conn.topic == truth_topic:
+                names, sec, nanosec, position, _, _ = decode_joint_state_named(data)
+                truth_rows.append((sec * 1_000_000_000 + nanosec, tuple(names), position))
                 continue
             if conn.topic == "/robot_description":
                 urdf = decode_string(data)
@@ -246,8 +261,12 @@ def _read(path: Path, reader: Any, joints: Sequence[str] | None) -> GraphRun:
     reference = _samples([((s - origin) * 1e-9, names, p, v) for s, names, p, v in reference_rows], order)
     goals = _goals(status_msgs, feedback, results, order, origin, offset)
     _goal_trajectories(goals, sent_goals, order)
+    truth_rows.sort(key=lambda r: r[0])
+    truth_t = np.array([(r[0] - origin) * 1e-9 for r in truth_rows])
+    truth_q = np.array([_columns(r[1], order, r[2]) for r in truth_rows]) if truth_rows else np.zeros((0, len(order)))
     return GraphRun(path, topics, counts, state_topic, order, t, q, qd, effort, reference, goals, urdf,
-                    origin=origin * 1e-9)
+                    origin=origin * 1e-9, truth_topic=truth_topic if truth_rows else "", truth_t=truth_t,
+                    truth_q=truth_q)
 
 
 def _goal_trajectories(goals: Sequence[GoalRecord], events: Sequence[tuple[str, Any]],

@@ -26,6 +26,7 @@ from typing import TYPE_CHECKING, Any
 
 from ..errors import ConfigError, InvalidInputError
 from .options import name_list, positive_float, run_count, seed_value, worker_count
+from .stand_in import add_stand_in_arguments, describe_plant, stand_in_from_args
 
 if TYPE_CHECKING:
     from ..experiments.compare import Column, LawRow, LawSpec
@@ -53,13 +54,15 @@ def add_parser(sub: argparse._SubParsersAction, commands: dict) -> None:  # type
     p.add_argument("--runs", type=run_count, default=None, help="also run every law on this many drawn plants")
     p.add_argument("--uncertainty", default=None,
                    help="with --runs: YAML of parameter spreads (default: config/uncertainty.yaml)")
-    p.add_argument("--seed", type=seed_value, default=0, help="with --runs: run i draws from default_rng([seed, i])")
+    p.add_argument("--seed", type=seed_value, default=0, help="with --runs: run i draws from default_rng([seed, i]); "
+                   "with --plant mujoco also the seed of the nuisances' draws")
     p.add_argument("--workers", type=worker_count, default=None, help="with --runs: local cluster processes")
     p.add_argument("--scheduler", default=None, help="with --runs: a Dask scheduler, tcp://HOST:PORT")
     p.add_argument("--out", default=None, help="write the figures and compare.md/.json into this directory")
     p.add_argument("--format", choices=("md", "html"), default=None,
                    help="with --out: the report as compare.md (default) or also as a self-contained compare.html")
     p.add_argument("--json", action="store_true", help="print one JSON object instead of the table")
+    add_stand_in_arguments(p, seed=False)
     commands["compare"] = run
 
 
@@ -100,7 +103,9 @@ def run(args: argparse.Namespace) -> int:
     entries = law_specs(args.robot, args.contour, args.laws, scenario=args.scenario, rate=args.rate,
                         reading=args.smc_reading, params_files=files)
     spreads = _check_montecarlo(args, entries) if args.runs else None
-    runs = run_laws(entries)
+    stand_in = stand_in_from_args(args, seed=args.seed)
+    plant = describe_plant(stand_in, entries[0].spec.robot, entries[0].spec.rate)  # a bad nuisance: before any run
+    runs = run_laws(entries, stand_in)
     rows = [row for row, _ in runs]
     cols = columns(entries[0].spec.gains.n)
     mc: dict[str, Any] | None = None
@@ -111,11 +116,11 @@ def run(args: argparse.Namespace) -> int:
 
         progress = Progress(args.runs, "compare")
         mc_rows = run_plants([e.spec for e in entries], spreads, args.runs, args.seed, scheduler=args.scheduler,
-                             workers=args.workers, progress=progress.step)
+                             workers=args.workers, progress=progress.step, stand_in=stand_in)
         mc = {"runs": args.runs, "seed": args.seed, "summary": intervals(mc_rows, args.laws, cols),
               "uncertainty": {k: _spread_text(v) for k, v in spreads.items()},
               "uncertainty_source": args.uncertainty or "config/uncertainty.yaml", "figure": "compare_montecarlo.png"}
-    data = {"setup": setup_description(entries), **table_json(rows, cols)}
+    data = {"setup": {**setup_description(entries), **plant}, **table_json(rows, cols)}
     if mc is not None:
         from ..experiments.compare_mc import intervals_json
 
@@ -124,6 +129,8 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(data))
     else:
+        if stand_in is not None:
+            print(f"plant: the MuJoCo stand-in in lockstep, realism {plant['summary']}")
         print(text_table(rows, cols))
         if mc is not None:
             print(_interval_table(mc, rows, cols))
@@ -182,5 +189,5 @@ def _write(out: Path, args: argparse.Namespace, entries: Sequence[LawSpec], runs
         labels = {e.name: e.label for e in entries}
         spread.append(plot_distributions(mc_rows, args.laws, labels, cols, out / mc["figure"],
                                          f"{args.robot}/{args.contour}: {mc['runs']} drawn plants"))
-    report = build_report(entries, [r for r, _ in runs], cols, figures, mc)
+    report = build_report(entries, [r for r, _ in runs], cols, figures, mc, plant=data["setup"])
     return [*figures, *spread, *write_report(report, data, mc_rows, out, args.format or "md")]

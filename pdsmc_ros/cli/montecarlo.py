@@ -16,6 +16,7 @@ from .options import (
     seed_value,
     spec_from_args,
 )
+from .stand_in import add_stand_in_arguments, describe_plant, stand_in_from_args
 
 
 def add_parser(sub: argparse._SubParsersAction, commands: dict) -> None:  # type: ignore[type-arg]
@@ -26,13 +27,15 @@ def add_parser(sub: argparse._SubParsersAction, commands: dict) -> None:  # type
     p.add_argument("--controllers", type=name_list, default=["pd", "smc", "pdsmc"],
                    help="comma-separated control laws (default pd,smc,pdsmc)")
     p.add_argument("--runs", type=run_count, required=True, help="plants drawn (each runs every controller)")
-    p.add_argument("--seed", type=seed_value, default=0, help="run i draws from default_rng([seed, i]) (default 0)")
+    p.add_argument("--seed", type=seed_value, default=0, help="run i draws from default_rng([seed, i]) (default 0); "
+                   "with --plant mujoco its nuisances' draws too")
     p.add_argument("--params-file", default=None,
                    help="gains of the file's controller from a ROS 2 params file (pdsmc tune writes one)")
     p.add_argument("--uncertainty", default=None,
                    help="YAML of parameter spreads (default: config/uncertainty.yaml)")
     add_engine_arguments(p)
     p.add_argument("--out", required=True, help="directory for montecarlo.csv, .json and the plot")
+    add_stand_in_arguments(p, seed=False)
     commands["montecarlo"] = run
 
 
@@ -59,17 +62,21 @@ def run(args: argparse.Namespace) -> int:
                  for spec in specs]
     for spec in specs:  # the nominal gains must be stable at the rate; a drawn plant may still diverge
         check_rate(spec, spec.reference())
+    stand_in = stand_in_from_args(args, seed=args.seed)
+    plant = describe_plant(stand_in, specs[0].robot, specs[0].rate)  # a bad nuisance: before any run
     out = Path(args.out)
     bound = specs[0].bound
     meta = {"robot": args.robot, "contour": args.contour, "controllers": list(args.controllers), "runs": args.runs,
-            "seed": args.seed, "uncertainty": {k: vars(v) for k, v in spreads.items()}, "contour_bound_m": bound}
+            "seed": args.seed, "uncertainty": {k: vars(v) for k, v in spreads.items()}, "contour_bound_m": bound,
+            "plant": plant}
     rows: list[Any] = []
     done = 0
     progress = Progress(args.runs, "montecarlo")
     interrupted = False
     with dask_client(args.scheduler, args.workers) as client:
         try:
-            for _, result in run_tasks(client, run_sample, [(i, args.seed, specs, spreads) for i in range(args.runs)]):
+            for _, result in run_tasks(client, run_sample, [(i, args.seed, specs, spreads, stand_in)
+                                                            for i in range(args.runs)]):
                 rows += result
                 done += 1
                 progress.step()

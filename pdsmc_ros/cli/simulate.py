@@ -12,6 +12,7 @@ from .options import (
     add_run_arguments,
     spec_from_args,
 )
+from .stand_in import add_stand_in_arguments, describe_plant, stand_in_from_args
 
 
 def add_parser(sub: argparse._SubParsersAction, commands: dict) -> None:  # type: ignore[type-arg]
@@ -19,6 +20,7 @@ def add_parser(sub: argparse._SubParsersAction, commands: dict) -> None:  # type
     p = sub.add_parser("simulate", help="simulate one run in-process and print its statistics")
     add_run_arguments(p)
     p.add_argument("--json", action="store_true", help="print one JSON object")
+    add_stand_in_arguments(p)
     commands["simulate"] = run
 
 
@@ -30,7 +32,10 @@ def run(args: argparse.Namespace) -> int:
         from dataclasses import replace
 
         spec = replace(spec, enforce_limits=False)
-    result = simulate(spec, keep_samples=False)  # prints statistics only: memory need not grow with the run
+    stand_in = stand_in_from_args(args)
+    plant = describe_plant(stand_in, spec.robot, spec.rate)  # refuses a bad nuisance before the run
+    # prints statistics only: memory need not grow with the run
+    result = simulate(spec, keep_samples=False, stand_in=stand_in)
     for line in result.limit_warnings:
         print(f"pdsmc simulate: warning: {line}", file=sys.stderr)
     saturated = result.metrics.saturated_periods
@@ -40,7 +45,7 @@ def run(args: argparse.Namespace) -> int:
             f"{count} periods of joint {i + 1} (|tau| <= {limits[i]:.4g} N m)" for i, count in enumerate(saturated)
             if count) + " (--no-enforce-limits to opt out)", file=sys.stderr)
     if args.json:
-        print(json.dumps(result.as_dict()))
+        print(json.dumps({**result.as_dict(), "plant": plant}))
     if result.diverged:
         print(f"pdsmc simulate: error: the run {result.diverged}; stopped there", file=sys.stderr)
         return EXIT_FAILURE
@@ -53,6 +58,9 @@ def run(args: argparse.Namespace) -> int:
         f"{d['duration_s']:g} s at {spec.rate:g} Hz control, statistics at {spec.sample_rate:g} Hz "
         f"({result.metrics.samples} samples), {result.wall_s:.2f} s wall"
     )
+    if stand_in is not None:
+        print(f"plant: the MuJoCo stand-in in lockstep ({stand_in.substeps} step{'s' if stand_in.substeps > 1 else ''} "
+              f"a period), realism {plant['summary']}")
     print(format_metrics(result.metrics.as_dict(), spec.gains.n))
     return 0
 

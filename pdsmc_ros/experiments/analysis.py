@@ -316,8 +316,9 @@ def _in_order(run: GraphRun, names: Sequence[str]) -> GraphRun:
     reference = dataclasses.replace(run.reference, q=pick(run.reference.q), qd=pick(run.reference.qd))
     goals = [dataclasses.replace(g, desired=None if g.desired is None else dataclasses.replace(
         g.desired, q=pick(g.desired.q), qd=pick(g.desired.qd))) for g in run.goals]
+    truth_q = pick(run.truth_q) if len(run.truth_q) else run.truth_q
     return dataclasses.replace(run, names=list(names), q=pick(run.q), qd=pick(run.qd), effort=pick(run.effort),
-                               reference=reference, goals=goals)
+                               reference=reference, goals=goals, truth_q=truth_q)
 
 
 def analyze_graph_bag(path: str | Path, *, robot: str | None = None,
@@ -345,7 +346,7 @@ def analyze_graph_bag(path: str | Path, *, robot: str | None = None,
         raise BagError(f"bag {str(path)!r}: {exc}") from None
     velocity = arm.velocity_limits if arm is not None else np.full(n, np.inf)
     effort = arm.effort_limits if arm is not None else np.full(n, np.inf)
-    goals = run_goal_figures(run, velocity_limits=velocity, effort_limits=effort, settle_band=settle_band)
+    goals = run_goal_figures(run, velocity_limits=velocity, effort_limits=effort, settle_band=settle_band, robot=arm)
     diverged = ""
     if arm is not None:
         diverged = DivergenceCheck.for_robot(arm).recorded(run.q, run.qd, run.effort, effort, 1.0 / period)
@@ -384,6 +385,9 @@ def goal_table(bag: AnalyzedGraphBag) -> str:
                                            for g in goals])
         row(f"axis {i + 1} S.D. (rad)", [_fmt(g.metrics.axial_sd[i] if g.metrics else None, "{:.4e}") for g in goals])
         row(f"axis {i + 1} max |e| (rad)", [_fmt(g.error_max[i], "{:.4e}") for g in goals])
+    if any(g.contour_mean is not None for g in goals):
+        row("contour error mean (m)", [_fmt(g.contour_mean, "{:.4e}") for g in goals])
+        row("contour error max (m)", [_fmt(g.contour_max, "{:.4e}") for g in goals])
     row("desired motion ends (s)", [_fmt(g.reference_end, "{:.3f}") for g in goals])
     row("settle time (s)", [_fmt(g.settle_time, "{:.3f}") if g.settle_time is not None else "not settled"
                             for g in goals])
@@ -404,6 +408,10 @@ def goal_table(bag: AnalyzedGraphBag) -> str:
     row("late periods", [str(g.late_periods) for g in goals])
     lines.append(f"joints: {', '.join(f'{i + 1} {name}' for i, name in enumerate(run.names))}; velocities in % "
                  "of the limit; settle time from the end of the desired motion")
+    sources = sorted({g.contour_from for g in goals if g.contour_mean is not None})
+    if sources:
+        lines.append("contour error: the end effector's distance to the desired path (forward kinematics of the "
+                     f"desired joint positions), from {' and '.join(sources)}")
     for g in goals:
         if g.error_string:
             lines.append(f"{g.label}: {g.error_string}")

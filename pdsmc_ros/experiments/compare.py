@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -25,6 +25,9 @@ from ..metrics.scores import SCORE_NAMES
 from ..metrics.statistics import Samples
 from ..runs.builder import RunSpec, make_run, scenario_gain_factors, smc_reading
 from ..sim import RunResult
+
+if TYPE_CHECKING:
+    from ..sim.mujoco_lockstep import StandIn
 
 DIVERGED = "DIVERGED"
 
@@ -157,13 +160,14 @@ def law_specs(robot: str, contour: str, laws: Sequence[str], *, scenario: str = 
     return out
 
 
-def run_laws(entries: Sequence[LawSpec]) -> list[tuple[LawRow, Samples]]:
-    """Each law's nominal run: its row and its samples (for the figures)."""
+def run_laws(entries: Sequence[LawSpec], stand_in: StandIn | None = None) -> list[tuple[LawRow, Samples]]:
+    """Each law's nominal run: its row and its samples (for the figures); ``stand_in``: against the
+    MuJoCo stand-in (:func:`pdsmc_ros.sim.simulate`)."""
     from ..sim import simulate
 
     out = []
     for entry in entries:
-        result = simulate(entry.spec, check_stability=False)
+        result = simulate(entry.spec, check_stability=False, stand_in=stand_in)
         out.append((law_row(result), result.samples))
     return out
 

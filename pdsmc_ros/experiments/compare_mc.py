@@ -14,7 +14,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -23,12 +23,17 @@ from .bootstrap import Interval, bootstrap_mean
 from .compare import Column, cell
 from .montecarlo import Spread
 
+if TYPE_CHECKING:
+    from ..sim.mujoco_lockstep import StandIn
 
-def compare_plant(index: int, seed: int, specs: Sequence[RunSpec], spreads: Mapping[str, Spread]
-                  ) -> list[dict[str, Any]]:
+
+def compare_plant(index: int, seed: int, specs: Sequence[RunSpec], spreads: Mapping[str, Spread],
+                  stand_in: StandIn | None = None) -> list[dict[str, Any]]:
     """Run ``index``: one drawn plant, every law of ``specs`` on it; a row per law with the
     table's values (:func:`.compare.run_values`) and its ``status`` (``ok``, ``diverged`` or
-    ``failed: ...``). A task of the engine (module level: workers import it)."""
+    ``failed: ...``). ``stand_in``: the drawn plant is the MuJoCo stand-in's, its nuisances' draws
+    seeded by ``[seed, index]`` (:meth:`~pdsmc_ros.sim.mujoco_lockstep.StandIn.for_run`). A task of
+    the engine (module level: workers import it)."""
     from ..robots import make_robot
     from ..sim import simulate
     from .compare import run_values
@@ -36,11 +41,13 @@ def compare_plant(index: int, seed: int, specs: Sequence[RunSpec], spreads: Mapp
 
     params, payload, initial, _ = sample_plant(specs[0].robot, spreads, np.random.default_rng([seed, index]))
     plant = make_robot(specs[0].robot, payload=payload, params=params)
+    mine = None if stand_in is None else stand_in.for_run(seed, index)
     rows: list[dict[str, Any]] = []
     for spec in specs:
         row: dict[str, Any] = {"run": index, "law": spec.controller}
         try:
-            values = run_values(simulate(spec, check_stability=False, plant=plant, initial_error=initial))
+            values = run_values(simulate(spec, check_stability=False, plant=plant, initial_error=initial,
+                                         stand_in=mine))
         except (ValueError, ArithmeticError) as exc:
             rows.append({**row, "status": f"failed: {str(exc).splitlines()[0]}"})
             continue
@@ -50,13 +57,14 @@ def compare_plant(index: int, seed: int, specs: Sequence[RunSpec], spreads: Mapp
 
 def run_plants(specs: Sequence[RunSpec], spreads: Mapping[str, Spread], runs: int, seed: int, *,
                scheduler: str | None = None, workers: int | None = None,
-               progress: Callable[[], None] | None = None) -> list[dict[str, Any]]:
-    """Every law on ``runs`` drawn plants, on the engine's cluster; the rows in run order."""
+               progress: Callable[[], None] | None = None, stand_in: StandIn | None = None) -> list[dict[str, Any]]:
+    """Every law on ``runs`` drawn plants, on the engine's cluster; the rows in run order
+    (``stand_in``: :func:`compare_plant`'s)."""
     from ..sim.engine import dask_client, run_tasks
 
     rows: list[dict[str, Any]] = []
     with dask_client(scheduler, workers) as client:
-        for _, result in run_tasks(client, compare_plant, [(i, seed, specs, spreads) for i in range(runs)]):
+        for _, result in run_tasks(client, compare_plant, [(i, seed, specs, spreads, stand_in) for i in range(runs)]):
             rows += result
             if progress:
                 progress()

@@ -98,8 +98,10 @@ def table_rows(rows: Sequence[LawRow], cols: Sequence[Column]) -> list[list[str]
 
 
 def build_report(entries: Sequence[LawSpec], rows: Sequence[LawRow], cols: Sequence[Column],
-                 figures: Sequence[Path], montecarlo: Mapping[str, Any] | None) -> Report:
-    """The report's blocks: set-up, gains, the table, the figures, the Monte Carlo's intervals."""
+                 figures: Sequence[Path], montecarlo: Mapping[str, Any] | None,
+                 plant: Mapping[str, Any] | None = None) -> Report:
+    """The report's blocks: set-up, gains, the table, the figures, the Monte Carlo's intervals
+    (``plant``: the MuJoCo stand-in's description, ``--plant mujoco``)."""
     setup = setup_description(entries)
     report = Report()
     report.add("h1", f"Controller comparison: {setup['robot']} / {setup['contour']}")
@@ -111,7 +113,9 @@ def build_report(entries: Sequence[LawSpec], rows: Sequence[LawRow], cols: Seque
         ["control rate", f"{setup['control_rate_hz']:g} Hz"],
         ["statistics and scores at", f"{setup['sample_rate_hz']:g} Hz (docs/SCORES.md)"],
         ["contour error bound", f"{setup['contour_bound_m']:g} m"],
-        ["torque clamped to the effort limits", "yes" if setup["enforce_limits"] else "no"]])
+        ["torque clamped to the effort limits", "yes" if setup["enforce_limits"] else "no"],
+        ["plant", "the arm's own dynamics" if not plant or plant.get("plant") != "mujoco" else
+         f"the MuJoCo stand-in in lockstep, realism {plant['summary']}"]])
     report.add("h2", "Gains")
     report.add("table", ["law", "gains", "from", "equation"], [
         [e["label"], "; ".join(f"{k} = {', '.join(f'{x:g}' for x in v)}" for k, v in e["gains"].items()),

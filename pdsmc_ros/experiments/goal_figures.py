@@ -24,6 +24,12 @@ last desired position, up to the next goal (or the end of the bag), counted from
 the desired motion; None when the arm is not there by then (an aborted or preempted goal).
 A late period is an interval between two joint states longer than :data:`LATE_FACTOR`
 nominal periods: at least one state missed, as the loop statistics count a missed deadline.
+
+Contour error, where the arm is known: the end effector's distance to the desired path, both in the
+plane of the arm's contours (its ``position``, as every contour error of the project), the path the
+forward kinematics of the desired joint positions on the grid (:func:`path_distance`). It is the
+true arm's when the bag holds the true state (the MuJoCo stand-in's ``~/true_joint_states``), else
+the measured one's, and says which (:attr:`GoalFigures.contour_from`).
 """
 
 from __future__ import annotations
@@ -99,6 +105,9 @@ class GoalFigures:
     velocity_limit: list[float]
     late_periods: int
     trajectory: str = "not recorded"  # the goal's own trajectory (its send_goal event): points and duration
+    contour_mean: float | None = None  # m: the end effector's mean distance to the desired path
+    contour_max: float | None = None
+    contour_from: str = ""  # the joint-state topic the end effector came from (the truth where recorded)
 
     @property
     def label(self) -> str:
@@ -121,11 +130,39 @@ def _window(t: FloatArray, start: float, end: float) -> np.ndarray:
     return np.flatnonzero((t >= start) & (t <= end))
 
 
+def path_distance(points: FloatArray, path: FloatArray) -> FloatArray:
+    """Each point's distance to the polyline ``path`` (shapes ``(N, 2)`` and ``(M, 2)``).
+
+    The nearest of a thinned path's vertices (at most 1024) is found first, then the exact
+    distance to the segments within one thinning step of it: exact unless the path passes back
+    within one such step of itself.
+    """
+    points = np.asarray(points, dtype=float)
+    path = np.asarray(path, dtype=float)
+    if len(path) == 1:
+        return np.asarray(np.linalg.norm(points - path[0], axis=1), dtype=float)
+    stride = max(1, len(path) // 1024)
+    coarse = np.arange(0, len(path), stride)
+    offsets = np.arange(-stride, stride + 1)
+    out = np.empty(len(points))
+    for start in range(0, len(points), 256):
+        p = points[start:start + 256]
+        near = coarse[np.argmin(((p[:, None, :] - path[coarse][None, :, :]) ** 2).sum(-1), axis=1)]
+        seg = np.clip(near[:, None] + offsets[None, :], 0, len(path) - 2)
+        a, b = path[seg], path[seg + 1]
+        ab = b - a
+        length2 = (ab ** 2).sum(-1)
+        t = np.clip(((p[:, None, :] - a) * ab).sum(-1) / np.where(length2 > 0, length2, 1.0), 0.0, 1.0)
+        closest = a + t[..., None] * ab
+        out[start:start + 256] = np.sqrt(((p[:, None, :] - closest) ** 2).sum(-1)).min(axis=1)
+    return out
+
+
 def goal_figures(run: GraphRun, goal: GoalRecord, index: int, window_end: float, *,
                  velocity_limits: Sequence[float] | FloatArray, effort_limits: Sequence[float] | FloatArray,
-                 settle_band: float = DEFAULT_SETTLE_BAND) -> GoalFigures:
+                 settle_band: float = DEFAULT_SETTLE_BAND, robot: Any = None) -> GoalFigures:
     """The figures of ``goal`` (the ``index``-th), whose effects last until ``window_end`` (the
-    next goal's acceptance or the bag's end).
+    next goal's acceptance or the bag's end); with the arm's model (``robot``), its contour error.
 
     Raises
     ------
@@ -157,6 +194,7 @@ def goal_figures(run: GraphRun, goal: GoalRecord, index: int, window_end: float,
     velocity_max = (np.nanmax(np.abs(run.qd[whole]), axis=0) if len(whole) else np.full(n, np.nan))
     late = late_periods(run.t[whole], period) if len(whole) else 0
     metrics, error_max, reference_end, settle = None, [float("nan")] * n, None, None
+    contour: tuple[float | None, float | None, str] = (None, None, "")
     if len(reference.t) >= 2 and np.isfinite(reference.q).all():
         source = f"{source} ({len(reference.t)} samples)"
         start = max(float(reference.t[0]), goal.accepted)
@@ -180,6 +218,8 @@ def goal_figures(run: GraphRun, goal: GoalRecord, index: int, window_end: float,
                 saturated = (np.abs(run.effort[active]) >= effort_limit).sum(axis=0)
             metrics = stats.metrics([int(c) for c in saturated])
             error_max = np.nanmax(np.abs(error), axis=0).tolist()
+            if robot is not None:
+                contour = _contour(run, robot, grid, q, desired_at(reference, grid))
         final = reference.q[-1]
         moving = np.flatnonzero(np.any(np.abs(reference.q - final) > REFERENCE_STILL, axis=1))
         reference_end = float(reference.t[moving[-1] + 1] if len(moving) else reference.t[0])
@@ -197,7 +237,24 @@ def goal_figures(run: GraphRun, goal: GoalRecord, index: int, window_end: float,
     return GoalFigures(index, goal.action, goal.goal_id, goal.status_name, goal.result_name, goal.error_string,
                        goal.accepted - t0, None if goal.ended is None else goal.ended - t0, source, metrics,
                        [float(v) for v in error_max], reference_end, settle,
-                       [float(v) for v in velocity_max], velocity_limit.tolist(), late, _trajectory_line(goal))
+                       [float(v) for v in velocity_max], velocity_limit.tolist(), late, _trajectory_line(goal),
+                       *contour)
+
+
+def _contour(run: GraphRun, robot: Any, grid: FloatArray, measured: FloatArray,
+             desired: FloatArray) -> tuple[float | None, float | None, str]:
+    """The contour error's mean and maximum over ``grid`` and the topic its end effector came from:
+    the true state where the bag has it over the whole grid, else the measured one."""
+    q, source = measured, run.state_topic
+    if run.truth_topic and len(run.truth_t) >= 2 and run.truth_t[0] <= grid[0] and run.truth_t[-1] >= grid[-1]:
+        q = np.column_stack([np.interp(grid, run.truth_t, run.truth_q[:, j]) for j in range(q.shape[1])])
+        source = f"{run.truth_topic} (the true state)"
+    else:
+        source = f"{source} (the measured state{'; no true state recorded' if not run.truth_topic else ''})"
+    if not (np.isfinite(q).all() and np.isfinite(desired).all()):
+        return None, None, source
+    distance = path_distance(robot.position(q), robot.position(desired))
+    return float(np.mean(distance)), float(np.max(distance)), source
 
 
 def _trajectory_line(goal: GoalRecord) -> str:
@@ -212,12 +269,12 @@ def _trajectory_line(goal: GoalRecord) -> str:
 
 def run_goal_figures(run: GraphRun, *, velocity_limits: Sequence[float] | FloatArray,
                      effort_limits: Sequence[float] | FloatArray,
-                     settle_band: float = DEFAULT_SETTLE_BAND) -> list[GoalFigures]:
+                     settle_band: float = DEFAULT_SETTLE_BAND, robot: Any = None) -> list[GoalFigures]:
     """:func:`goal_figures` of every goal of ``run``, each until the next one's acceptance."""
     out = []
     last = float(run.t[-1])
     for i, goal in enumerate(run.goals):
         window_end = run.goals[i + 1].accepted if i + 1 < len(run.goals) else last
         out.append(goal_figures(run, goal, i + 1, window_end, velocity_limits=velocity_limits,
-                                effort_limits=effort_limits, settle_band=settle_band))
+                                effort_limits=effort_limits, settle_band=settle_band, robot=robot))
     return out

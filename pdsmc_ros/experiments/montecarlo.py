@@ -18,7 +18,7 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -29,6 +29,9 @@ from ..metrics.scores import SCORE_NAMES
 from ..robots import make_robot, robot_params
 from ..robots.base import RobotParams
 from ..runs.builder import RunSpec, make_run
+
+if TYPE_CHECKING:
+    from ..sim.mujoco_lockstep import StandIn
 
 PARAMETERS = ("link_mass", "link_com", "link_inertia", "motor_inertia", "motor_damping", "payload",
               "initial_error")
@@ -145,8 +148,11 @@ def flat_statistics(metrics: Mapping[str, Any]) -> dict[str, float]:
     return out
 
 
-def run_sample(index: int, seed: int, specs: Sequence[RunSpec], spreads: Mapping[str, Spread]) -> list[dict[str, Any]]:
-    """Run ``index`` of the Monte Carlo: one drawn plant, every controller of ``specs`` on it.
+def run_sample(index: int, seed: int, specs: Sequence[RunSpec], spreads: Mapping[str, Spread],
+               stand_in: StandIn | None = None) -> list[dict[str, Any]]:
+    """Run ``index`` of the Monte Carlo: one drawn plant, every controller of ``specs`` on it
+    (``stand_in``: the drawn plant is the MuJoCo stand-in's, its nuisances' draws seeded by
+    ``[seed, index]``).
 
     A task of the engine (module level: workers import it). A run that diverges or fails
     gives a row with the reason and NaN statistics instead of stopping the table.
@@ -156,11 +162,12 @@ def run_sample(index: int, seed: int, specs: Sequence[RunSpec], spreads: Mapping
     robot = specs[0].robot
     params, payload, initial, drawn = sample_plant(robot, spreads, np.random.default_rng([seed, index]))
     plant = make_robot(robot, payload=payload, params=params)
+    mine = None if stand_in is None else stand_in.for_run(seed, index)
     rows = []
     for spec in specs:
         row: dict[str, Any] = {"run": index, "controller": spec.controller, **drawn}
         try:
-            result = simulate(spec, check_stability=False, plant=plant, initial_error=initial)
+            result = simulate(spec, check_stability=False, plant=plant, initial_error=initial, stand_in=mine)
             stats = flat_statistics(result.metrics.as_dict())
             row["status"] = "ok" if math.isfinite(stats["contour_mean"]) else "diverged"
         except (ValueError, ArithmeticError) as exc:

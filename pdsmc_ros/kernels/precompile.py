@@ -32,6 +32,7 @@ from ..control.registry import law_names
 from ..errors import ConfigError
 from ..robots.catalog import resolve_robot
 from ..runs.builder import make_run
+from ..sim.mujoco_lockstep import StandIn
 from ..sim.plant import PlantStepper
 from ..sim.simulator import simulate
 
@@ -61,6 +62,25 @@ def precompile(robots: Sequence[str] = ROBOTS) -> None:
         model.total_energy(q, rest)
         for name in law_names():
             ControlLaw.from_spec(make_run(robot, "circle", name, needs_gains=False)).warm_up(rest, rest)
+        # the MuJoCo stand-in: the lockstep loop (--plant mujoco) and the driver node's ticks
+        simulate(spec, check_stability=False, stand_in=StandIn("bench"))
+        _driver_ticks(robot)
+
+
+def _driver_ticks(robot: str) -> None:
+    """A few ticks of the ``mujoco_driver``'s drive (its kernels: the node does not compile at start-up)."""
+    from ..sim.drive import Drive, mj_step_function, run_ticks, sense_now
+    from ..sim.mujoco_model import build_stand_in
+
+    arm, realism, facts = build_stand_in(robot, rate=1000.0, preset="bench")
+    data = arm.data()
+    drive = Drive(realism, 1e-3, 1, facts.effort_limits, facts.revolute)
+    qadr, vadr = arm.qpos[:arm.n].astype(np.intp), arm.dof[:arm.n].astype(np.intp)
+    sense_now(data.qpos, data.qvel, qadr, vadr, drive.params, drive.state, drive.counters, drive.noise(1)[0],
+              drive.period)
+    run_ticks(mj_step_function(), arm.model._address, data._address, data.qpos, data.qvel, qadr, vadr, data.ctrl,
+              drive.params, drive.state, drive.ring, drive.ring_valid, drive.counters, np.zeros(arm.n), 1,
+              drive.noise(3), drive.period)
 
 
 def main(args: Sequence[str] | None = None) -> int:

@@ -11,6 +11,12 @@ controller has none: 0 models it). With the brakes closed
 the arm is frozen where it is: MuJoCo does not step and the rates are zero. The physics
 runs on the wall clock: each :meth:`MujocoDriver.advance` steps MuJoCo until its time
 reaches the wall time (missed ticks are caught up, at most :data:`MAX_CATCH_UP_S` of them).
+
+Between the physics and the wire stands the drive (:mod:`.drive`): with the stand-in's nuisances
+(:mod:`.realism`) a command reaches the motors ``command_delay`` ticks after it arrived, the
+torque lags it and falls with speed, and what :meth:`MujocoDriver.state` gives is what the
+encoder and the drive's velocity estimate read; :meth:`MujocoDriver.true_state` is MuJoCo's
+exact state. Every nuisance off (the default), the state is exact and the command acts at once.
 """
 
 from __future__ import annotations
@@ -25,7 +31,9 @@ from numpy.typing import ArrayLike
 from ..errors import InvalidInputError
 from ..parameters.tables import DEFAULT_COMMAND_TIMEOUT_S, JOINT_STATE_ORDERS
 from ..robots.base import FloatArray
-from ..sim.mujoco_model import MujocoArm, _mujoco, set_state
+from ..sim.drive import Drive, mj_step_function, run_ticks, sense_now
+from ..sim.mujoco_model import MujocoArm, _mujoco, set_friction, set_state
+from ..sim.realism import Realism
 
 MAX_CATCH_UP_S = 0.1
 """The longest stretch of wall time one :meth:`MujocoDriver.advance` integrates; beyond it
@@ -52,11 +60,19 @@ class MujocoDriver:
         Seconds after the last command at which the brakes close again (default
         :data:`DEFAULT_COMMAND_TIMEOUT_S`); 0: never (the last command is held forever, as a
         forward command controller does).
+    realism : Realism, optional
+        The nuisances (:func:`~.mujoco_model.build_stand_in` resolves them and builds ``arm`` with
+        their physics); default: none.
+    effort_limits : array_like, optional
+        Each joint's effort limit, where a torque-speed line starts (default: the URDF's).
+    substeps : int
+        MuJoCo steps a tick (``arm``'s step times this is the driver's period).
     """
 
     def __init__(self, arm: MujocoArm, q0: ArrayLike, *, passive0: ArrayLike | None = None,
                  command_joints: Sequence[str] | None = None,
-                 command_timeout: float = DEFAULT_COMMAND_TIMEOUT_S) -> None:
+                 command_timeout: float = DEFAULT_COMMAND_TIMEOUT_S, realism: Realism | None = None,
+                 effort_limits: ArrayLike | None = None, substeps: int = 1) -> None:
         self._mujoco = _mujoco()
         self.arm = arm
         self.data = arm.data()
@@ -85,6 +101,24 @@ class MujocoDriver:
             self.data.qpos[arm.qpos[arm.n:]] = passive
         self._mujoco.mj_forward(arm.model, self.data)
         self.timestep = float(arm.model.opt.timestep)
+        self.substeps = int(substeps)
+        self.period = self.timestep * self.substeps
+        if realism is None:
+            from ..sim.realism import ArmFacts, resolve_realism
+
+            realism = resolve_realism(ArmFacts(arm.joint_names, arm.effort_limits, np.full(arm.n, np.inf),
+                                               np.ones(arm.n, dtype=bool), 0.0, 1.0 / self.period))
+        if realism.n != arm.n:
+            raise InvalidInputError(f"the nuisances are for {realism.n} joints; the arm has {arm.n}")
+        limits = arm.effort_limits if effort_limits is None else np.asarray(effort_limits, dtype=float)
+        mujoco = self._mujoco
+        revolute = np.array([arm.model.jnt_type[mujoco.mj_name2id(arm.model, mujoco.mjtObj.mjOBJ_JOINT, j)]
+                             == mujoco.mjtJoint.mjJNT_HINGE for j in arm.joint_names], dtype=bool)
+        self.drive = Drive(realism, self.period, self.substeps, limits, revolute)
+        self._step = mj_step_function()
+        d = self.data
+        self._views = (d.qpos, d.qvel, np.ascontiguousarray(arm.qpos[:arm.n], dtype=np.intp),
+                       np.ascontiguousarray(arm.dof[:arm.n], dtype=np.intp), d.ctrl)
         self.torque = np.zeros(arm.n)  # robot order
         self.braked = True
         self.clock = 0.0  # wall time (s, the caller's clock) the physics' state belongs to
@@ -93,6 +127,29 @@ class MujocoDriver:
         self.dropped = 0
         self.steps = 0
         self.skipped = 0.0  # wall seconds not integrated (beyond MAX_CATCH_UP_S)
+        self._sense()  # the state published before the first tick
+
+    @property
+    def realism(self) -> Realism:
+        """The nuisances in force."""
+        return self.drive.realism
+
+    def set_realism(self, realism: Realism) -> None:
+        """Take new nuisances while running: the drive's and the joints' friction (a payload, the
+        seed and the preset are the model's and the run's: :class:`InvalidInputError` if they differ)."""
+        old = self.drive.realism
+        if realism.payload_mass != old.payload_mass or not np.array_equal(realism.payload_com, old.payload_com) \
+                or realism.seed != old.seed:
+            raise InvalidInputError("payload_mass, payload_com and seed are read at start-up")
+        self.drive.configure(realism)
+        set_friction(self.arm, realism.friction_coulomb, realism.friction_viscous)
+
+    def _sense(self) -> None:
+        """Publish what the drive reads of MuJoCo's state now (one tick's reading)."""
+        qpos, qvel, qadr, vadr, _ = self._views
+        drive = self.drive
+        sense_now(qpos, qvel, qadr, vadr, drive.params, drive.state, drive.counters, drive.noise(1)[0],
+                  drive.period)
 
     # -- commands ------------------------------------------------------------ #
     def command(self, values: Sequence[float], now: float) -> str | None:
@@ -124,6 +181,7 @@ class MujocoDriver:
         all). Returns whether the brakes closed in this call (command timeout)."""
         if self.braked:
             self.clock = now
+            self._sense()
             return False
         if self.command_timeout and now - self.last_command > self.command_timeout:
             self.brake()
@@ -134,29 +192,40 @@ class MujocoDriver:
             self.skipped += behind - MAX_CATCH_UP_S
             self.clock = now - MAX_CATCH_UP_S
             behind = MAX_CATCH_UP_S
-        steps = int(behind / self.timestep + 0.5)
-        if steps:
-            m, d = self.arm.model, self.data
-            d.ctrl[:] = self.torque
-            for _ in range(steps):
-                self._mujoco.mj_step(m, d)
-            self.clock += steps * self.timestep
-            self.steps += steps
+        ticks = int(behind / self.period + 0.5)
+        if ticks:
+            qpos, qvel, qadr, vadr, ctrl = self._views
+            drive = self.drive
+            stepped = run_ticks(self._step, self.arm.model._address, self.data._address, qpos, qvel, qadr, vadr,
+                                ctrl, drive.params, drive.state, drive.ring, drive.ring_valid, drive.counters,
+                                self.torque, 1, drive.noise(ticks), self.period)
+            self.clock += ticks * self.period
+            self.steps += stepped * self.substeps
         return False
 
     def brake(self) -> None:
         """Close the brakes: the arm stops where it is, the command is forgotten."""
         self.braked = True
         self.torque[:] = 0.0
+        self.drive.release()
         self.data.qvel[:] = 0.0
         self.data.ctrl[:] = 0.0
         self._mujoco.mj_forward(self.arm.model, self.data)
+        self._sense()
 
     # -- state ------------------------------------------------------------- #
     def state(self) -> tuple[FloatArray, FloatArray, FloatArray]:
-        """Positions, rates and efforts of ``arm.joint_names + arm.passive_joint_names``: the
-        efforts are the motors' torques (after saturation; 0 with the brakes closed and on
-        passive joints)."""
+        """What the driver publishes of ``arm.joint_names + arm.passive_joint_names``: the actuated
+        joints' positions and rates as the drive reads them (exact without nuisances), the passive
+        joints' exact; the efforts are the motors' torques (after saturation; 0 with the brakes
+        closed and on passive joints)."""
+        q, qd, effort = self.true_state()
+        n = self.arm.n
+        q[:n], qd[:n] = self.drive.published
+        return q, qd, effort
+
+    def true_state(self) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """MuJoCo's exact positions and rates of every joint, and the motors' torques (as :meth:`state`)."""
         d = self.data
         effort = np.zeros(len(self.arm.qpos))
         if not self.braked:

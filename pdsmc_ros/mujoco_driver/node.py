@@ -3,12 +3,14 @@
 ``ros2 run pdsmc_ros mujoco_driver --ros-args -p robot:=ur5`` (or ``serial_3r``, a ``.urdf``
 path). Publishes ``/joint_states`` (``sensor_msgs/JointState``: position, velocity, effort =
 the motors' torque; stamped with the wall clock, ``frame_id`` empty) at ``rate`` in its own
-``joint_state_order``, and ``/robot_description`` (transient local, as
-robot_state_publisher); takes ``/effort_controller/commands`` (``std_msgs/Float64MultiArray``,
-``data[i]`` -> ``joints[i]``; a wrong length or a non-finite value is dropped with a
-throttled warning, as forward_command_controller does). The arm is braked (MuJoCo does not
-step) until the first command, then the latest command is applied every step
-(:mod:`pdsmc_ros.mujoco_driver.driver`; the model: :mod:`pdsmc_ros.sim.mujoco_model`).
+``joint_state_order`` -- what the drive reads, with the stand-in's nuisances (``realism:=bench``,
+:mod:`pdsmc_ros.sim.realism`) --, the exact state beside it on ``~/true_joint_states`` (same
+stamp and order), and ``/robot_description`` (transient local, as robot_state_publisher); takes
+``/effort_controller/commands`` (``std_msgs/Float64MultiArray``, ``data[i]`` -> ``joints[i]``; a
+wrong length or a non-finite value is dropped with a throttled warning, as
+forward_command_controller does). The arm is braked (MuJoCo does not step) until the first
+command, then the latest command is applied every step (:mod:`pdsmc_ros.mujoco_driver.driver`; the
+model: :mod:`pdsmc_ros.sim.mujoco_model`).
 """
 
 from __future__ import annotations
@@ -39,9 +41,13 @@ from ..robots.catalog import resolve_robot
 from ..robots.registry import make_robot
 from ..ros.publishers import GuardedPublisher
 from ..ros.topics import LATCHED_QOS, STREAM_QOS, TOPIC_EFFORT, TOPIC_JOINT_STATES, TOPIC_ROBOT_DESCRIPTION
-from ..sim.mujoco_model import build_model
+from ..sim.mujoco_model import build_stand_in
+from ..sim.realism import BY_NAME, SETTINGS, RealismError, resolve_realism
 from .driver import MujocoDriver, default_positions, initial_passive, joint_state_order
 
+TOPIC_TRUE_JOINT_STATES = "~/true_joint_states"
+"""MuJoCo's exact state, beside what the drive publishes on ``/joint_states`` (the truth a run's
+analysis can use: ``pdsmc analyze``)."""
 WARN_EVERY_S = 1.0  # dropped commands: one warning a second at most
 PERIODS_KEPT = 100_000  # achieved periods summarised at the end (the last 100 s at 1 kHz)
 
@@ -57,17 +63,28 @@ class MujocoDriverNode:
         robot, rate, substeps, order = values["robot"], values["rate"], values["substeps"], values["joint_state_order"]
         joints, initial, timeout = values["joints"], values["initial_positions"], values["command_timeout"]
         self.busy_wait = values["busy_wait"]
-        guard(node, mujoco_driver_parameters())
+        self.pending = None  # nuisances set while running, taken at the next tick
         try:
             robot = resolve_robot(robot)
         except ConfigError as exc:
             raise ConfigError(f"parameter robot: {exc}") from None
-        arm = build_model(robot, timestep=1.0 / rate / substeps)
-        command_joints = check_joint_names(arm.joint_names if joints is None else joints, arm.n)
+        model = make_robot(robot)
+        command_joints = check_joint_names(list(model.joint_names) if joints is None else joints, model.n)
+        self.command_joints = command_joints
+        self.robot_joints = list(model.joint_names)
+        self.values = {name: values[name] for name in BY_NAME}
+        try:
+            arm, realism, self.facts = build_stand_in(
+                robot, rate=rate, substeps=substeps, preset=values["realism"], seed=values["seed"],
+                given=self._nuisances(self.values))
+        except RealismError as exc:
+            raise ConfigError(str(exc)) from None
+        guard(node, mujoco_driver_parameters(), check=self.check_set, joints=arm.n)
         q0 = default_positions(robot) if initial is None else self._positions(initial, arm.n)
         try:
             self.driver = MujocoDriver(arm, q0, passive0=initial_passive(robot, q0), command_joints=command_joints,
-                                       command_timeout=timeout)
+                                       command_timeout=timeout, realism=realism, effort_limits=model.effort_limits,
+                                       substeps=substeps)
         except InvalidInputError as exc:
             raise ConfigError(f"parameter {exc}") from None
         names = list(arm.joint_names + arm.passive_joint_names)
@@ -79,6 +96,7 @@ class MujocoDriverNode:
         self.exit_code = EXIT_OK
 
         self.pub_state = GuardedPublisher(node.create_publisher(JointState, TOPIC_JOINT_STATES, STREAM_QOS), node)
+        self.pub_true = GuardedPublisher(node.create_publisher(JointState, TOPIC_TRUE_JOINT_STATES, STREAM_QOS), node)
         self.pub_urdf = node.create_publisher(String, TOPIC_ROBOT_DESCRIPTION, LATCHED_QOS)
         self.pub_urdf.publish(String(data=make_robot(robot).description()))
         self.inputs = Inputs(node, "realtime")
@@ -91,7 +109,8 @@ class MujocoDriverNode:
         node.get_logger().info(
             f"MuJoCo {robot} ({arm.n} joints), {rate:g} Hz x {substeps} RK4 steps, /joint_states in "
             f"{order} order, braked until the first command on /{TOPIC_EFFORT}"
-            + (f", brakes again after {timeout:g} s without one" if timeout else ""))
+            + (f", brakes again after {timeout:g} s without one" if timeout else "")
+            + f"; realism {realism.summary()}")
 
     @staticmethod
     def _positions(value: Any, n: int) -> np.ndarray:
@@ -101,6 +120,40 @@ class MujocoDriverNode:
         if q.shape != (n,) or not np.all(np.isfinite(q)):
             raise ConfigError(f"parameter initial_positions needs {n} finite angles (rad), got {list(value)}")
         return q
+
+    def _nuisances(self, values: dict[str, Any]) -> dict[str, Any]:
+        """The nuisances given (not the preset or the seed), per-joint ones from ``joints`` order to the
+        robot's (an empty list: not given)."""
+        out: dict[str, Any] = {}
+        for name, value in values.items():
+            if name in SETTINGS or value is None:
+                continue
+            if not isinstance(value, str | bool | int | float) and len(value) == 0:
+                continue
+            if BY_NAME[name].per_joint and not isinstance(value, str | bool | int | float) \
+                    and len(value) == len(self.command_joints):
+                by_name = dict(zip(self.command_joints, value, strict=True))
+                value = [by_name[j] for j in self.robot_joints]
+            out[name] = value
+        return out
+
+    def check_set(self, params: Sequence[Any]) -> str | None:
+        """The on-set check of the nuisances a running driver applies: resolved against the arm (the
+        new values with the others in force); accepted ones are taken at the next tick."""
+        changed = {p.name: p.value for p in params if p.name in BY_NAME}
+        if not changed or not hasattr(self, "driver"):
+            return None
+        values = {**self.values, **changed}
+        try:
+            realism = resolve_realism(self.facts, values["realism"], self._nuisances(values), seed=values["seed"])
+            if realism.payload_mass != self.driver.realism.payload_mass \
+                    or not np.array_equal(realism.payload_com, self.driver.realism.payload_com):
+                return "payload_mass and payload_com are read at start-up (the model MuJoCo compiled)"
+        except RealismError as exc:
+            return str(exc)
+        self.values = values
+        self.pending = realism
+        return None
 
     def on_command(self, data: bytes) -> None:
         try:
@@ -123,6 +176,10 @@ class MujocoDriverNode:
                                     throttle_duration_sec=WARN_EVERY_S)
 
     def tick(self, lateness: float) -> None:  # noqa: ARG002 - the driver integrates to the wall clock
+        pending, self.pending = self.pending, None
+        if pending is not None:
+            self.driver.set_realism(pending)
+            self.node.get_logger().info(f"realism now {pending.summary()}")
         now = time.monotonic()
         if self.driver.advance(now):
             self.node.get_logger().warn(
@@ -140,6 +197,9 @@ class MujocoDriverNode:
         sec, nanosec = divmod(time.time_ns(), 1_000_000_000)  # the wall clock, as a real driver stamps
         order = self.order
         self.pub_state.publish(encode_joint_state(
+            sec, nanosec, self.names, q[order].tolist(), qd[order].tolist(), effort[order].tolist()))
+        q, qd, effort = self.driver.true_state()
+        self.pub_true.publish(encode_joint_state(
             sec, nanosec, self.names, q[order].tolist(), qd[order].tolist(), effort[order].tolist()))
         self.ticks += 1
 

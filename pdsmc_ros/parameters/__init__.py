@@ -10,7 +10,7 @@ from .run_table import RUN, RUN_DEFAULTS
 
 TABLES = ("BUSY_WAIT", "CONTROLLER", "NODES", "OUTPUT_LIMITS", "PLANT", "RECORDER", "SAFETY", "STABILITY",
     "TRAJECTORY", "VIEWER", "catalog", "gain_parameters", "mujoco_driver_parameters", "node_parameters",
-    "package_parameter_names", "parameter_names", "realtime_parameters", "run_parameters")
+    "package_parameter_names", "parameter_names", "realism_parameters", "realtime_parameters", "run_parameters")
 """The names :mod:`.tables` gives, imported from there when first asked (the tables read the law and
 robot registries, which load numba; the command line needs only :mod:`.run_table`)."""
 
@@ -46,6 +46,7 @@ __all__ = [
     "node_parameters",
     "package_parameter_names",
     "parameter_names",
+    "realism_parameters",
     "realtime_parameters",
     "run_parameters",
 ]

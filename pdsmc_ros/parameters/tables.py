@@ -215,6 +215,65 @@ def realtime_parameters(priority: int = DEFAULT_PRIORITY) -> tuple[ParameterSpec
     )
 
 
+REALISM_PRESETS = ("ideal", "bench")
+"""The MuJoCo stand-in's named presets of its nuisances (``realism:=``; :mod:`pdsmc_ros.sim.realism`)."""
+VELOCITY_SOURCES = ("exact", "difference")
+"""``exact``: the simulator's joint velocity; ``difference``: the backward difference of the published
+positions over one period, as many drives compute it (then ``velocity_filter_hz``)."""
+MAX_COMMAND_DELAY = 100
+"""Ticks a command may be delayed at most (0.1 s at 1 kHz; the drive's delay line holds this many)."""
+UNSET_IS_PRESET = "; unset: the realism preset's"
+
+REALISM = (
+    P("realism", "string", "ideal", "the named preset of every nuisance below: ideal (every one off: the stand-in "
+      "as a perfect arm) or bench (an arm like the one on the bench, docs/how-to/mujoco.md); a nuisance given "
+      "explicitly replaces the preset's", choices=REALISM_PRESETS),
+    P("seed", "int", 0, "seed of every random draw of the nuisances (the position noise): a run repeats exactly",
+      lo=0, hi=2**63 - 1),
+    P("friction_coulomb", "double_array", None, "Coulomb (dry) friction of each joint in N m, MuJoCo's frictionloss "
+      "with a stiff solref_friction (two timesteps)" + UNSET_IS_PRESET, lo=0.0, hi=10**6, per_joint=True,
+      one_for_all=True, read_only=False),
+    P("friction_viscous", "double_array", None, "viscous friction of each joint in N m s/rad, added to the URDF's "
+      "<dynamics damping>" + UNSET_IS_PRESET, lo=0.0, hi=10**6, per_joint=True, one_for_all=True, read_only=False),
+    P("encoder_counts", "int_array", None, "counts per revolution of each joint's encoder (per metre: a prismatic "
+      "joint): the published position is the nearest count (the ideal preset has none: exact)" + UNSET_IS_PRESET,
+      lo=1, hi=2**40, per_joint=True, one_for_all=True, read_only=False),
+    P("position_noise", "double_array", None, "standard deviation in rad of the Gaussian noise added to each "
+      "published position, before the encoder's grid" + UNSET_IS_PRESET, lo=0.0, hi=1.0, per_joint=True,
+      one_for_all=True, read_only=False),
+    P("velocity_source", "string", None, "the published velocity: exact (the simulator's) or difference (the "
+      "backward difference of the published positions over one period, as many drives compute it)"
+      + UNSET_IS_PRESET, choices=VELOCITY_SOURCES, read_only=False),
+    P("velocity_filter_hz", "double_array", None, "cut-off in Hz of the first-order low-pass filter of the "
+      "differenced velocity (libfranka's discretisation; 0: none)" + UNSET_IS_PRESET, lo=0.0, hi=10**6,
+      per_joint=True, one_for_all=True, read_only=False),
+    P("command_delay", "int", None, "ticks between a command's arrival and the torque it sets: the motors apply "
+      "the command that arrived this many periods earlier" + UNSET_IS_PRESET, lo=0, hi=MAX_COMMAND_DELAY,
+      read_only=False),
+    P("torque_bandwidth_hz", "double_array", None, "bandwidth in Hz of a first-order lag of each motor's torque "
+      "behind its command (the drive's current loop; 0: none)" + UNSET_IS_PRESET, lo=0.0, hi=10**6, per_joint=True,
+      one_for_all=True, read_only=False),
+    P("torque_speed", "bool", None, "the motors' torque falls linearly with speed, from the effort limit at rest "
+      "to zero at no_load_speed (a DC motor's torque-speed line)" + UNSET_IS_PRESET, read_only=False),
+    P("no_load_speed", "double_array", None, "speed in rad/s at which each motor's torque reaches zero "
+      "(torque_speed; by default twice the joint's URDF velocity limit)" + UNSET_IS_PRESET, lo=0.0, lo_open=True,
+      hi=10**6, per_joint=True, one_for_all=True, read_only=False),
+    P("payload_mass", "double", None, "a load in kg fixed to the tool frame, which the controller's model does not "
+      "know" + UNSET_IS_PRESET, lo=0.0, hi=10**4),
+    P("payload_com", "double_array", None, "where the load's centre of mass is, in m in the tool frame"
+      + UNSET_IS_PRESET, lo=-10.0, hi=10.0, constraints="3 numbers (x, y, z), each in [-10, 10]"),
+)
+"""The MuJoCo stand-in's nuisances, its ``realism`` preset and ``seed`` (:mod:`pdsmc_ros.sim.realism`
+resolves and checks them with these declarations; the ``--plant mujoco`` runs' flags are made from
+them). Unset, a nuisance is the preset's; those not read-only the driver applies while it runs,
+checked against the arm first (its node's on-set check)."""
+
+
+def realism_parameters() -> tuple[ParameterSpec, ...]:
+    """:data:`REALISM`."""
+    return REALISM
+
+
 def mujoco_driver_parameters() -> tuple[ParameterSpec, ...]:
     """The MuJoCo stand-in's (a driver of its own: no run, no gains)."""
     return (
@@ -229,6 +288,7 @@ def mujoco_driver_parameters() -> tuple[ParameterSpec, ...]:
         P("command_timeout", "double", DEFAULT_COMMAND_TIMEOUT_S,
           "seconds without a command after which the brakes close again, as a real driver's watchdog (0: never, "
           "as a forward command controller)", lo=0.0, hi=3600.0),
+        *realism_parameters(),
         BUSY_WAIT,
     )
 

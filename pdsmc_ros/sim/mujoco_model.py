@@ -34,6 +34,7 @@ how well MuJoCo's soft constraint matches our constrained model).
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 from xml.etree import ElementTree
@@ -42,9 +43,10 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ..errors import InvalidInputError
-from ..robots.base import FloatArray
+from ..robots.base import FloatArray, Manipulator
 from ..robots.catalog import resolve_robot
 from ..robots.registry import make_robot, robot_params
+from .realism import ArmFacts, Realism, resolve_realism
 
 THESIS_ARMS = ("serial_3r", "parallel_5r")
 INTEGRATORS = ("rk4", "implicitfast", "euler")
@@ -90,6 +92,11 @@ class MujocoArm:
     dof: Any
     effort_limits: FloatArray
     urdf: str
+    urdf_damping: FloatArray | None = None
+    """Each actuated joint's damping (N m s/rad) as the description gives it (``<dynamics damping>``):
+    what :func:`set_friction` adds the stand-in's viscous friction to."""
+    urdf_frictionloss: FloatArray | None = None
+    """Each actuated joint's dry friction (N m) as the description gives it (``<dynamics friction>``)."""
 
     @property
     def n(self) -> int:
@@ -149,7 +156,8 @@ def effort_limits(urdf: str, joints: tuple[str, ...]) -> FloatArray:
     return np.array([found.get(j, np.inf) for j in joints], dtype=float)
 
 
-def build_model(robot: str, *, timestep: float = 1e-3, integrator: str = "rk4") -> MujocoArm:
+def build_model(robot: str, *, timestep: float = 1e-3, integrator: str = "rk4", source: Manipulator | None = None,
+                payload: tuple[float, ArrayLike] | None = None) -> MujocoArm:
     """The MuJoCo model of a registered robot (module docstring).
 
     Parameters
@@ -161,6 +169,12 @@ def build_model(robot: str, *, timestep: float = 1e-3, integrator: str = "rk4") 
         MuJoCo's step (s).
     integrator : str
         ``rk4`` (default), ``implicitfast`` or ``euler``.
+    source : Manipulator, optional
+        Build from this robot's description instead of the registered one's (a plant drawn around
+        it: :mod:`pdsmc_ros.experiments.montecarlo`).
+    payload : (float, array_like), optional
+        A load the controller's model does not know: its mass (kg) and centre of mass (m, in the
+        arm's tool frame), a fixed link of the description MuJoCo is given (:func:`payload_urdf`).
 
     Raises
     ------
@@ -172,12 +186,15 @@ def build_model(robot: str, *, timestep: float = 1e-3, integrator: str = "rk4") 
         raise InvalidInputError(f"timestep must be > 0 s, got {timestep!r}")
     if integrator not in INTEGRATORS:
         raise InvalidInputError(f"integrator must be one of {', '.join(INTEGRATORS)}, got {integrator!r}")
-    ours = make_robot(resolve_robot(robot))
-    urdf, gravity, armature, locked = description(robot)
+    ours = make_robot(resolve_robot(robot)) if source is None else source
+    urdf, gravity, armature, locked = description(robot) if source is None else source.model_source()
     joints = tuple(ours.joint_names)
     passive = tuple(ours.passive_joint_names)
+    given = urdf
+    if payload is not None and payload[0] > 0.0:
+        given = payload_urdf(urdf, tool_frame(ours), *payload)
     try:
-        spec = mujoco.MjSpec.from_string(mujoco_urdf(urdf, locked_joints=locked, planar=robot in THESIS_ARMS))
+        spec = mujoco.MjSpec.from_string(mujoco_urdf(given, locked_joints=locked, planar=robot in THESIS_ARMS))
     except ValueError as exc:
         raise InvalidInputError(f"robot {robot!r}: MuJoCo cannot read its URDF: {_first_line(exc)}") from None
     spec.option.gravity = [0.0, 0.0, -gravity]
@@ -200,16 +217,90 @@ def build_model(robot: str, *, timestep: float = 1e-3, integrator: str = "rk4") 
             motor.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
             motor.forcerange = [-float(limit), float(limit)]
     if robot == "parallel_5r":
-        _close_five_bar(spec, mujoco, robot_params(robot))
+        _close_five_bar(spec, mujoco, robot_params(robot) if source is None else source.params)
     try:
         model = spec.compile()
     except ValueError as exc:
         raise InvalidInputError(f"robot {robot!r}: MuJoCo refuses the model: {_first_line(exc)}") from None
     ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name) for name in joints + passive]
+    dof = np.array([model.jnt_dofadr[i] for i in ids], dtype=np.intp)
     return MujocoArm(model=model, name=robot, joint_names=joints, passive_joint_names=passive,
                      qpos=np.array([model.jnt_qposadr[i] for i in ids], dtype=np.intp),
-                     dof=np.array([model.jnt_dofadr[i] for i in ids], dtype=np.intp),
-                     effort_limits=limits, urdf=urdf)
+                     dof=dof, effort_limits=limits, urdf=urdf,
+                     urdf_damping=model.dof_damping[dof[:len(joints)]].copy(),
+                     urdf_frictionloss=model.dof_frictionloss[dof[:len(joints)]].copy())
+
+
+def tool_frame(robot: Manipulator) -> str:
+    """The link of the arm's tool frame: a URDF arm's ``ee_frame``, a thesis arm's ``tool0`` (the
+    tip of its last link, its axes)."""
+    return str(getattr(robot, "ee_frame", None) or "tool0")
+
+
+def payload_urdf(urdf: str, frame: str, mass: float, com: ArrayLike) -> str:
+    """The URDF with a point mass of ``mass`` kg fixed at ``com`` (m) in the link ``frame`` (or the
+    child link of the joint ``frame``): a load MuJoCo's parser fuses into the link that carries it,
+    as it fuses every fixed link.
+
+    Raises
+    ------
+    InvalidInputError
+        If the URDF has no link or joint ``frame``, or the mass or position is not finite.
+    """
+    offset = np.asarray(com, dtype=float).reshape(-1)
+    if not (np.isfinite(mass) and mass >= 0.0) or offset.shape != (3,) or not np.all(np.isfinite(offset)):
+        raise InvalidInputError(f"payload: a mass >= 0 kg and 3 finite coordinates (m), got {mass!r}, {com!r}")
+    root = ElementTree.fromstring(urdf)
+    links = {link.get("name") for link in root.iter("link")}
+    parent = frame
+    if frame not in links:
+        joint = next((j for j in root.iter("joint") if j.get("name") == frame), None)
+        child = None if joint is None else joint.find("child")
+        if child is None:
+            raise InvalidInputError(f"payload: the URDF has no link or joint {frame!r} (the tool frame)")
+        parent = str(child.get("link"))
+    name = "pdsmc_payload"
+    while name in links:
+        name += "_"
+    xyz = " ".join(repr(float(v)) for v in offset)
+    joint = ElementTree.SubElement(root, "joint", {"name": f"{name}_joint", "type": "fixed"})
+    ElementTree.SubElement(joint, "parent", {"link": parent})
+    ElementTree.SubElement(joint, "child", {"link": name})
+    ElementTree.SubElement(joint, "origin", {"xyz": xyz, "rpy": "0 0 0"})
+    link = ElementTree.SubElement(root, "link", {"name": name})
+    inertial = ElementTree.SubElement(link, "inertial")
+    ElementTree.SubElement(inertial, "origin", {"xyz": "0 0 0", "rpy": "0 0 0"})
+    ElementTree.SubElement(inertial, "mass", {"value": repr(float(mass))})
+    ElementTree.SubElement(inertial, "inertia", dict.fromkeys(("ixx", "ixy", "ixz", "iyy", "iyz", "izz"), "0"))
+    return ElementTree.tostring(root, encoding="unicode")
+
+
+FRICTION_SOLIMP = (0.9999, 0.9999, 0.001, 0.5, 2.0)
+"""The dry friction's impedance: with MuJoCo's default (0.9) a joint pushed by 90 % of its
+Coulomb friction creeps at a tenth of the acceleration it would have unresisted, over the
+constraint's damping (a UR5 wrist, 0.012 rad/s); at 0.9999 the creep is a ten-thousandth of it
+and the joint sticks, as Coulomb friction holds it (test/sim/test_drive.py)."""
+
+
+def set_friction(arm: MujocoArm, coulomb: ArrayLike, viscous: ArrayLike) -> None:
+    """Give the actuated joints Coulomb and viscous friction (N m, N m s/rad) on top of the
+    description's, in the compiled model (it may change between steps).
+
+    MuJoCo's dry friction (``frictionloss``) is a soft constraint; with its default
+    ``solref_friction`` (0.02 s) it is far from Coulomb friction (the UR5's identified 5 N m read
+    back as 4.3-4.8 N m, its viscous term up to twice what was set); a time constant of two
+    timesteps makes it read back within 2 %, so every actuated joint gets that, and an impedance of
+    :data:`FRICTION_SOLIMP` so that a joint pushed below its friction sticks. A joint's damping is
+    the description's plus ``viscous``.
+    """
+    model = arm.model
+    dof = arm.dof[:arm.n]
+    base_damping = arm.urdf_damping if arm.urdf_damping is not None else np.zeros(arm.n)
+    base_friction = arm.urdf_frictionloss if arm.urdf_frictionloss is not None else np.zeros(arm.n)
+    model.dof_frictionloss[dof] = base_friction + np.asarray(coulomb, dtype=float)
+    model.dof_damping[dof] = base_damping + np.asarray(viscous, dtype=float)
+    model.dof_solref[dof] = [2.0 * float(model.opt.timestep), 1.0]
+    model.dof_solimp[dof] = FRICTION_SOLIMP
 
 
 def _close_five_bar(spec: Any, mujoco: Any, params: Any) -> None:
@@ -255,3 +346,47 @@ def bias_forces(arm: MujocoArm, data: Any) -> FloatArray:
     mujoco.mj_forward(arm.model, data)
     d = arm.dof[:arm.n]
     return np.asarray(data.qfrc_bias[d] - data.qfrc_passive[d], dtype=float)
+
+
+def arm_facts(arm: MujocoArm, robot: Manipulator, rate: float) -> ArmFacts:
+    """What sizing the stand-in's nuisances needs (:class:`~.realism.ArmFacts`): the robot's joint
+    limits (those its controller clamps to), which joints turn, the mass of MuJoCo's moving bodies
+    (those not welded to the world), and the driver's rate."""
+    mujoco = _mujoco()
+    model = arm.model
+    ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name) for name in arm.joint_names]
+    revolute = np.array([model.jnt_type[i] == mujoco.mjtJoint.mjJNT_HINGE for i in ids], dtype=bool)
+    moving = float(np.sum(model.body_mass[model.body_weldid != 0]))
+    return ArmFacts(joint_names=arm.joint_names, effort_limits=np.asarray(robot.effort_limits, dtype=float),
+                    velocity_limits=np.asarray(robot.velocity_limits, dtype=float), revolute=revolute,
+                    moving_mass=moving, rate=float(rate))
+
+
+def build_stand_in(robot: str, *, rate: float, substeps: int = 1, preset: str = "ideal",
+                   given: Mapping[str, Any] | None = None, seed: int = 0, source: Manipulator | None = None,
+                   integrator: str = "rk4") -> tuple[MujocoArm, Realism, ArmFacts]:
+    """The stand-in's MuJoCo model and its nuisances, resolved for the arm (one place for the
+    driver node and the lockstep runs): the model at a step of ``1 / rate / substeps``, the
+    nuisances of ``preset`` with ``given`` replacing theirs (:func:`~.realism.resolve_realism`),
+    the payload in the description and the friction on the joints. Also the facts they were sized
+    from (:func:`arm_facts` of the arm without the payload): what new values are resolved against.
+
+    Raises
+    ------
+    InvalidInputError
+        A robot MuJoCo cannot load; :class:`~.realism.RealismError` for a nuisance refused.
+    """
+    if not (np.isfinite(rate) and rate > 0.0):
+        raise InvalidInputError(f"rate must be > 0 Hz, got {rate!r}")
+    if int(substeps) < 1:
+        raise InvalidInputError(f"substeps must be >= 1, got {substeps!r}")
+    ours = make_robot(resolve_robot(robot)) if source is None else source
+    timestep = 1.0 / rate / int(substeps)
+    arm = build_model(robot, timestep=timestep, integrator=integrator, source=source)
+    facts = arm_facts(arm, ours, rate)
+    realism = resolve_realism(facts, preset, given, seed=seed)
+    if realism.payload_mass > 0.0:
+        arm = build_model(robot, timestep=timestep, integrator=integrator, source=source,
+                          payload=(realism.payload_mass, realism.payload_com))
+    set_friction(arm, realism.friction_coulomb, realism.friction_viscous)
+    return arm, realism, facts

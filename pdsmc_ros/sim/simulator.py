@@ -7,10 +7,12 @@ an in-process run agree to rounding.
 
 from __future__ import annotations
 
+import functools
 import os
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -25,6 +27,9 @@ from ..robots.base import FloatArray, Manipulator
 from ..runs.builder import RunSpec, control_steps
 from .loop import run_loop
 from .stretches import run_in_stretches
+
+if TYPE_CHECKING:
+    from .mujoco_lockstep import StandIn
 
 
 @dataclass(frozen=True)
@@ -52,7 +57,8 @@ class RunResult:
 
 
 def simulate(spec: RunSpec, *, check_stability: bool = True, plant: Manipulator | None = None,
-             initial_error: ArrayLike | None = None, keep_samples: bool = True) -> RunResult:
+             initial_error: ArrayLike | None = None, keep_samples: bool = True,
+             stand_in: StandIn | None = None) -> RunResult:
     """Run the discrete closed loop of ``spec`` and compute its statistics.
 
     Parameters
@@ -70,6 +76,9 @@ def simulate(spec: RunSpec, *, check_stability: bool = True, plant: Manipulator 
         Keep the samples (:attr:`RunResult.samples`). False: the run goes in stretches and keeps
         only what its statistics need (:mod:`.stretches`: the same metrics, memory that no longer
         grows with the reference and the states); its ``samples`` are empty.
+    stand_in : StandIn, optional
+        Run the law against the MuJoCo stand-in of ``plant`` (its nuisances: :mod:`.mujoco_lockstep`)
+        instead of the plant's own dynamics; the statistics are the true arm's.
 
     The law's torque is clamped to the arm's effort limits (``robot.effort_limits``) at every
     step unless ``spec.enforce_limits`` is False; the metrics count the saturated periods. A run
@@ -85,12 +94,13 @@ def simulate(spec: RunSpec, *, check_stability: bool = True, plant: Manipulator 
     """
     start = time.perf_counter()
     robot = plant or spec.robot_model()
+    loop = run_loop if stand_in is None else stand_in.loop(spec.robot, spec.rate, robot)
     if not keep_samples:
         reference = spec.reference()
         control_steps(reference.contour.duration, spec.rate)  # a run too long to hold is refused first
         if check_stability:
             check_rate(spec, reference)
-        metrics, count, outcome = run_in_stretches(spec, robot, reference, initial_error)
+        metrics, count, outcome = run_in_stretches(spec, robot, reference, initial_error, loop=loop)
         return RunResult(spec, Samples.empty(robot.n), metrics, count, time.perf_counter() - start,
                          outcome.diverged, tuple(outcome.warnings))
     reference, refs = _reference_samples(spec)
@@ -100,8 +110,8 @@ def simulate(spec: RunSpec, *, check_stability: bool = True, plant: Manipulator 
     every = spec.sample_every
     q0 = refs[0, 0] if initial_error is None else refs[0, 0] + np.asarray(initial_error, dtype=float)
     limit = effort_only_table(robot.effort_limits, robot.n) if spec.enforce_limits else None
-    out_q, _, out_tau, outcome = run_loop(robot, ControlLaw.from_spec(spec), q0, refs, 1.0 / spec.rate, every,
-                                          limit, every_step=True)
+    out_q, _, out_tau, outcome = loop(robot, ControlLaw.from_spec(spec), q0, refs, 1.0 / spec.rate, every,
+                                      limit, every_step=True)
     t, xy_ref = _task_samples(spec, reference, steps)
     samples = build_samples(robot, reference.contour, t, out_q, refs[::every, 0], out_tau, xy_ref=xy_ref)
     stats = RunStatistics(robot.n, bound=spec.bound, rate=spec.rate)
@@ -164,24 +174,27 @@ def simulate_many(
     workers: int | None = None,
     progress: Callable[[int, int, RunResult], None] | None = None,
     scheduler: str | None = None,
+    stand_in: StandIn | None = None,
 ) -> list[RunResult]:
     """Simulate several runs on the project's one parallel engine (:mod:`pdsmc_ros.sim.engine`):
     a local Dask cluster of ``workers`` processes (default: all cores), or the cluster of
-    ``scheduler`` (``tcp://HOST:PORT``); one worker or one run: in this process."""
+    ``scheduler`` (``tcp://HOST:PORT``); one worker or one run: in this process. ``stand_in``: every
+    run against the MuJoCo stand-in (:func:`simulate`)."""
     from .engine import dask_client, run_tasks
 
     results: list[RunResult | None] = [None] * len(specs)
     workers = min(workers or os.cpu_count() or 1, max(len(specs), 1))
     if scheduler is None and (workers == 1 or len(specs) == 1):
         for i, spec in enumerate(specs):
-            results[i] = simulate(spec)
+            results[i] = simulate(spec, stand_in=stand_in)
             if progress:
                 progress(i + 1, len(specs), results[i])  # type: ignore[arg-type]
         return results  # type: ignore[return-value]
     # longest runs first keeps every worker busy until the end
     order = sorted(range(len(specs)), key=lambda i: -specs[i].contour_model().duration)
     with dask_client(scheduler, workers) as client:
-        tasks = run_tasks(client, simulate, [(specs[i],) for i in order])
+        task = simulate if stand_in is None else functools.partial(simulate, stand_in=stand_in)
+        tasks = run_tasks(client, task, [(specs[i],) for i in order])
         for done, (k, result) in enumerate(tasks, start=1):
             results[order[k]] = result
             if progress:

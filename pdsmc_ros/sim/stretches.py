@@ -12,6 +12,9 @@ bookkeeping (bench/long_run.py).
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import Any
+
 import numpy as np
 from numpy.typing import ArrayLike
 
@@ -31,10 +34,13 @@ inverse kinematics' temporaries and its samples take tens of MB for a six-joint 
 
 def run_in_stretches(spec: RunSpec, robot: Manipulator, reference: JointReference,
                      initial_error: ArrayLike | None = None,
-                     stretch_steps: int | None = None) -> tuple[Metrics, int, LoopOutcome]:
+                     stretch_steps: int | None = None, *,
+                     loop: Callable[..., tuple[Any, ...]] = run_loop) -> tuple[Metrics, int, LoopOutcome]:
     """The statistics of ``spec``'s run on ``robot`` and its loop's outcome, without its samples.
 
-    ``stretch_steps``: control steps a stretch (default :data:`STRETCH_STEPS`).
+    ``stretch_steps``: control steps a stretch (default :data:`STRETCH_STEPS`). ``loop``: the closed
+    loop, :func:`~.loop.run_loop` or one that keeps its plant's state between stretches
+    (:class:`~.mujoco_lockstep.MujocoLoop`).
 
     Returns
     -------
@@ -62,8 +68,8 @@ def run_in_stretches(spec: RunSpec, robot: Manipulator, reference: JointReferenc
         if start == 0:
             q = refs[0, 0] if initial_error is None else refs[0, 0] + np.asarray(initial_error, dtype=float)
             qd = np.zeros(robot.n)
-        out_q, _, out_tau, outcome = run_loop(robot, law, q, refs, h, every, limit, check, qd0=qd, start_step=start,
-                                              advance_last=not last, every_step=True)
+        out_q, _, out_tau, outcome = loop(robot, law, q, refs, h, every, limit, check, qd0=qd, start_step=start,
+                                          advance_last=not last, every_step=True)
         q, qd = outcome.end_q, outcome.end_qd
         total.saturated = [a + b for a, b in zip(total.saturated, outcome.saturated, strict=True)]
         total.warnings += outcome.warnings

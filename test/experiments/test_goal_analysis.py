@@ -52,12 +52,14 @@ def stamp(msg_header, t: float) -> None:  # noqa: ANN001
     msg_header.stamp.sec, msg_header.stamp.nanosec = divmod(T0_NS + int(round(t * 1e9)), 1_000_000_000)
 
 
-def write_bag(path: Path) -> dict:
-    """The synthetic run's bag; returns what the analysis must find."""
+def write_bag(path: Path, *, truth: bool = False) -> dict:
+    """The synthetic run's bag; returns what the analysis must find. ``truth``: the true state beside
+    the measured one, as the MuJoCo stand-in publishes it (the measured one's offset removed)."""
     writer = open_new_bag(str(path))
     store = get_typestore(Stores.ROS2_JAZZY)
     appenders = {}
-    for topic, kind in (("/joint_states", "sensor_msgs/msg/JointState"),
+    topics = (("/mujoco_driver/true_joint_states", "sensor_msgs/msg/JointState"),) if truth else ()
+    for topic, kind in (*topics, ("/joint_states", "sensor_msgs/msg/JointState"),
                         ("/robot_description", "std_msgs/msg/String"),
                         ("/ctl/follow_joint_trajectory/_action/status", "action_msgs/msg/GoalStatusArray"),
                         ("/ctl/follow_joint_trajectory/_action/feedback",
@@ -93,6 +95,11 @@ def write_bag(path: Path) -> dict:
                          effort=effort[k, order].tolist())
         stamp(msg.header, tk)
         put("/joint_states", msg, tk + 0.0005)  # received half a millisecond later
+        if truth:
+            exact = JointState(name=SENT, position=(q[k, order] - OFFSET).tolist(), velocity=qd[k, order].tolist(),
+                               effort=effort[k, order].tolist())
+            exact.header = msg.header
+            put("/mujoco_driver/true_joint_states", exact, tk + 0.0005)
     ids = [bytes([1] * 16), bytes([2] * 16)]
     for i, ((start, span), dq, base, end, final) in enumerate(
             (((g1), MOVE, Q0, 2.2, GoalStatus.STATUS_SUCCEEDED),
@@ -189,3 +196,36 @@ def test_pdsmc_analyze_prints_a_column_per_goal_and_json(bag: Path) -> None:
     bad = subprocess.run([sys.executable, "-m", "pdsmc_ros.cli", "analyze", str(bag), "--settle-band", "-1"],
                          capture_output=True, text=True, timeout=120, cwd=ROOT)
     assert bad.returncode != 0 and "--settle-band" in bad.stderr and "Traceback" not in bad.stderr
+
+
+def test_the_contour_error_comes_from_the_true_state_where_the_bag_has_it(tmp_path: Path) -> None:
+    """The arm follows the goal 10 ms late (on the desired path: no contour error) and its encoder
+    reads 1 mrad off (an offset of the end effector): the true state's contour error is nil, the
+    measured one's is the offset's; each says where it came from."""
+    from pdsmc_ros.experiments.goal_figures import path_distance
+
+    write_bag(tmp_path / "plain")
+    write_bag(tmp_path / "truth", truth=True)
+    measured = analyze_graph_bag(tmp_path / "plain", robot="serial_3r").goals[0]
+    true = analyze_graph_bag(tmp_path / "truth", robot="serial_3r").goals[0]
+    assert measured.contour_from == "/joint_states (the measured state; no true state recorded)"
+    assert true.contour_from == "/mujoco_driver/true_joint_states (the true state)"
+    assert measured.contour_mean is not None and measured.contour_mean > 2e-4
+    # (not quite nil: in its first 10 ms the late arm is where the desired path, drawn from the goal's
+    # first desired sample on, has not been)
+    assert true.contour_mean is not None and true.contour_mean < measured.contour_mean / 100
+    # the measured figure, by brute force over every pair of points on a fine grid
+    model = make_robot("serial_3r")
+    t = np.linspace(1.0, 2.2, 6001)
+    desired = model.position(quintic(t, 1.0, 1.0, Q0, MOVE)[0])
+    actual = model.position(quintic(t - LAG, 1.0, 1.0, Q0, MOVE)[0] + OFFSET)
+    brute = np.sqrt(((actual[:, None, :] - desired[None, :, :]) ** 2).sum(-1)).min(axis=1)
+    assert measured.contour_mean == pytest.approx(brute.mean(), rel=0.05)
+    # path_distance: exact to the polyline's segments (brute force over every segment)
+    a, b = desired[:-1], desired[1:]
+    p = actual[::10, None, :]
+    s = np.clip(((p - a) * (b - a)).sum(-1) / ((b - a) ** 2).sum(-1).clip(1e-300), 0.0, 1.0)
+    exact = np.sqrt(((p - (a + s[..., None] * (b - a))) ** 2).sum(-1)).min(axis=1)
+    np.testing.assert_allclose(path_distance(actual[::10], desired), exact, rtol=1e-9, atol=1e-12)
+    table = goal_table(analyze_graph_bag(tmp_path / "truth", robot="serial_3r"))
+    assert "contour error mean (m)" in table and "from /mujoco_driver/true_joint_states (the true state)" in table

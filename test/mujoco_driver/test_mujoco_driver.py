@@ -185,3 +185,102 @@ def stop_after_exit(proc: subprocess.Popen) -> tuple[int, str]:
     except subprocess.TimeoutExpired:
         return stop(proc)
     return proc.returncode, out
+
+
+class TruthClient(Client):
+    """:class:`Client` that also records ``~/true_joint_states`` and sets the driver's parameters."""
+
+    def __init__(self, domain: int) -> None:
+        super().__init__(domain)
+        from rcl_interfaces.srv import SetParameters
+
+        self.truth: list[LazyState] = []
+        self.node.create_subscription(JointState, "/mujoco_driver/true_joint_states",
+                                      lambda data: self.truth.append(LazyState(data)), 10_000, raw=True)
+        self.setter = self.node.create_client(SetParameters, "/mujoco_driver/set_parameters")
+
+    def set(self, name: str, value: object) -> tuple[bool, str]:
+        from rcl_interfaces.srv import SetParameters
+        from rclpy.parameter import Parameter
+
+        assert self.setter.wait_for_service(timeout_sec=30.0)
+        future = self.setter.call_async(SetParameters.Request(parameters=[Parameter(name, value=value)
+                                                                          .to_parameter_msg()]))
+        end = time.monotonic() + 30.0
+        while not future.done() and time.monotonic() < end:
+            self.executor.spin_once(timeout_sec=0.05)
+        result = future.result().results[0]
+        return result.successful, result.reason
+
+
+@pytest.fixture
+def truth_client(domain_env: tuple[int, dict[str, str]]) -> Iterator[TruthClient]:
+    made = TruthClient(domain_env[0])
+    try:
+        yield made
+    finally:
+        made.close()
+
+
+@pytest.mark.timeout(150)
+def test_bench_publishes_the_encoders_reading_beside_the_truth_and_takes_nuisances_while_running(
+        domain_env: tuple[int, dict[str, str]], truth_client: TruthClient) -> None:
+    client = truth_client
+    proc = start(domain_env[1], "robot:=serial_3r", "realism:=bench", "joint_state_order:=urdf", "seed:=3",
+                 "command_timeout:=0.0")  # the one command held: the arm falls throughout
+    try:
+        client.wait_states(1, timeout=60.0)
+        assert client.states, "no /joint_states from the driver"
+        client.spin_for(0.3)
+        client.command([0.0, 0.0, 0.0])  # the brakes open: the arm falls
+        client.states.clear()
+        client.truth.clear()
+        client.spin_for(0.5)
+        grid = 2 * np.pi / 2**18
+        published = {(m.header.stamp.sec, m.header.stamp.nanosec): positions(m) for _, m in client.states}
+        true = {(m.header.stamp.sec, m.header.stamp.nanosec): np.asarray(m.position) for m in client.truth}
+        common = sorted(set(published) & set(true))
+        assert len(common) > 100, "the truth is not published beside /joint_states, with the same stamps"
+        p = np.array([published[k] for k in common])
+        q = np.array([true[k] for k in common])
+        np.testing.assert_allclose(p / grid, np.round(p / grid), atol=1e-6)  # the encoder's counts
+        assert np.any(np.abs(q / grid - np.round(q / grid)) > 0.01)  # the truth is MuJoCo's exact state
+        assert np.max(np.abs(p - q)) < 5 * grid  # the nearest count of the noisy reading
+        assert np.ptp(q[:, 1]) > 0.01  # it moved
+
+        ok, reason = client.set("friction_coulomb", [-1.0])
+        assert not ok and reason.startswith("parameter friction_coulomb must be"), reason
+        ok, reason = client.set("friction_viscous", [1.0, 2.0])
+        assert not ok and reason == ("parameter friction_viscous needs 3 values, one per joint (or one for every "
+                                     "joint), got 2"), reason
+        ok, reason = client.set("payload_mass", 2.0)
+        assert not ok and "read-only" in reason, reason  # rclpy refuses it (the model MuJoCo compiled)
+        ok, reason = client.set("command_delay", 5)
+        assert ok, reason
+        client.states.clear()
+        client.spin_for(0.3)
+        assert len(client.states) > 0.3 * RATE * 0.3, "the driver stopped publishing after a parameter set"
+        assert proc.poll() is None
+    finally:
+        code, out = stop(proc)
+    assert code == 0, out[-3000:]
+    assert "realism bench" in out and "realism now bench" in out and "command_delay 5" in out, out[-3000:]
+
+
+@pytest.mark.timeout(90)
+@pytest.mark.parametrize(("param", "name"), [
+    ("friction_coulomb:=[-1.0]", "friction_coulomb"),
+    ("encoder_counts:=[0]", "encoder_counts"),
+    ("command_delay:=101", "command_delay"),
+    ("position_noise:=[.nan]", "position_noise"),
+    ("friction_viscous:=[1.0, 2.0]", "friction_viscous"),
+    ("realism:=lab", "realism"),
+])
+def test_a_bad_nuisance_is_one_line_naming_it_and_exit_2(domain_env: tuple[int, dict[str, str]], param: str,
+                                                          name: str) -> None:
+    proc = start(domain_env[1], "robot:=serial_3r", param)
+    code, out = stop_after_exit(proc)
+    assert code == 2, out
+    lines = [line for line in out.splitlines() if line.strip()]
+    assert lines[-1].startswith(f"mujoco_driver: error: parameter {name} "), out
+    assert "Traceback" not in out, out
