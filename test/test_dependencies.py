@@ -12,7 +12,7 @@ edge of their own, or every package re-exporting its modules would be a circle.
 
 Held: no import circle beyond the known ones (:data:`KNOWN_CIRCLES`, each to be removed; a new
 circle, or a known one grown, fails); nothing imports :mod:`pdsmc_ros.cli`; the maths
-(``control/``, ``robots/``, ``trajectories/``, ``sim/``) imports neither the ROS components
+(``control/``, ``robots/``, ``trajectories/``, ``sim/``, ``identification/``) imports neither the ROS components
 (:data:`COMPONENTS`), the plumbing they share (``loop/``, ``ros/``, ``parameters/``), the command
 line nor ROS; ``experiments/`` imports neither the ROS layer nor the command line; the components'
 ROS-free decisions (:data:`ROS_FREE`) import no ROS.
@@ -35,7 +35,7 @@ KNOWN_CIRCLES: set[frozenset[str]] = set()
 KNOWN_UPWARD: set[tuple[str, str]] = set()
 """Imports against the direction still in the package, each (importer, imported)."""
 
-MATHS = ("control", "robots", "trajectories", "sim")
+MATHS = ("control", "robots", "trajectories", "sim", "identification")
 """The ROS-free maths: below everything else."""
 COMPONENTS = ("controller", "plant", "trajectory", "recorder", "mujoco_driver", "viewer", "composed")
 """The ROS components, each its ROS-free decisions and its node."""
