@@ -22,7 +22,7 @@ from .control.registry import SMC_MODEL_KEYS, law, smc_model_vector
 from .errors import ConfigError, InvalidInputError, MissingGainsError
 from .robots import ROBOTS, Manipulator, RobotParams, make_robot, robot_settings
 from .robots.base import FloatArray
-from .robots.catalog import resolve_robot
+from .robots.catalog import resolve_model, resolve_robot
 from .trajectories import Contour, JointReference
 
 __all__ = [
@@ -97,6 +97,9 @@ class RunSpec:
     enforce_limits : bool
         Clamp the controller's torque to the arm's effort limits (``robot.effort_limits``) at
         every step; False opts out (``--no-enforce-limits``, ``enforce_limits:=false``).
+    model : str or None
+        The robot whose model the law knows (``--model``: an identified arm, say), with the same
+        joints as ``robot``; None: ``robot``'s own (the simulated plant stays ``robot``).
     """
 
     robot: str
@@ -115,9 +118,16 @@ class RunSpec:
     segment_duration: float = 2.0
     bound: float = 0.0
     enforce_limits: bool = True
+    model: str | None = None
 
     def __post_init__(self) -> None:
         resolve_robot(self.robot)
+        if self.model is not None:
+            known = make_robot(resolve_model(self.model)).joint_names
+            own = make_robot(resolve_robot(self.robot)).joint_names
+            if tuple(known) != tuple(own):
+                raise ConfigError(f"model {self.model!r} has joints {list(known)}; robot {self.robot!r} has "
+                                  f"{list(own)}: a model of this arm has its joints, in its order")
         law(self.controller)
         for label, value in (("rate", self.rate), ("sample_rate", self.sample_rate)):
             if not np.isfinite(value) or value <= 0.0:
@@ -153,8 +163,10 @@ class RunSpec:
         return make_robot(self.robot, payload=self.payload)
 
     def nominal_model(self) -> Manipulator:
-        """The model the SMC knows: the nominal robot (``tip``: never the payload;
-        ``link_com``: rebuilt with the load on its link)."""
+        """The model the SMC knows: :attr:`model` if given, else the nominal robot (``tip``: never
+        the payload; ``link_com``: rebuilt with the load on its link)."""
+        if self.model is not None:
+            return make_robot(resolve_model(self.model))
         if self.payload_reading == "link_com":
             return make_robot(self.robot, params=loaded_params(self.robot, self.payload))
         return make_robot(self.robot)
@@ -202,6 +214,7 @@ class RunSpec:
             "waypoints_file": self.waypoints_file,
             "segment_duration": self.segment_duration,
             "enforce_limits": self.enforce_limits,
+            **({} if self.model is None else {"model": self.model}),
         }
 
     @classmethod
@@ -225,6 +238,7 @@ class RunSpec:
             segment_duration=float(data.get("segment_duration", 2.0)),
             bound=float(data.get("contour_bound_m", robot_settings(robot).contour_bound)),
             enforce_limits=bool(data.get("enforce_limits", True)),
+            model=data.get("model"),
         )
 
 
@@ -378,6 +392,7 @@ def make_run(
     segment_duration: float = 2.0,
     sample_rate: float | None = None,
     payload_reading: str = "tip",
+    model: str | None = None,
 ) -> RunSpec:
     """The one run builder (the CLI, the nodes, tune, sweep, Monte Carlo and reproduce use it).
 
@@ -385,6 +400,7 @@ def make_run(
     file's gains), then ``overrides`` (explicit ``-p``/``--gain`` values), both in ``joint_order``
     if given (the controller's ``joints``), then the scenario's gain factors; the scenario of
     Section 4.5 also sets the payload and the duration factor. Rates not given are the robot's settings.
+    ``model``: the robot whose model the law knows (:attr:`RunSpec.model`).
     """
     choice(contour, contour_names(robot), f"contour for {robot}")
     settings = robot_settings(robot)
@@ -393,8 +409,8 @@ def make_run(
     resolved = resolve_gains(robot, contour, controller, scenario=scenario, gains=gains,
                              layers=[x for x in (params, overrides) if x], joint_order=joint_order,
                              needs_gains=needs_gains)
-    model = smc_model_default()
-    model.update(smc_model or {})
+    estimate = smc_model_default()
+    estimate.update(smc_model or {})
     return RunSpec(
         robot=robot,
         contour=contour,
@@ -406,11 +422,12 @@ def make_run(
         payload=float(sc.get("payload", 0.0)),
         payload_reading=payload_reading,
         duration_factor=float(sc.get("duration_factor", 1.0)),
-        smc_model=model,
+        smc_model=estimate,
         ellipse_error=ellipse_error,
         waypoints_file=waypoints_file,
         segment_duration=segment_duration,
         bound=settings.contour_bound,
+        model=model,
     )
 
 

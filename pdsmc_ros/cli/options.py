@@ -106,6 +106,13 @@ def add_loop_arguments(p: argparse.ArgumentParser) -> None:
                    help="required rate / lowest stable rate (default 2 in realtime, 1 in lockstep)")
 
 
+def add_model_argument(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--model", default=None, metavar="ROBOT",
+                   help="the arm model the model-based laws use instead of --robot's own, e.g. pdsmc identify's "
+                   "DIR/identified.yaml (or .urdf): the same joints; the simulated arm stays --robot (with "
+                   "--smc-reading exact the laws take it as it is)")
+
+
 def add_run_arguments(p: argparse.ArgumentParser) -> None:
     # robots and laws are checked against their registries when the run is built (importing them here
     # would load numba for every command, --help included)
@@ -135,6 +142,7 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--gain", type=gain_value, action="append", default=None, metavar="NAME=V1,V2,...",
                    help="one gain the law declares (its -p NAME:= parameter), one value per joint; repeat for "
                    "others; replaces the preset's and the params file's, before the scenario's factors")
+    add_model_argument(p)
     p.add_argument("--no-enforce-limits", action="store_true",
                    help="do not clamp the torque to the arm's effort limits (URDF <limit effort>, "
                    "config/robots.yaml); the clamp is on by default")
@@ -179,12 +187,13 @@ def spec_from_args(args: argparse.Namespace) -> RunSpec:
         payload_reading=args.payload_reading,
         params=params,
         overrides=dict(args.gain or ()),
+        model=args.model,
     )
 
 
 RUN_DEFAULTS = {"scenario": "nominal", "rate": None, "smc_reading": "literal", "ellipse_error": "nearest",
                  "waypoints": None, "segment_duration": 2.0, "payload_reading": "tip", "no_enforce_limits": False,
-                 "gain": None}
+                 "gain": None, "model": None}
 """The run arguments montecarlo does not take (its runs are nominal, at the robot's rate)."""
 
 
