@@ -15,7 +15,7 @@ program, solved here by Clarabel (an interior-point conic solver):
    parameters ``pi_0`` (its URDF and options: :attr:`ArmDynamics.nominal`) decide the rest --
    the combinations the torques cannot see. ``W`` weighs each link's parameters by the link's
    scale (its mass, and lengths of the arm) and the payload's, the motor inertias' and the
-   frictions' a million times less: where the data allow, a difference from the URDF is put
+   frictions' a billion times less: where the data allow, a difference from the URDF is put
    on them rather than on the links (the URDF's links are its best knowledge; the payload, the
    motors and the friction are what it does not know).
 2. If no consistent parameters give those base parameters exactly (noise made the estimate
@@ -49,7 +49,7 @@ __all__ = ["MARGIN", "ConsistentFit", "consistent_fit", "is_consistent", "parame
 MARGIN = 1e-6
 """Each link's pseudo-inertia exceeds this share of its scale (a link of mass ``m_s`` and
 size ``L``: ``diag(m_s L^2, m_s L^2, m_s L^2, m_s)``): strictly a body."""
-FREE_WEIGHT = 1e-6
+FREE_WEIGHT = 1e-9
 """The weight of the payload's, motor inertias' and frictions' distance from the arm's own values,
 against the links' (each in its own scale)."""
 PROJECTION_PRIOR = 1e-6
@@ -255,11 +255,31 @@ def consistent_fit(dynamics: ArmDynamics, base: BaseParameters, estimate: BaseEs
         values = projected_values if again is None else again
         projected = True
         shift = float(np.linalg.norm(estimate.root @ (k @ values - estimate.values)))
+    values = _polished(values, dynamics)
     inverse = 1.0 / weights
     middle = k @ (inverse[:, None] * k.T)
     gain = (inverse[:, None] * k.T) @ np.linalg.solve(middle, np.eye(len(middle)))
     covariance = gain @ estimate.covariance @ gain.T
     return ConsistentFit(values, np.sqrt(np.maximum(np.diag(covariance), 0.0)), projected, shift)
+
+
+def _polished(values: FloatArray, dynamics: ArmDynamics) -> FloatArray:
+    """The solver's answer on its constraints' boundary to working precision: a motor inertia or a
+    friction of -1e-12 is 0, the payload's pseudo-inertia's eigenvalues of -1e-11 are 0 (the
+    interior-point solver stops within its tolerance of a boundary it approaches)."""
+    out = values.copy()
+    layout = dynamics.layout
+    for field in JOINT_FIELDS:
+        part = layout.joint_field(field)
+        out[part] = np.maximum(out[part], 0.0)
+    eigenvalues, vectors = np.linalg.eigh(pseudo_inertia(out[layout.payload]))
+    if eigenvalues[0] < 0.0:
+        j = vectors @ np.diag(np.maximum(eigenvalues, 0.0)) @ vectors.T
+        sigma = j[:3, :3]
+        inertia = np.trace(sigma) * np.eye(3) - sigma
+        out[layout.payload] = [j[3, 3], *j[:3, 3], inertia[0, 0], inertia[0, 1], inertia[1, 1], inertia[0, 2],
+                               inertia[1, 2], inertia[2, 2]]
+    return out
 
 
 def _zero(size: int) -> Any:

@@ -56,16 +56,21 @@ class Rows:
     def size(self) -> int:
         return len(self.tau)
 
+    @classmethod
+    def of(cls, regressor: FloatArray, tau: FloatArray, moving: np.ndarray | None = None) -> Rows:
+        """The equations of a regressor ``(k * n, p)`` and efforts ``(k, n)``, leaving out joint
+        ``j``'s at samples where ``moving[s, j]`` is false."""
+        k, n = np.shape(tau)
+        keep = np.ones(k * n, dtype=bool) if moving is None else np.asarray(moving, dtype=bool).reshape(-1)
+        joint = np.tile(np.arange(n), k)
+        return cls(regressor[keep], np.asarray(tau, dtype=float).reshape(-1)[keep], joint[keep])
+
 
 def build_rows(dynamics: ArmDynamics, q: FloatArray, qd: FloatArray, qdd: FloatArray, tau: FloatArray,
                moving: np.ndarray | None = None) -> Rows:
     """The equations of samples ``(k, n)``, leaving out joint ``j``'s at samples where
     ``moving[s, j]`` is false (its velocity reversal: :mod:`.signals`)."""
-    y = dynamics.regressor(q, qd, qdd)
-    n = dynamics.n
-    keep = np.ones(y.shape[0], dtype=bool) if moving is None else np.asarray(moving, dtype=bool).reshape(-1)
-    joint = np.tile(np.arange(n), len(q))
-    return Rows(y[keep], np.asarray(tau, dtype=float).reshape(-1)[keep], joint[keep])
+    return Rows.of(dynamics.regressor(q, qd, qdd), tau, moving)
 
 
 @dataclass(frozen=True)

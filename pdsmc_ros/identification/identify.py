@@ -18,11 +18,11 @@ from numpy.typing import ArrayLike
 from ..robots.base import FloatArray
 from .base import BaseParameters, base_parameters
 from .consistent import ConsistentFit, consistent_fit
-from .estimate import BaseEstimate, build_rows, check_excitation, nrmse, weighted_least_squares
+from .estimate import BaseEstimate, Rows, check_excitation, nrmse, weighted_least_squares
 from .model import ArmDynamics
 from .signals import Prepared, prepare
 
-__all__ = ["Identification", "identify", "prediction_nrmse", "validate"]
+__all__ = ["Identification", "filtered_regressor", "identify", "prediction_nrmse", "validate"]
 
 
 @dataclass(frozen=True)
@@ -36,6 +36,8 @@ class Identification:
     base : BaseParameters
     prepared : Prepared
         The run's samples and how they were made.
+    regressor : ndarray
+        The run's standard regressor, filtered as the efforts (:func:`filtered_regressor`).
     equations : int
         Torque equations fitted (samples times joints, less the dead zones).
     estimate : BaseEstimate
@@ -55,6 +57,7 @@ class Identification:
     dynamics: ArmDynamics
     base: BaseParameters
     prepared: Prepared
+    regressor: FloatArray
     equations: int
     estimate: BaseEstimate
     fit: ConsistentFit
@@ -64,13 +67,27 @@ class Identification:
     seconds: dict[str, float] = field(default_factory=dict)
 
 
-def prediction_nrmse(dynamics: ArmDynamics, parameters: FloatArray, prepared: Prepared) -> FloatArray:
+def filtered_regressor(dynamics: ArmDynamics, prepared: Prepared) -> FloatArray:
+    """The standard regressor of the run, filtered as its efforts are (parallel filtering:
+    :mod:`.signals`), at the kept samples: shape ``(kept * n, p)``, rows as
+    :meth:`ArmDynamics.regressor`'s."""
+    n, p = dynamics.n, dynamics.layout.size
+    q, qd, qdd = prepared.motion()
+    columns = dynamics.regressor(q, qd, qdd).reshape(len(q), n * p)
+    smooth = prepared.smooth(columns).reshape(-1, n, p)
+    steps = prepared.stepped(np.sign(prepared.qd))  # Coulomb friction's sign, from every sample
+    coulomb = dynamics.layout.joint_field("friction_coulomb").start + np.arange(n)
+    smooth[:, np.arange(n), coulomb] = steps
+    out: FloatArray = smooth.reshape(-1, p)
+    return out
+
+
+def prediction_nrmse(regressor: FloatArray, parameters: FloatArray, prepared: Prepared) -> FloatArray:
     """Per joint, the NRMSE (:func:`~.estimate.nrmse`: RMS error over the measured range) of the
-    efforts ``parameters`` predict against the run's: the model's torque at every time of the
-    run, through the same zero-phase filter as the efforts, at every kept sample (velocity
-    reversals included)."""
-    predicted = dynamics.consistent_torque(parameters, prepared.q, prepared.qd, prepared.qdd)
-    return nrmse(prepared.tau[prepared.keep], prepared.filtered(predicted))
+    efforts ``parameters`` predict against the run's, both filtered alike (``regressor``:
+    :func:`filtered_regressor`), at every kept sample (velocity reversals included)."""
+    predicted = (regressor @ parameters).reshape(prepared.tau.shape)
+    return nrmse(prepared.tau, predicted)
 
 
 def identify(dynamics: ArmDynamics, t: ArrayLike, q: ArrayLike, tau: ArrayLike, *, cutoff: float | None = None,
@@ -95,20 +112,20 @@ def identify(dynamics: ArmDynamics, t: ArrayLike, q: ArrayLike, tau: ArrayLike, 
     prepared = prepare(t, q, tau, cutoff=cutoff)
     seconds["filtering"] = time.perf_counter() - began
     began = time.perf_counter()
-    q_k, qd_k, qdd_k, tau_k, moving = prepared.kept()
-    rows = build_rows(dynamics, q_k, qd_k, qdd_k, tau_k, moving)
-    check_excitation(dynamics, base, rows, q_k)
+    regressor = filtered_regressor(dynamics, prepared)
+    rows = Rows.of(regressor, prepared.tau, prepared.moving)
+    check_excitation(dynamics, base, rows, prepared.kept_motion()[0])
     estimate = weighted_least_squares(base, rows, dynamics.n)
     seconds["least squares"] = time.perf_counter() - began
     began = time.perf_counter()
     fit = consistent_fit(dynamics, base, estimate)
     seconds["consistent fit"] = time.perf_counter() - began
     began = time.perf_counter()
-    fitted = prediction_nrmse(dynamics, fit.values, prepared)
-    nominal = prediction_nrmse(dynamics, dynamics.nominal, prepared)
+    fitted = prediction_nrmse(regressor, fit.values, prepared)
+    nominal = prediction_nrmse(regressor, dynamics.nominal, prepared)
     seconds["prediction"] = time.perf_counter() - began
     singular = np.linalg.svd(base.columns(rows.regressor), compute_uv=False)
-    return Identification(dynamics, base, prepared, rows.size, estimate, fit, fitted, nominal,
+    return Identification(dynamics, base, prepared, regressor, rows.size, estimate, fit, fitted, nominal,
                           float(singular[0] / singular[-1]), seconds)
 
 
@@ -118,5 +135,6 @@ def validate(identification: Identification, t: ArrayLike, q: ArrayLike, tau: Ar
     with the identification's cut-off."""
     prepared = prepare(t, q, tau, cutoff=identification.prepared.cutoff)
     dynamics = identification.dynamics
-    nominal = prediction_nrmse(dynamics, dynamics.nominal, prepared)
-    return prediction_nrmse(dynamics, identification.fit.values, prepared), nominal
+    regressor = filtered_regressor(dynamics, prepared)
+    return (prediction_nrmse(regressor, identification.fit.values, prepared),
+            prediction_nrmse(regressor, dynamics.nominal, prepared))

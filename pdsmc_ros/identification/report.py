@@ -115,10 +115,10 @@ def torque_figure(result: Identification, path: str | Path) -> None:
 
     dynamics = result.dynamics
     prepared = result.prepared
-    t = prepared.grid[prepared.keep]
-    fitted = prepared.filtered(dynamics.consistent_torque(result.fit.values, prepared.q, prepared.qd, prepared.qdd))
-    nominal = prepared.filtered(dynamics.consistent_torque(dynamics.nominal, prepared.q, prepared.qd, prepared.qdd))
-    measured = prepared.tau[prepared.keep]
+    t = prepared.t
+    fitted = (result.regressor @ result.fit.values).reshape(prepared.tau.shape)
+    nominal = (result.regressor @ dynamics.nominal).reshape(prepared.tau.shape)
+    measured = prepared.tau
     n = dynamics.n
     fig, axes = plt.subplots(n, 1, figsize=(9, 1.8 * n + 0.6), sharex=True, squeeze=False)
     for j, ax in enumerate(axes[:, 0]):
