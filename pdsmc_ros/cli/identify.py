@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
 from ..arguments import positive_float
@@ -53,7 +52,6 @@ def run(args: argparse.Namespace) -> int:
     held_out = None
     if args.validate:
         held_out = read_joint_states(args.validate, dynamics.layout.joint_names, topic=args.topic)
-    print(f"{args.bag}: {len(recording.t)} joint states over {recording.duration:.3g} s", file=sys.stderr)
     result = identify(dynamics, recording.t, recording.q, recording.tau, cutoff=args.cutoff)
     validation = None
     if held_out is not None:
@@ -73,6 +71,7 @@ def run(args: argparse.Namespace) -> int:
         torque_figure(result, out / "torques.png")
     except OSError as exc:
         raise ConfigError(f"--out {str(out)!r}: cannot write it ({exc.strerror})") from None
+    print(f"{args.bag}: {len(recording.t)} joint states over {recording.duration:.3g} s")
     for line in report_lines(data):
         print(line)
     print("seconds: " + ", ".join(f"{k} {v:.3g}" for k, v in result.seconds.items()))

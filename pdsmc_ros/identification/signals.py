@@ -93,9 +93,10 @@ def uniform(t: ArrayLike, *signals: ArrayLike) -> tuple[FloatArray, float, list[
 def motion_bandwidth(q: FloatArray, rate: float) -> float:
     """The frequency (Hz) below which :data:`BANDWIDTH_ENERGY` of the joint velocities' energy lies
     (all joints together), from the positions' spectrum (a velocity's is ``2 pi f`` times its
-    position's)."""
+    position's). The positions are windowed (Hann) first: a run cut anywhere but at rest would
+    otherwise leak its ends' kinks over the whole spectrum."""
     detrended = q - np.linspace(0.0, 1.0, len(q))[:, None] * (q[-1] - q[0]) - q[0]
-    spectrum = np.fft.rfft(detrended, axis=0)
+    spectrum = np.fft.rfft(detrended * np.hanning(len(q))[:, None], axis=0)
     f = np.fft.rfftfreq(len(q), 1.0 / rate)
     energy = np.sum(np.abs(spectrum) ** 2, axis=1) * f**2
     total = float(energy.sum())
