@@ -123,3 +123,27 @@ def test_filtering_keeps_the_motion_and_finds_its_bandwidth() -> None:
         near[max(r - width + 2, 0): r + width - 1] = True
     assert not np.any(prepared.moving[:, 1][near[k]])
     assert np.mean(prepared.moving[:, 1]) > 0.5
+
+
+@pytest.mark.parametrize(("args", "message"), [
+    (["--robot", "parallel_5r"], "identification needs a serial arm"),
+    (["--robot", "serial_3r", "--excursion", "0.1,0.2"], r"--excursion needs one value or 3"),
+    (["--robot", "serial_3r", "--periods", "200", "--point-rate", "100"], r"a controller takes at most 5000"),
+    (["--robot", "serial_3r", "--share", "1.5"], r"expected a share in \(0, 1\]"),
+    (["--robot", "serial_3r", "--harmonics", "1"], "at least 2 harmonics"),
+])
+def test_excite_refuses_bad_input_in_one_line(tmp_path, capsys, args, message) -> None:  # noqa: ANN001
+    """A value the parser refuses exits 2 from argparse, one the command refuses returns 2: one line
+    each, nothing written."""
+    import re
+
+    from pdsmc_ros.cli import main
+
+    out = tmp_path / "excite"
+    try:
+        code = main(["excite", *args, "--out", str(out)])
+    except SystemExit as exc:
+        code = exc.code
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and re.search(message, err[0]), err
+    assert not out.exists()
