@@ -193,7 +193,8 @@ class Prepared:
 def _to_model_grid(signal: FloatArray, rate: float, model_rate: float, cutoff: float, model_grid: np.ndarray
                    ) -> FloatArray:
     if model_rate >= rate:
-        return signal[model_grid]
+        same: FloatArray = signal[model_grid]
+        return same
     guard = min(ANTI_ALIAS_PER_CUTOFF * cutoff, 0.45 * model_rate)
     out: FloatArray = scipy.signal.sosfiltfilt(_lowpass(guard, rate), signal, axis=0)[model_grid]
     return out
