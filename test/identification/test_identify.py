@@ -132,6 +132,20 @@ def test_the_identified_model_fed_back_to_computed_torque(simulated: dict[str, P
         errors[label] = yaml.safe_load(capsys.readouterr().out)["contour_mean"]
     assert errors["identified"] < errors["urdf"] / 100.0, errors
     assert errors["identified"] < 10.0 * errors["true"] + 1e-6, errors
+    # check-gains and a run's description take it too (the description round-trips it: bags, nodes)
+    capsys.readouterr()
+    assert main(["check-gains", "--robot", "ur5", "--contour", "circle", "--controller", "ctc", "--gain",
+                 "omega_n=30", "--gain", "zeta=1", "--model", str(out / "identified.yaml")]) == 0
+    from pdsmc_ros.presets import RunSpec, make_run
+
+    spec = make_run("ur5", "circle", "ctc", gains=None, overrides={"omega_n": [30.0], "zeta": [1.0]},
+                    model=str(out / "identified.yaml"))
+    again = RunSpec.from_description(spec.describe())
+    assert again.model == spec.model
+    np.testing.assert_allclose(again.nominal_model().arm.armature, yaml.safe_load(
+        (out / "identified.yaml").read_text())["armature"])
+    assert main(["simulate", "--robot", "ur5", "--contour", "circle", "--controller", "ctc", "--model", "panda"]) == 2
+    assert "a model of this arm has its joints" in capsys.readouterr().err
 
 
 def joint_states(where: Path, name: str, dynamics: ArmDynamics, *, seconds: float = 24.0, efforts: bool = True,
