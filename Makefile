@@ -53,8 +53,8 @@ $(STAMP): $(DEPS_STAMP) $(SOURCES) | $(INTERFACES_STAMP)
 	@# kernel per source file path, so the installed copy (console scripts, nodes: -P keeps the
 	@# clone off sys.path) and the clone's tree (`python -m` from here, the tests) are compiled
 	@# each, side by side on two cores
-	@$(PY) -m pdsmc_ros.precompile & tree=$$!; status=0; \
-	  $(PY) -P -m pdsmc_ros.precompile || status=$$?; wait $$tree || status=$$?; exit $$status
+	@$(PY) -m pdsmc_ros.kernels.precompile & tree=$$!; status=0; \
+	  $(PY) -P -m pdsmc_ros.kernels.precompile || status=$$?; wait $$tree || status=$$?; exit $$status
 	@# ament layout: executables under <prefix>/lib/<package>, as colcon installs them
 	@mkdir -p $(VENV)/lib/pdsmc_ros
 	@for exe in $(EXECUTABLES); do ln -sf ../../bin/$$exe $(VENV)/lib/pdsmc_ros/$$exe; done
@@ -63,7 +63,7 @@ $(STAMP): $(DEPS_STAMP) $(SOURCES) | $(INTERFACES_STAMP)
 	@touch $(STAMP)
 
 demo: setup
-	$(PY) -m pdsmc_ros.demo
+	$(PY) -m pdsmc_ros.cli.demo
 
 test: setup
 	$(PY) -m pytest -q --durations=20 test
@@ -71,7 +71,7 @@ test: setup
 # the thesis-style comparison figures the README shows: the demo's three runs over DDS, analysed
 figures: setup
 	rm -rf bags/figures bags/figures-analysis
-	$(PY) -m pdsmc_ros.demo --out bags/figures
+	$(PY) -m pdsmc_ros.cli.demo --out bags/figures
 	$(PY) -m pdsmc_ros.cli analyze bags/figures --plots --out bags/figures-analysis
 	mkdir -p docs/figures
 	cp bags/figures-analysis/serial_3r_circle_*.png docs/figures/

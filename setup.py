@@ -50,7 +50,7 @@ setup(
     entry_points={
         "console_scripts": [
             "pdsmc = pdsmc_ros.cli:main",
-            "ros2 = pdsmc_ros.ros2:main",
+            "ros2 = pdsmc_ros.cli.ros2:main",
             "plant = pdsmc_ros.plant.node:main",
             "trajectory = pdsmc_ros.trajectory.node:main",
             "controller = pdsmc_ros.controller.node:main",

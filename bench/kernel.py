@@ -28,9 +28,9 @@ from numba import njit
 
 from pdsmc_ros.control import ControlLaw
 from pdsmc_ros.control.registry import KD, KP, KS, LAM, PHI
-from pdsmc_ros.presets import make_run
 from pdsmc_ros.robots import parallel_5r_kernels as five_bar
 from pdsmc_ros.robots import serial_3r as serial
+from pdsmc_ros.runs.builder import make_run
 from pdsmc_ros.sim.loop import closed_loop
 from pdsmc_ros.sim.simulator import _reference_samples
 

@@ -30,10 +30,10 @@ from numba import njit
 from pdsmc_ros.control import ControlLaw
 from pdsmc_ros.control.law import law_torque
 from pdsmc_ros.control.soft_limits import effort_only_table
-from pdsmc_ros.presets import make_run
 from pdsmc_ros.robots import compiled as robot_compiled
 from pdsmc_ros.robots.parallel_5r_kernels import PARALLEL_5R
 from pdsmc_ros.robots.serial_3r import SERIAL_3R
+from pdsmc_ros.runs.builder import make_run
 from pdsmc_ros.sim.divergence import DivergenceCheck
 from pdsmc_ros.sim.loop import _CLOSED_LOOPS
 from pdsmc_ros.sim.rk4 import carve, rk4_advance

@@ -20,7 +20,7 @@ import sys
 
 CHILD = """
 import dataclasses, json, resource, sys, time
-from pdsmc_ros.presets import make_run
+from pdsmc_ros.runs.builder import make_run
 from pdsmc_ros.sim import simulate
 seconds, keep = float(sys.argv[1]), sys.argv[2] == "keep"
 spec = make_run("ur5", "circle", "pdsmc")

@@ -24,8 +24,8 @@ import statistics
 import sys
 import time
 
-from pdsmc_ros.engine import dask_client, keep_freed_memory, run_tasks
 from pdsmc_ros.experiments.montecarlo import base_specs, load_uncertainty, run_sample
+from pdsmc_ros.sim.engine import dask_client, keep_freed_memory, run_tasks
 
 ROBOT, CONTOUR, CONTROLLERS = "parallel_5r", "circle", ("pd", "smc", "pdsmc")
 

@@ -102,8 +102,8 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--no-dds", action="store_true", help="skip the lockstep run over DDS")
     args = parser.parse_args()
-    from pdsmc_ros.presets import make_run
     from pdsmc_ros.resources import config_dir
+    from pdsmc_ros.runs.builder import make_run
 
     serial = str(config_dir() / "urdf" / "serial_3r.urdf")
     figures = {}

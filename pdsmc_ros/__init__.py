@@ -1,9 +1,11 @@
 """pdsmc_ros: PD, SMC and hybrid PD-SMC control of robotic manipulators on ROS 2.
 
-The maths (``control``, ``robots``, ``trajectories``, ``sim``) and the modules directly under
-this package are ROS-free numpy code; each ROS component is a folder holding its ROS-free
-decisions beside its thin rclpy wiring (``controller``, ``plant``, ``trajectory``, ``recorder``,
-``mujoco_driver``, ``viewer``), on the shared ``loop``, ``ros`` and ``parameters`` plumbing.
+The maths (``robots``, ``contours``, ``control``, ``metrics``, ``sim``), the settings
+(``parameters``) and the run (``runs``) are ROS-free numpy code; each ROS component is a folder
+holding its ROS-free decisions beside its thin rclpy wiring (``controller``, ``plant``,
+``trajectory``, ``recorder``, ``mujoco_driver``, ``viewer``), on the shared ``loop`` and ``ros``
+plumbing; the modules directly under this package are the foundation every layer uses. The layers
+and their rules: docs/explanation/architecture.md, test/test_dependencies.py.
 """
 
 from __future__ import annotations
@@ -17,7 +19,7 @@ __version__ = "0.1.0"
 
 def _venv_kernel_cache() -> None:
     """numba's kernel cache in the venv (``<prefix>/numba-cache``, which ``make setup`` fills:
-    :mod:`pdsmc_ros.precompile`) unless ``NUMBA_CACHE_DIR`` names another.
+    :mod:`pdsmc_ros.kernels.precompile`) unless ``NUMBA_CACHE_DIR`` names another.
 
     Without it a command run as ``.venv/bin/pdsmc`` or from a script, with no ``make`` around it,
     compiled every kernel again into the installed package's ``__pycache__`` instead of loading

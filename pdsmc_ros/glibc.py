@@ -1,7 +1,7 @@
 """The C library from Python: its handle (``mlockall``, :mod:`pdsmc_ros.loop.realtime`) and glibc's
 allocator settings (``mallopt``, <malloc.h>), for the processes that tune it.
 
-The Monte Carlo workers (:func:`pdsmc_ros.engine.keep_freed_memory`) and a real-time loop with
+The Monte Carlo workers (:func:`pdsmc_ros.sim.engine.keep_freed_memory`) and a real-time loop with
 its memory locked (:func:`pdsmc_ros.loop.realtime.reserve_memory`) ask glibc to keep freed
 memory instead of returning it to the system. Another C library: nothing is set.
 """

@@ -1,4 +1,4 @@
-"""The engine's allocator setting (pdsmc_ros/engine.py keep_freed_memory): a worker that allocates
+"""The engine's allocator setting (pdsmc_ros/sim/engine.py keep_freed_memory): a worker that allocates
 and frees a run's arrays again and again takes its pages from the heap, not fresh from the kernel."""
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ import pytest
 CHILD = """
 import resource
 import numpy as np
-from pdsmc_ros.engine import keep_freed_memory
+from pdsmc_ros.sim.engine import keep_freed_memory
 
 def faults_of_runs(count):
     before = resource.getrusage(resource.RUSAGE_SELF).ru_minflt

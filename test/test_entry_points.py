@@ -21,8 +21,8 @@ from conftest import next_domain
 
 from pdsmc_ros.errors import ConfigError, InvalidInputError
 from pdsmc_ros.experiments.analysis import find_bags
-from pdsmc_ros.presets import MAX_CONTROL_STEPS, control_steps
 from pdsmc_ros.resources import config_dir, data_root, ros_environment, script_path
+from pdsmc_ros.runs.builder import MAX_CONTROL_STEPS, control_steps
 
 BIN = Path(sys.prefix) / "bin"
 
@@ -107,11 +107,15 @@ def test_pdsmc_commands_in_a_clean_environment(tmp_path: Path) -> None:
     helps = [run([str(BIN / name), "--help"], tmp_path) for name in ("ros2", "pdsmc", "analyze")]
     assert all(h.returncode == 0 for h in helps), [h.stderr for h in helps]
     # numbers beyond what a run holds: one line, exit 2, nothing allocated
+    long = tmp_path / "report" / "long.csv"  # one 1000 s segment: at 1 MHz, 1e9 steps
+    long.write_text("x,y\n0.10,0.18\n0.11,0.18\n")
     for argv, needle in (
         (["simulate", "--robot", "serial_3r", "--contour", "circle", "--controller", "pd", "--rate", "1e12"],
-         "a run holds at most 10,000,000"),
+         "--rate: expected a number in [0, 1e+06]"),  # the run table's bounds, as the nodes' rate parameter
         (["simulate", "--robot", "serial_3r", "--contour", "circle", "--controller", "pd", "--rate", "1e308"],
-         "a run holds at most"),
+         "--rate: expected a number in [0, 1e+06]"),
+        (["simulate", "--robot", "parallel_5r", "--contour", "csv", "--waypoints", "report/long.csv",
+          "--segment-duration", "1000", "--controller", "pd", "--rate", "1000000"], "a run holds at most 10,000,000"),
         (["sweep", "--param", "kp", "--robot", "serial_3r", "--contour", "zigzag", "--workers", "100000"],
          "at most 256 processes"),
         (["analyze", "no_such_bag"], "does not exist"),
@@ -169,7 +173,7 @@ def test_demo_hint_pasted_verbatim(tmp_path: Path) -> None:
     """A short demo from an empty directory, clean environment; its printed analyze command works."""
     installed()
     env = {"ROS_DOMAIN_ID": str(next_domain())}
-    demo = run([str(BIN / "python"), "-m", "pdsmc_ros.demo", "--duration-factor", "0.02",
+    demo = run([str(BIN / "python"), "-m", "pdsmc_ros.cli.demo", "--duration-factor", "0.02",
                 "--out", "demo"], tmp_path, timeout=540, **env)
     assert demo.returncode == 0, demo.stdout + demo.stderr
     hint = [line for line in demo.stdout.splitlines() if "analyse again with: " in line]

@@ -134,7 +134,7 @@ def test_a_recorded_runaway_torque_or_state_is_found() -> None:
 
 def unstable_serial_run():  # noqa: ANN201
     """The serial arm's PD with gains x300 at 1 kHz: far past the stability check (opted out)."""
-    from pdsmc_ros.presets import make_run
+    from pdsmc_ros.runs.builder import make_run
 
     spec = make_run("serial_3r", "circle", "pd", rate=1000.0)
     return dataclasses.replace(spec, gains=spec.gains.scaled({"kp": 300.0, "kd": 300.0}))

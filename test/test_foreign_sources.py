@@ -26,7 +26,7 @@ from conftest import next_domain, stop_process
 from pdsmc_ros.control import ControlLaw, Gains
 from pdsmc_ros.control.stability import check_rate
 from pdsmc_ros.errors import UnstableRateError
-from pdsmc_ros.presets import make_run
+from pdsmc_ros.runs.builder import make_run
 
 pytest.importorskip("rclpy")
 import rclpy.clock  # noqa: E402

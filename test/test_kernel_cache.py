@@ -1,7 +1,7 @@
 """The numba kernel cache after a fresh install (issue 25, item 4): the first command (make
 setup's precompile) compiles, every later one loads what it compiled -- other laws' runs too.
 
-The refresh (pdsmc_ros.kernel_cache) used to record its marker only in cache directories that
+The refresh (pdsmc_ros.kernels.cache) used to record its marker only in cache directories that
 already existed; numba creates them on the first compile, so the second command found the
 first one's kernels unmarked, deleted them and compiled again.
 """
@@ -17,7 +17,7 @@ from pathlib import Path
 import pytest
 from conftest import ROOT
 
-from pdsmc_ros import kernel_cache
+from pdsmc_ros.kernels import cache as kernel_cache
 
 COMMAND = (sys.executable, "-m", "pdsmc_ros.cli", "simulate", "--robot", "serial_3r", "--contour", "circle",
            "--controller", "pdsmc")
@@ -61,7 +61,7 @@ def test_refresh_marks_directories_numba_has_not_created_yet(tmp_path: Path,
 def test_after_the_first_command_every_command_loads_its_kernels_without_compiling(tmp_path: Path) -> None:
     cache = tmp_path / "numba-cache"  # empty, as after an install
     # the first command: make setup's precompile (of one robot, for time)
-    first = run(cache, [sys.executable, "-m", "pdsmc_ros.precompile", "--robots", "serial_3r"])
+    first = run(cache, [sys.executable, "-m", "pdsmc_ros.kernels.precompile", "--robots", "serial_3r"])
     assert "[cache] data saved" in first  # it compiled and wrote its kernels
     compiled = kernel_files(cache)
     assert compiled, f"numba cached nothing in {cache}"

@@ -1,4 +1,4 @@
-"""Every compiled function of the package names its numba runtime option (pdsmc_ros.kernel_options).
+"""Every compiled function of the package names its numba runtime option (pdsmc_ros.kernels.options).
 
 A function that names none is compiled with the option of the first compiled caller that calls it:
 under the closed loop (compiled without numba's runtime) a law written in Python would hand its
@@ -16,7 +16,8 @@ import sys
 from conftest import ROOT
 from numba.core.registry import CPUDispatcher
 
-from pdsmc_ros import kernel_cache, kernel_options
+from pdsmc_ros.kernels import cache as kernel_cache
+from pdsmc_ros.kernels import options as kernel_options
 
 
 def _module_name(path) -> str:  # noqa: ANN001
@@ -68,7 +69,7 @@ sys.path.insert(0, "test/control")
 from law_readings import pdsmc_reading
 from pdsmc_ros.control import ControlLaw, LawEntry, register_law
 from pdsmc_ros.control.laws import pdsmc_linear_gains
-from pdsmc_ros.presets import make_run
+from pdsmc_ros.runs.builder import make_run
 from pdsmc_ros.sim import simulate
 
 base = make_run("serial_3r", "circle", "pdsmc")

@@ -20,8 +20,8 @@ import yaml
 from pdsmc_ros import cli
 from pdsmc_ros.control import GAINS, GainSpec, LawEntry, LawSetup, gain_names, law, register_law, unregister_law
 from pdsmc_ros.errors import ConfigError
-from pdsmc_ros.presets import make_run
 from pdsmc_ros.robots.base import FloatArray
+from pdsmc_ros.runs.builder import make_run
 from pdsmc_ros.sim import simulate
 
 KG = GainSpec("kg", "share of the nominal model's gravity compensated", "1", per_joint=False, upper=1.0, start=1.0)
@@ -110,7 +110,7 @@ def test_the_controller_node_declares_and_takes_it(pd_g: None) -> None:  # noqa:
     from rclpy.parameter import Parameter
 
     from pdsmc_ros.controller.parameters import GainUpdates
-    from pdsmc_ros.parameters.run import declare_run_parameters, run_spec_from_parameters
+    from pdsmc_ros.ros.node_run import declare_run_parameters, run_spec_from_parameters
 
     context = rclpy.context.Context()
     rclpy.init(context=context)

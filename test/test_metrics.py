@@ -1,4 +1,4 @@
-"""RunStatistics (pdsmc_ros/metrics.py, metrics_kernel.py): the thesis statistics and the scores,
+"""RunStatistics (pdsmc_ros/metrics/statistics.py, metrics_kernel.py): the thesis statistics and the scores,
 accumulated instant by instant, against numpy's reading of the same definitions over the whole
 arrays (docs/THESIS_NOTES.md section 4, docs/SCORES.md), and the same numbers however the instants
 are split into blocks."""
@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from pdsmc_ros.errors import InvalidInputError
-from pdsmc_ros.metrics import RunStatistics
-from pdsmc_ros.scores import high_frequency_power
+from pdsmc_ros.metrics.scores import high_frequency_power
+from pdsmc_ros.metrics.statistics import RunStatistics
 
 RATE = 500.0
 BOUND = 0.8
@@ -148,7 +148,7 @@ def test_without_a_rate_there_are_no_scores_and_bad_input_is_one_line() -> None:
 def test_a_long_run_averages_the_spectrum_of_fixed_segments() -> None:
     """Over SPECTRUM_SEGMENT applied periods the share is Welch's: each segment's power per step,
     summed; the segments start at fixed steps, so the split of the steps does not matter."""
-    from pdsmc_ros import metrics
+    from pdsmc_ros.metrics import statistics as metrics
 
     steps = 2 * metrics.SPECTRUM_SEGMENT + 5_001
     t = np.arange(steps) / 10_000.0

@@ -15,11 +15,12 @@ from pdsmc_ros.cli import main as pdsmc
 from pdsmc_ros.control.gains import Gains
 from pdsmc_ros.control.stability import RK4_REAL_LIMIT, plant_step
 from pdsmc_ros.errors import ConfigError
-from pdsmc_ros.experiments.tuning import tune, write_params_file
-from pdsmc_ros.presets import make_run
+from pdsmc_ros.experiments.tuning import tune
+from pdsmc_ros.parameters.params_file import write_params_file
 from pdsmc_ros.robots import make_robot
 from pdsmc_ros.robots.catalog import example_robot_data_dir, resolve_robot
 from pdsmc_ros.robots.options import robot_key
+from pdsmc_ros.runs.builder import make_run
 
 GAINS = {"kp": [400.0, 400.0, 200.0, 20.0], "kd": [20.0, 20.0, 10.0, 1.0]}
 

@@ -11,12 +11,12 @@ from collections.abc import Iterator
 import numpy as np
 import pytest
 
-from pdsmc_ros import settings
 from pdsmc_ros.control import GainSpec, LawEntry, LawSetup, register_law, unregister_law
 from pdsmc_ros.errors import ConfigError
 from pdsmc_ros.parameters import NODES, ParameterSpec, catalog, gain_parameters, node_parameters
+from pdsmc_ros.parameters import params_file as settings
 from pdsmc_ros.parameters.tables import MAX_LOOKAHEAD_STEPS
-from pdsmc_ros.presets import make_run, resolve_gains
+from pdsmc_ros.runs.builder import make_run, resolve_gains
 
 ODD_VALUES = [None, True, False, 0, -1, 3, 2.5, math.nan, math.inf, -math.inf, 1e308, "", "abc", b"\x01",
               [], [True], [True] * 6, [1, 2], [1.0], [1e308] * 6, [math.nan] * 3, ["a"], [[1.0]], {"a": 1},

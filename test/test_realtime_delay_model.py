@@ -16,9 +16,9 @@ from pdsmc_ros.control.stability import (
     spectral_radius,
     tolerated_delay,
 )
-from pdsmc_ros.presets import make_run
 from pdsmc_ros.robots import make_robot
 from pdsmc_ros.robots.catalog import resolve_robot
+from pdsmc_ros.runs.builder import make_run
 
 ARMS = ("ur5", "panda")
 LAWS = ("pd", "smc", "pdsmc")

@@ -25,7 +25,6 @@ from pdsmc_ros.control import (
 )
 from pdsmc_ros.control.laws import pd_linear_gains
 from pdsmc_ros.errors import ConfigError
-from pdsmc_ros.presets import make_run
 from pdsmc_ros.robots import (
     Manipulator,
     PlanarChain,
@@ -36,6 +35,7 @@ from pdsmc_ros.robots import (
     unregister_robot,
 )
 from pdsmc_ros.robots.base import FloatArray, diag
+from pdsmc_ros.runs.builder import make_run
 from pdsmc_ros.sim import simulate
 
 TOY_CONFIG = {

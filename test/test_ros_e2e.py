@@ -13,8 +13,8 @@ import pytest
 from conftest import node_log_tails
 
 from pdsmc_ros.bag.reader import read_run, run_metrics
-from pdsmc_ros.presets import make_run
-from pdsmc_ros.scores import SCORE_NAMES
+from pdsmc_ros.metrics.scores import SCORE_NAMES
+from pdsmc_ros.runs.builder import make_run
 from pdsmc_ros.sim import simulate
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -71,7 +71,7 @@ def test_lockstep_run_equals_in_process_simulation(ros_env: dict, tmp_path: Path
     assert np.max(np.abs(run.tau[::every] - sim.samples.tau)) <= 1e-9
     recorded = run_metrics(run)
     assert recorded.contour_mean == pytest.approx(sim.metrics.contour_mean, rel=1e-9)
-    # the scores (from every step: pdsmc_ros/scores.py) of the bag are the in-process run's
+    # the scores (from every step: pdsmc_ros/metrics/scores.py) of the bag are the in-process run's
     for name in SCORE_NAMES:
         assert len(getattr(sim.metrics, name)) == 3, name
         assert getattr(recorded, name) == pytest.approx(getattr(sim.metrics, name), rel=1e-9, abs=0), name
@@ -359,7 +359,7 @@ def test_a_ur5_with_tuned_gains_over_dds_equals_in_process(ros_env: dict, tmp_pa
     example-robot-data with it, and the bag is the in-process run with those gains."""
     import sys
 
-    from pdsmc_ros.experiments.tuning import read_params_file
+    from pdsmc_ros.parameters.params_file import read_gains
 
     params = tmp_path / "ur5_pd.yaml"
     tuned = subprocess.run([sys.executable, "-m", "pdsmc_ros.cli", "tune", "--robot", "ur5", "--contour", "circle",
@@ -368,7 +368,7 @@ def test_a_ur5_with_tuned_gains_over_dds_equals_in_process(ros_env: dict, tmp_pa
     assert tuned.returncode == 0, tuned.stderr
     # the run count depends on how many candidates the real-time check refuses (now 10, 3 refused)
     assert re.search(r"ur5/circle/pd at 1000 Hz: contour error mean \S+ m \(start \S+ m\) after \d+ runs", tuned.stdout)
-    gains = read_params_file(params, 6, "pd")
+    gains = read_gains(params, 6, "pd")
     out = tmp_path / "ur5"
     proc = run_experiment(ros_env, out, "--robot", "ur5", "--contour", "circle", "--controller", "pd",
                           "--duration-factor", "0.4", "--params-file", str(params))

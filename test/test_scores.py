@@ -1,4 +1,4 @@
-"""Scores beside the errors (pdsmc_ros/scores.py, docs/SCORES.md): properties of each formula,
+"""Scores beside the errors (pdsmc_ros/metrics/scores.py, docs/SCORES.md): properties of each formula,
 and the scores of a simulated run."""
 
 from __future__ import annotations
@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from pdsmc_ros.errors import InvalidInputError
-from pdsmc_ros.metrics import compute_scores
-from pdsmc_ros.scores import DEFAULT_CUTOFF_HZ, high_frequency_power
+from pdsmc_ros.metrics.scores import DEFAULT_CUTOFF_HZ, high_frequency_power
+from pdsmc_ros.metrics.statistics import compute_scores
 
 RATE = 1000.0
 
@@ -100,7 +100,7 @@ def test_a_simulated_run_carries_the_scores_of_its_control_steps() -> None:
 
     from pdsmc_ros.control import ControlLaw
     from pdsmc_ros.control.soft_limits import effort_only_table
-    from pdsmc_ros.presets import make_run
+    from pdsmc_ros.runs.builder import make_run
     from pdsmc_ros.sim import simulate
     from pdsmc_ros.sim.loop import run_loop
     from pdsmc_ros.sim.simulator import _reference_samples

@@ -13,13 +13,13 @@ import yaml
 from conftest import next_domain
 
 from pdsmc_ros.errors import ConfigError
-from pdsmc_ros.presets import make_run, scenario_names
+from pdsmc_ros.runs.builder import make_run, scenario_names
 
 rclpy = pytest.importorskip("rclpy")
 from rclpy.parameter import Parameter  # noqa: E402
 
 from pdsmc_ros.control import Gains  # noqa: E402
-from pdsmc_ros.parameters.run import declare_run_parameters, run_spec_from_parameters  # noqa: E402
+from pdsmc_ros.ros.node_run import declare_run_parameters, run_spec_from_parameters  # noqa: E402
 
 GIVEN = {"kp": [300.0, 200.0], "kd": [20.0, 30.0], "ks": [1.5, 2.0], "lam": [10.0, 12.0], "phi": [0.4, 0.5]}
 
@@ -164,7 +164,7 @@ def test_the_controller_refuses_gains_unstable_in_real_time_advising_the_paramet
 def test_the_cli_knows_every_parameter_the_controller_declares(ros_env: dict) -> None:
     """The controller's table (settings.CONTROLLER_PARAMETERS and the laws' gains: what pdsmc --params-file
     accepts without ROS) is what the node declares."""
-    from pdsmc_ros.settings import ALWAYS_DECLARED, CONTROLLER_PARAMETERS
+    from pdsmc_ros.parameters.params_file import ALWAYS_DECLARED, CONTROLLER_PARAMETERS
 
     env = {**ros_env, "ROS_DOMAIN_ID": str(next_domain())}
     script = ("import sys, rclpy\n"

@@ -11,7 +11,7 @@ import yaml
 
 from pdsmc_ros.control import gain_names
 from pdsmc_ros.errors import ConfigError
-from pdsmc_ros.settings import CONTROLLER_PARAMETERS, node_parameters, section_matches, unknown_parameter
+from pdsmc_ros.parameters.params_file import CONTROLLER_PARAMETERS, node_parameters, section_matches, unknown_parameter
 
 DECLARED = CONTROLLER_PARAMETERS + gain_names()
 """What the controller declares: the settings' names and every registered law's gains."""

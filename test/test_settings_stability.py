@@ -16,7 +16,7 @@ from pdsmc_ros.control.stability import (
     spectral_radius,
 )
 from pdsmc_ros.errors import InvalidInputError, UnstableRateError
-from pdsmc_ros.presets import make_run
+from pdsmc_ros.runs.builder import make_run
 
 MASS = np.array([[0.8, 0.15], [0.15, 0.2]])
 KP = np.diag([4000.0, 900.0])

@@ -9,18 +9,18 @@ import sys
 import numpy as np
 import pytest
 
-from pdsmc_ros.control import ControlLaw
-from pdsmc_ros.errors import ConfigError, UnreachableError, UnstableRateError
-from pdsmc_ros.metrics import Samples, compute_metrics, sample_times
-from pdsmc_ros.presets import build_contour, make_run
-from pdsmc_ros.robots import Serial3R, compiled
-from pdsmc_ros.sim import PlantStepper, simulate
-from pdsmc_ros.trajectories import (
+from pdsmc_ros.contours import (
     EllipseContour,
     SegmentContour,
     ellipse_distance,
     quintic,
 )
+from pdsmc_ros.control import ControlLaw
+from pdsmc_ros.errors import ConfigError, UnreachableError, UnstableRateError
+from pdsmc_ros.metrics.statistics import Samples, compute_metrics, sample_times
+from pdsmc_ros.robots import Serial3R, compiled
+from pdsmc_ros.runs.builder import build_contour, make_run
+from pdsmc_ros.sim import PlantStepper, simulate
 
 
 # --------------------------------------------------------------------------- #
@@ -340,7 +340,7 @@ def test_cli_simulate_json_has_documented_keys() -> None:
         ),
         (
             ["--robot", "serial_3r", "--contour", "circle", "--controller", "pd", "--rate", "abc"],
-            "expected a positive number",
+            "--rate: expected a number in [0, 1e+06]",
         ),
         (["--robot", "serial_3r", "--contour", "circle", "--controller", "pd", "--rate", "9999"], "whole multiple"),
     ],

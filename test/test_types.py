@@ -12,15 +12,16 @@ import pytest
 ROOT = Path(__file__).resolve().parent.parent
 # the core: everything but the rclpy nodes and the command-line front ends
 CORE = ["pdsmc_ros/bag", "pdsmc_ros/robots", "pdsmc_ros/control", "pdsmc_ros/sim",
-        "pdsmc_ros/config.py", "pdsmc_ros/errors.py", "pdsmc_ros/metrics.py",
-        "pdsmc_ros/presets.py", "pdsmc_ros/trajectories", "pdsmc_ros/urdf.py",
-        "pdsmc_ros/engine.py", "pdsmc_ros/viewer/live_view.py",
-        "pdsmc_ros/kernel_cache.py", "pdsmc_ros/settings.py",
+        "pdsmc_ros/config.py", "pdsmc_ros/errors.py", "pdsmc_ros/metrics/statistics.py",
+        "pdsmc_ros/runs", "pdsmc_ros/contours", "pdsmc_ros/viewer/live_view.py",
+        "pdsmc_ros/kernels/cache.py", "pdsmc_ros/parameters/params_file.py", "pdsmc_ros/parameters/run_table.py",
+        "pdsmc_ros/parameters/joint_map.py",
         # the components' ROS-free decisions
         *(f"pdsmc_ros/controller/{m}.py" for m in ("core", "commanding", "goals", "joint_trajectory", "hold",
-                                                   "joints", "joint_map", "limits", "warm")),
+                                                   "joints", "limits", "warm")),
         "pdsmc_ros/trajectory/reference_windows.py", "pdsmc_ros/loop/realtime.py", "pdsmc_ros/loop/statistics.py",
-        "pdsmc_ros/resources.py", "pdsmc_ros/scores.py", "pdsmc_ros/experiments", "pdsmc_ros/identification"]
+        "pdsmc_ros/resources.py", "pdsmc_ros/metrics/scores.py", "pdsmc_ros/experiments",
+        "pdsmc_ros/identification"]
 
 
 def mypy() -> list[str]:

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from pdsmc_ros.bag.reader import read_run
-from pdsmc_ros.presets import make_run
+from pdsmc_ros.runs.builder import make_run
 from pdsmc_ros.sim import simulate
 from pdsmc_ros.viewer.live_view import CHANNELS, LiveView
 

@@ -18,7 +18,7 @@ import yaml
 from pdsmc_ros.control.gains import Gains
 from pdsmc_ros.control.stability import check_gains, tolerated_delay
 from pdsmc_ros.experiments.tuning import tune
-from pdsmc_ros.presets import make_run
+from pdsmc_ros.runs.builder import make_run
 
 # each gain group's contours: tuned on the first, every candidate checked on all of them
 GROUPS = {"linear": ("zigzag", "diamond"), "circle": ("circle",), "ellipse": ("ellipse",)}

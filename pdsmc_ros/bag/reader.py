@@ -1,7 +1,7 @@
 """Reading recorded runs back from rosbag2 MCAP bags (no rclpy needed).
 
 The recorder writes the CDR bytes it received; this module turns a bag into
-per-step arrays and a :class:`~pdsmc_ros.presets.RunSpec`, and computes the
+per-step arrays and a :class:`~pdsmc_ros.runs.builder.RunSpec`, and computes the
 thesis statistics with the same code as the in-process simulator. Messages
 are read with :mod:`pdsmc_ros.bag.mcapscan` (about 3x faster than a generic MCAP
 reader, and it reads a bag whose recorder was killed up to its last complete
@@ -21,10 +21,10 @@ from typing import Any
 import numpy as np
 
 from ..errors import BagError, CdrError
-from ..metrics import Metrics, RunStatistics, Samples, build_samples
-from ..presets import RunSpec, control_steps
+from ..metrics.statistics import Metrics, RunStatistics, Samples, build_samples
 from ..robots.base import FloatArray
 from ..robots.catalog import ROBOT_DESCRIPTION, register_description
+from ..runs.builder import RunSpec, control_steps
 from . import cdr
 from .stamps import effort_step
 

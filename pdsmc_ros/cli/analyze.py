@@ -56,7 +56,7 @@ def run(args: argparse.Namespace) -> int:
 def run_graphs(args: argparse.Namespace, paths: list[Path], reports: list[Any], *, after_table: bool) -> int:
     """Recorded graphs (a real arm's runs): one table per bag, a column per goal."""
     from ..experiments.analysis import analyze_graph_bag, goal_table, write_graph_outputs
-    from ..experiments.goals import DEFAULT_SETTLE_BAND
+    from ..experiments.goal_figures import DEFAULT_SETTLE_BAND
 
     band = DEFAULT_SETTLE_BAND if args.settle_band is None else args.settle_band
     bags = [analyze_graph_bag(path, robot=args.robot, settle_band=band) for path in paths]

@@ -30,7 +30,7 @@ from .options import add_model_argument, name_list, positive_float, run_count, s
 if TYPE_CHECKING:
     from ..experiments.compare import Column, LawRow, LawSpec
     from ..experiments.montecarlo import Spread
-    from ..metrics import Samples
+    from ..metrics.statistics import Samples
 
 EXIT_DIVERGED = 1
 
@@ -107,8 +107,8 @@ def run(args: argparse.Namespace) -> int:
     mc: dict[str, Any] | None = None
     mc_rows = None
     if spreads is not None:
-        from ..engine import Progress
         from ..experiments.compare_mc import intervals, run_plants
+        from ..sim.engine import Progress
 
         progress = Progress(args.runs, "compare")
         mc_rows = run_plants([e.spec for e in entries], spreads, args.runs, args.seed, scheduler=args.scheduler,

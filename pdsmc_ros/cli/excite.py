@@ -82,12 +82,12 @@ def add_parser(sub: argparse._SubParsersAction, commands: dict) -> None:  # type
 def run(args: argparse.Namespace) -> int:
     import yaml
 
+    from ..contours.goal_file import goal_data, write_goal
     from ..controller.joint_trajectory import MAX_POINTS
     from ..identification.base import base_parameters
     from ..identification.excitation import excitation_limits, optimise_excitation
     from ..identification.model import ArmDynamics, arm_of
     from ..identification.report import excitation_figure
-    from ..trajectories.goal_file import goal_data, write_goal
 
     out = Path(args.out)
     if out.exists() and not out.is_dir():

@@ -39,7 +39,6 @@ def add_parser(sub: argparse._SubParsersAction, commands: dict) -> None:  # type
 def run(args: argparse.Namespace) -> int:
     from ..control import law
     from ..control.stability import check_rate
-    from ..engine import Progress, dask_client, run_tasks
     from ..experiments.montecarlo import (
         base_specs,
         load_uncertainty,
@@ -48,6 +47,7 @@ def run(args: argparse.Namespace) -> int:
         summarize,
         write_outputs,
     )
+    from ..sim.engine import Progress, dask_client, run_tasks
 
     for controller in args.controllers:
         law(controller)

@@ -1,19 +1,22 @@
 """The arguments the ``pdsmc`` subcommands share: value types that refuse bad input in one line,
 the run's flags, and the run they name (:func:`spec_from_args`, through the one run builder
-:func:`~pdsmc_ros.presets.make_run`)."""
+:func:`~pdsmc_ros.runs.builder.make_run`)."""
 
 from __future__ import annotations
 
 import argparse
-from typing import TYPE_CHECKING
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from ..arguments import gain_value, positive_float
 from ..errors import ConfigError
+from ..parameters.declaration import ParameterSpec
+from ..parameters.run_table import RUN
 
 if TYPE_CHECKING:
-    from ..presets import RunSpec
+    from ..runs.builder import RunSpec
 
 
 def whole_number(text: str, lowest: int) -> int:
@@ -86,9 +89,8 @@ def add_engine_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def add_payload_reading(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--payload-reading", choices=("tip", "link_com"), default="tip",
-                   help="where the payload scenario puts its load: tip (point mass at the end-effector, "
-                   "default) or link_com (on the last link's centre of mass, the SMC's model rebuilt for it)")
+    """``--payload-reading``, from the run table's row."""
+    add_run_option(p, run_setting("payload_reading"))
 
 
 def whole_number_from_zero(text: str) -> int:
@@ -113,30 +115,55 @@ def add_model_argument(p: argparse.ArgumentParser) -> None:
                    "--smc-reading exact the laws take it as it is)")
 
 
+REQUIRED = ("robot", "contour", "type")
+"""Run settings a ``pdsmc`` command needs named (a node takes the table's default)."""
+
+
+def run_setting(name: str) -> ParameterSpec:
+    """The run table's row ``name`` (:data:`pdsmc_ros.parameters.tables.RUN`)."""
+    return next(spec for spec in RUN if spec.name == name)
+
+
+def option_value(spec: ParameterSpec) -> Callable[[str], Any]:
+    """The option's value from its text, checked by its row (bounds, choices): one line if refused."""
+
+    def value(text: str) -> Any:
+        try:
+            number = float(text) if spec.type == "double" else text
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected {spec.allowed()}, got {text!r}") from None
+        reason = spec.problem(number)
+        if reason:
+            raise argparse.ArgumentTypeError(f"expected {spec.allowed()}, got {text!r}")
+        return number
+
+    value.__name__ = spec.type  # argparse names the type in its own messages
+    return value
+
+
+def add_run_option(p: argparse.ArgumentParser, spec: ParameterSpec) -> None:
+    """The option of one run setting (its :attr:`~pdsmc_ros.parameters.ParameterSpec.flag`), derived from
+    its row: help, default, choices and check."""
+    choices = spec.choices if isinstance(spec.choices, tuple) and spec.choices else None
+    if spec.name in REQUIRED:
+        p.add_argument(spec.flag, required=True, help=spec.description)
+        return
+    if spec.default in ("", None):
+        default, shown = None, ""
+    else:
+        default = spec.default
+        shown = f" (default {spec.default:g})" if spec.type == "double" else f" (default {spec.default})"
+    p.add_argument(spec.flag, default=default, choices=choices, type=None if choices else option_value(spec),
+                   help=spec.description + shown)
+
+
 def add_run_arguments(p: argparse.ArgumentParser) -> None:
-    # robots and laws are checked against their registries when the run is built (importing them here
-    # would load numba for every command, --help included)
-    p.add_argument("--robot", required=True,
-                   help="serial_3r, parallel_5r, an arm of example-robot-data (ur5, panda, ...) or a .urdf file")
-    p.add_argument(
-        "--contour",
-        required=True,
-        help="zigzag, diamond, circle, ellipse (serial); circle, ellipse_horizontal, "
-        "ellipse_vertical (parallel); or csv with --waypoints",
-    )
-    p.add_argument("--controller", required=True, help="a registered control law: pd, smc, pdsmc, ...")
-    p.add_argument("--scenario", default="nominal",
-                   help="nominal, high_speed, payload, high_pd, high_smc (config/scenarios.yaml)")
-    p.add_argument("--rate", type=positive_float, default=None,
-                   help="control rate in Hz (default 10000 serial, 5000 parallel)")
-    p.add_argument("--smc-reading", default="literal",
-                   help="SMC model estimate from config/smc_readings.yaml (default: literal)")
-    add_payload_reading(p)
-    p.add_argument("--ellipse-error", choices=("nearest", "osculating"), default="nearest",
-                   help="contour error of ellipses: exact nearest point or osculating circle")
-    p.add_argument("--waypoints", default=None, help="CSV of task-space waypoints (--contour csv)")
-    p.add_argument("--segment-duration", type=positive_float, default=2.0,
-                   help="seconds per segment of a CSV contour (default 2)")
+    """The run's options: one per row of the run table with a flag (robots and laws are checked
+    against their registries when the run is built: importing them here would load numba for every
+    command, --help included), then the gains' options and the limits' opt-out."""
+    for spec in RUN:
+        if spec.flag:
+            add_run_option(p, spec)
     p.add_argument("--params-file", default=None,
                    help="gains from a ROS 2 params file (the controller's, e.g. written by pdsmc tune)")
     p.add_argument("--gain", type=gain_value, action="append", default=None, metavar="NAME=V1,V2,...",
@@ -148,60 +175,53 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
                    "config/robots.yaml); the clamp is on by default")
 
 
+def dest(spec: ParameterSpec) -> str:
+    """The attribute of the parsed arguments that holds a run setting (``--controller``: ``controller``)."""
+    return spec.flag.removeprefix("--").replace("-", "_")
+
+
 FILE_SETTINGS = {"robot": "--robot", "contour": "--contour", "type": "--controller", "scenario": "--scenario"}
 """Run parameters of a params file that a flag also sets: they must agree."""
 
 
 def spec_from_args(args: argparse.Namespace) -> RunSpec:
-    from ..control import law
-    from ..presets import make_run, smc_reading
+    """The run the options name, through the one builder
+    (:func:`~pdsmc_ros.runs.builder.run_from_settings`): the run table's settings, a params file's gains
+    (its run settings must agree with the options; its rate is taken when ``--rate`` is not given), then
+    the ``--gain`` overrides."""
+    from ..runs.builder import run_from_settings
 
+    settings = {spec.name: getattr(args, dest(spec), None) for spec in RUN if spec.flag}
     params = None
-    rate = args.rate
     if args.params_file:
-        from ..experiments.tuning import controller_parameters, read_params_file
+        from ..parameters.params_file import controller_values, read_gains
         from ..robots import make_robot
         from ..robots.catalog import resolve_robot
         from ..robots.options import same_robot
 
-        given = controller_parameters(args.params_file)
-        flags = {"robot": args.robot, "contour": args.contour, "type": args.controller, "scenario": args.scenario}
+        given = controller_values(args.params_file)
         for key, flag in FILE_SETTINGS.items():
-            same = given.get(key, flags[key]) == flags[key] or (key == "robot" and same_robot(given[key], flags[key]))
+            same = given.get(key, settings[key]) == settings[key] or (key == "robot" and same_robot(given[key],
+                                                                                                   settings[key]))
             if not same:
                 raise ConfigError(f"params file {args.params_file!r} sets {key}: {given[key]} but {flag} is "
-                                  f"{flags[key]}: give the same, or leave one out")
-        if rate is None and given.get("rate"):  # the rate the file's gains were chosen for
-            rate = positive_float(str(given["rate"]))
-        params = read_params_file(args.params_file, make_robot(resolve_robot(args.robot)).n, args.controller)
-    return make_run(
-        args.robot,
-        args.contour,
-        args.controller,
-        scenario=args.scenario,
-        rate=rate,
-        smc_model=smc_reading(args.smc_reading) if law(args.controller).model_based else None,
-        ellipse_error=args.ellipse_error,
-        waypoints_file=args.waypoints,
-        segment_duration=args.segment_duration,
-        payload_reading=args.payload_reading,
-        params=params,
-        overrides=dict(args.gain or ()),
-        model=args.model,
-    )
+                                  f"{settings[key]}: give the same, or leave one out")
+        if not settings["rate"] and given.get("rate"):  # the rate the file's gains were chosen for
+            settings["rate"] = positive_float(str(given["rate"]))
+        params = read_gains(args.params_file, make_robot(resolve_robot(args.robot)).n, args.controller)
+    return run_from_settings(settings, params=params, overrides=dict(args.gain or ()), model=args.model)
 
 
-RUN_DEFAULTS = {"scenario": "nominal", "rate": None, "smc_reading": "literal", "ellipse_error": "nearest",
-                 "waypoints": None, "segment_duration": 2.0, "payload_reading": "tip", "no_enforce_limits": False,
-                 "gain": None, "model": None}
-"""The run arguments montecarlo does not take (its runs are nominal, at the robot's rate)."""
+RUN_DEFAULTS = {**{dest(spec): spec.default or None for spec in RUN if spec.flag and spec.name not in REQUIRED},
+                "no_enforce_limits": False, "gain": None, "model": None}
+"""The run options montecarlo does not take (its runs are nominal, at the robot's rate), at the table's defaults."""
 
 
 def file_controller(path: str, controllers: list[str]) -> str:
     """The law whose gains a params file holds (its ``type``), one of ``controllers``."""
-    from ..experiments.tuning import controller_parameters
+    from ..parameters.params_file import controller_values
 
-    controller = controller_parameters(path).get("type")
+    controller = controller_values(path).get("type")
     if controller not in controllers:
         raise ConfigError(f"params file {path!r} holds gains for type {controller!r}; --controllers is "
                           f"{','.join(controllers)}: name it there (or add type: to the file)")

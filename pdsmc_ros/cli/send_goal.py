@@ -25,7 +25,7 @@ def add_parser(sub: argparse._SubParsersAction, commands: dict) -> None:  # type
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..trajectories.goal_file import read_goal
+    from ..contours.goal_file import read_goal
 
     data = read_goal(args.goal)  # a bad file: one line, exit 2, before ROS starts
     from ..resources import ensure_ros_environment

@@ -78,7 +78,7 @@ def format_metrics(metrics: dict[str, Any], robot_n: int) -> str:
 SCORE_LABELS = (("error_rms", "RMS error        (rad)"), ("error_itae", "ITAE       (rad s^2)"),
                 ("torque_tv_rate", "torque TV/s   (N m/s)"), ("torque_hf_share", "torque power > {:g} Hz"),
                 ("control_energy", "energy   (N^2 m^2 s)"), ("torque_rate_peak", "peak dtau/dt  (N m/s)"))
-"""The scores' lines of :func:`format_metrics` (pdsmc_ros/scores.py, docs/SCORES.md)."""
+"""The scores' lines of :func:`format_metrics` (pdsmc_ros/metrics/scores.py, docs/SCORES.md)."""
 
 
 def score_lines(metrics: dict) -> list[str]:

@@ -35,7 +35,8 @@ def add_parser(sub: argparse._SubParsersAction, commands: dict) -> None:  # type
 
 def run(args: argparse.Namespace) -> int:
     from ..control import law
-    from ..experiments.tuning import Candidate, Requirement, tune, write_params_file
+    from ..experiments.tuning import Candidate, Requirement, tune
+    from ..parameters.params_file import write_params_file
 
     def progress(candidate: Candidate) -> None:
         error = "-" if candidate.contour_mean is None else f"{candidate.contour_mean:.4e} m"
@@ -57,7 +58,7 @@ def run(args: argparse.Namespace) -> int:
     spec = result.spec
     try:
         write_params_file(out, result.best.gains, controller=spec.controller, robot=spec.robot,
-                          contour=spec.contour, rate=spec.rate, requirement=requirement)
+                          contour=spec.contour, rate=spec.rate, accepted_by=requirement.command())
     except OSError as exc:
         raise ConfigError(f"--out {str(out)!r}: cannot write it ({exc.strerror}); the best gains: "
                           f"{result.best.gains.as_dict()}") from None

@@ -5,7 +5,7 @@ the listed nodes (default: all four) stay separate rclpy nodes with the same
 parameters, topics and QoS; they share one process and one executor, so a
 lockstep step between them costs no inter-process hand-off. With
 ``--intra-process`` their messages to each other skip DDS as well
-(:mod:`pdsmc_ros.loop.intra`, rclcpp's intra-process comms); the figures of
+(:mod:`pdsmc_ros.ros.intra`, rclcpp's intra-process comms); the figures of
 each arrangement are in docs/PERFORMANCE.md. In real time one thread ticks
 every composed node, with their real-time settings merged (the highest
 ``thread_priority``, every core of ``cpu_affinity``, memory locked if any asks:

@@ -14,7 +14,7 @@ from collections.abc import Mapping
 import numpy as np
 from numba import njit
 
-from ..kernel_options import ALLOCATION_FREE
+from ..kernels.options import ALLOCATION_FREE
 from ..robots import compiled as robot
 from ..robots.base import FloatArray, Manipulator
 from .laws import GAIN_KD, GAIN_KP, THESIS_ROWS, model_part, pd_linear_gains

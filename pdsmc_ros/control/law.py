@@ -22,7 +22,7 @@ import numpy as np
 from numba import njit
 
 from ..errors import InvalidInputError
-from ..kernel_options import ALLOCATION_FREE
+from ..kernels.options import ALLOCATION_FREE
 from ..robots import compiled as robot_compiled
 from ..robots.base import FloatArray, Manipulator
 from . import python_form
@@ -34,7 +34,7 @@ from .registry import LawSetup, law
 from .sliding import ISMC, STA, ismc, sta
 
 if TYPE_CHECKING:
-    from .run import LawRun
+    from .law_run import LawRun
 
 @njit(cache=True, inline="always")
 def law_torque(code, gains, smc_model, kind, p, q, qd, q_ref, qd_ref, qdd_ref, tau, work, n, state, h):  # noqa: ANN001, ANN201, PLR0913

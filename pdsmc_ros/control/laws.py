@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ..kernel_options import ALLOCATION_FREE
+from ..kernels.options import ALLOCATION_FREE
 from ..robots import compiled as robot
 from ..robots.base import FloatArray
 from .registry import (

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .run import LawRun
+from .law_run import LawRun
 
 
 @dataclass(frozen=True)

@@ -15,7 +15,7 @@ from typing import Protocol
 
 from numba import njit, objmode
 
-from ..kernel_options import WITH_RUNTIME
+from ..kernels.options import WITH_RUNTIME
 from ..robots.base import FloatArray
 
 PYTHON_LAW = 1000

@@ -17,7 +17,7 @@ from collections.abc import Mapping
 import numpy as np
 from numba import njit
 
-from ..kernel_options import ALLOCATION_FREE
+from ..kernels.options import ALLOCATION_FREE
 from ..robots.base import FloatArray, Manipulator
 from .laws import GAIN_KS, GAIN_LAM, GAIN_PHI, model_part
 from .registry import S_MASS, GainSpec, LawEntry

@@ -16,7 +16,7 @@ from numba import njit
 from numpy.typing import NDArray
 
 from ..errors import InvalidInputError
-from ..kernel_options import ALLOCATION_FREE
+from ..kernels.options import ALLOCATION_FREE
 from ..robots.base import FloatArray, Manipulator
 
 SOFT_LIMIT_ROWS = 6

@@ -37,12 +37,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..checks import is_whole
+from ..contours import JointReference
 from ..errors import InvalidInputError, UnstableRateError
 from ..robots.base import FloatArray, Manipulator
-from ..trajectories import JointReference
+from .law_run import LawRun
 from .lyapunov import Condition, theorem_conditions
 from .registry import law
-from .run import LawRun
 
 
 def effective_gains(spec: LawRun, mass: FloatArray) -> tuple[FloatArray, FloatArray] | None:

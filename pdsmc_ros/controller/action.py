@@ -62,11 +62,11 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from ..loop.executor_thread import ExecutorThread
 from ..loop.inputs import Times
+from ..parameters.joint_map import JointMap
 from ..ros import topics
 from ..ros.diagnostics import Diagnostics
 from .core import GoalStart, Tolerance
 from .goals import INVALID_GOAL, GoalExecution, Outcome
-from .joint_map import JointMap
 from .joint_trajectory import JointTrajectoryReference, RawPoint
 
 

@@ -12,6 +12,7 @@ import numpy as np
 from ..bag.stamps import stamp_step
 from ..control.soft_limits import SOFT_VELOCITY_BAND, soft_limit
 from ..errors import InvalidInputError
+from ..parameters.tables import DEFAULT_RUNAWAY_POSITION_MARGIN, DEFAULT_RUNAWAY_VELOCITY_FACTOR, RUNAWAY_STOPS
 from ..robots.base import FloatArray
 from ..sim.divergence import DivergenceCheck
 from .hold import Hold
@@ -162,14 +163,6 @@ class TorqueGuard:
         return None, _every(self.non_finite, f"non-finite torque {values} not published ({self.non_finite} so far)")
 
 
-RUNAWAY_STOPS = ("damp", "zero")
-DEFAULT_RUNAWAY_VELOCITY_FACTOR = 1.25
-"""A joint faster than this many times its velocity limit trips the runaway guard: the soft
-limits hold a well-behaved loop below the limit, so a quarter beyond it is a loop out of control
-(a real drive's own overspeed fault typically sits there too)."""
-DEFAULT_RUNAWAY_POSITION_MARGIN = 0.02
-"""rad: a joint this far beyond a position limit trips the runaway guard (about one degree: beyond
-encoder noise and the soft limits' small overshoot, well before a hard stop is reached)."""
 STOP_DAMPING_RATIO = 0.25
 """The ``damp`` stop's gain per joint is at most ``0.25 M_ii(q) / h`` (``M_ii``: the joint's
 inertia where the stop begins, ``h``: the control period): a damping torque of a delayed,

@@ -18,8 +18,9 @@ from typing import Any, NamedTuple, cast
 import numpy as np
 
 from ..control.law import ControlLaw
-from ..presets import RunSpec, control_steps
+from ..parameters.joint_map import JointMap
 from ..robots.base import FloatArray
+from ..runs.builder import RunSpec, control_steps
 from .commanding import LatestInputs, LockstepPairing, Paired, Reference, RunawayGuard, TorqueGuard
 from .goals import (
     INVALID_GOAL,
@@ -32,7 +33,6 @@ from .goals import (
     resolve_tolerances,
 )
 from .hold import Hold
-from .joint_map import JointMap
 from .joint_trajectory import JointTrajectoryReference, RawPoint
 from .joints import JointSelector
 from .limits import JointLimits

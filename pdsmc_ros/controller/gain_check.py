@@ -29,8 +29,8 @@ from typing import Any
 
 from ..control.stability import check_rate
 from ..errors import ConfigError, PdsmcError
-from ..presets import RunSpec
 from ..robots.registry import find_robot, register_robot, robot_config
+from ..runs.builder import RunSpec
 
 CHECK_TIMEOUT_S = 30.0
 """How long a gain change waits for the check process (a check started with the child includes its

@@ -52,9 +52,9 @@ import time
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
+from ..parameters.joint_map import JointMap
 from ..robots.registry import find_robot, register_robot, robot_config
 from .goals import INVALID_GOAL, GoalExecution, GoalSettings, Outcome
-from .joint_map import JointMap
 from .joint_trajectory import JointTrajectoryReference, RawPoint
 from .limits import JointLimits
 
@@ -553,7 +553,7 @@ class ParameterStandIn:
     """The controller's parameter services (``/<controller>/get_parameters``, ``set_parameters``,
     ...), served in the goal process on a node of its own that declares the controller's
     parameters as they are (:func:`parameter_table`) and guards them with the controller's own
-    callbacks: the tables' checks (:func:`~pdsmc_ros.parameters.run.guard_run_parameters`; rclpy
+    callbacks: the tables' checks (:func:`~pdsmc_ros.ros.node_run.guard_run_parameters`; rclpy
     refuses read-only ones and wrong types from their descriptors) and the gains' resolver and
     stability check (:class:`~.parameters.GainUpdates`, here in this process). Gains it accepts
     are sent to the loop's process (``("gains", gains, given)``), which applies them in its spare
@@ -571,7 +571,7 @@ class ParameterStandIn:
         from rclpy.serialization import deserialize_message
 
         from ..control.stability import check_rate
-        from ..parameters.run import guard_run_parameters
+        from ..ros.node_run import guard_run_parameters
         from .parameters import GainUpdates
 
         table = [(Parameter.from_parameter_msg(deserialize_message(value, ParameterMsg)),

@@ -43,8 +43,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..parameters.tables import START_TOLERANCE, STOPPED_VELOCITY_TOLERANCE
 from .joint_trajectory import FLOAT_EPSILON, JointTrajectoryReference, RawPoint, TrajectoryRules, check_trajectory
-from .limits import START_TOLERANCE, JointLimits
+from .limits import JointLimits
 
 FloatArray = np.ndarray
 
@@ -57,7 +58,6 @@ PATH_TOLERANCE_VIOLATED = -4
 GOAL_TOLERANCE_VIOLATED = -5
 
 ERASE = -1.0  # a tolerance of -1 erases the default (JointTolerance.msg)
-STOPPED_VELOCITY_TOLERANCE = 0.01  # rad/s: joint_trajectory_controller's default goal velocity tolerance
 
 
 @dataclass(frozen=True)

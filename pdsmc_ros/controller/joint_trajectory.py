@@ -35,7 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..trajectories.polynomials import segment
+from ..contours.polynomials import segment
 from .joints import JointSelector
 
 FloatArray = np.ndarray

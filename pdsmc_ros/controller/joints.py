@@ -20,7 +20,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from ..bag.cdr import decode_joint_state_named, decode_joint_trajectory_named
-from ..errors import CdrError, ConfigError
+from ..errors import CdrError
 
 FloatArray = np.ndarray
 Values = Sequence[float] | np.ndarray
@@ -29,25 +29,6 @@ Values = Sequence[float] | np.ndarray
 STATE_FIELDS = ("position", "velocity")  # a JointState's columns the controller reads
 REFERENCE_FIELDS = ("positions", "velocities", "accelerations")  # a trajectory point's
 _CACHE_SIZE = 16  # distinct name lists remembered (a source has one; a fuzzer endless ones)
-
-
-def check_joint_names(joints: object, n: int, *, name: str = "joints") -> tuple[str, ...]:
-    """Validate a ``joints`` parameter: ``n`` distinct, non-empty names.
-
-    Raises
-    ------
-    ConfigError
-        Naming the parameter and what is allowed.
-    """
-    if isinstance(joints, str) or not isinstance(joints, Sequence) \
-            or not all(isinstance(j, str) for j in joints):
-        raise ConfigError(f"parameter {name} must be a list of {n} joint names, got {joints!r}")
-    names = tuple(joints)
-    if len(names) != n or len(set(names)) != n or not all(names):
-        raise ConfigError(
-            f"parameter {name} needs {n} distinct non-empty joint names (one per actuated joint), "
-            f"got {list(names)}")
-    return names
 
 
 class JointSelector:

@@ -22,14 +22,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..trajectories.polynomials import segment
+from ..contours.polynomials import segment
+from ..parameters.tables import START_TOLERANCE
 from .joint_trajectory import JointTrajectoryReference
 
 FloatArray = np.ndarray
 SAMPLES_PER_SEGMENT = 20  # a segment's polynomial is checked at this many instants besides its ends
 SLACK = 1e-9  # rad, rad/s: a point exactly on a limit is inside
 SEGMENTS_PER_CHUNK = 256  # segments evaluated by one numpy call (short calls: the GIL changes hands between them)
-START_TOLERANCE = 0.01  # rad: MoveIt's trajectory_execution/allowed_start_tolerance default
 
 
 @dataclass(frozen=True)

@@ -50,10 +50,10 @@ from ..loop.log import LoopLog
 from ..loop.process import run_node
 from ..loop.realtime_params import declare_realtime_parameters
 from ..loop.statistics import LoopStatistics
-from ..parameters.run import declare_node_run, description_json
 from ..robots.base import FloatArray
 from ..ros import topics
 from ..ros.diagnostics import Diagnostics, InputReport
+from ..ros.node_run import declare_node_run, description_json
 from ..ros.publishers import GuardedPublisher, RowBatches
 from .action import FollowJointTrajectoryServer, controller_state_topic, goal_event_topic, topic_trajectory
 from .commanding import Paired, TorqueGuard

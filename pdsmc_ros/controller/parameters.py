@@ -37,13 +37,13 @@ from ..control import GAINS, Gains
 from ..control.soft_limits import effort_only_table, robot_soft_limits
 from ..errors import ConfigError, InvalidInputError, PdsmcError
 from ..parameters import CONTROLLER, OUTPUT_LIMITS
+from ..parameters.joint_map import JointMap
 from ..parameters.ros import declare, value_of
-from ..presets import RunSpec, resolve_gains
 from ..robots.base import FloatArray, Manipulator
+from ..runs.builder import RunSpec, resolve_gains
 from .commanding import RunawayGuard
 from .gain_check import checked
 from .goals import GoalSettings, Tolerances
-from .joint_map import JointMap
 from .joint_trajectory import TrajectoryRules
 
 
@@ -65,8 +65,9 @@ class ControllerParameters:
 
 
 def declare_controller_parameters(node: Node, robot: Manipulator) -> ControllerParameters:
-    """Declare the controller's parameters (if :func:`~pdsmc_ros.parameters.run.declare_node_run` has not) and return
-    them validated; a ConfigError naming the parameter if bad (an unknown joint name lists the robot's)."""
+    """Declare the controller's parameters (if :func:`~pdsmc_ros.ros.node_run.declare_node_run` has
+    not) and return them validated; a ConfigError naming the parameter if bad (an unknown joint name
+    lists the robot's)."""
     values = declare(node, CONTROLLER, defaults={"joints": list(robot.joint_names)})
     joint_map = JointMap(robot.joint_names, values["joints"])
     limit = values["torque_limit"]
@@ -142,7 +143,7 @@ class GainUpdates:
     post-set callback applies.
 
     A change is resolved as at start-up, by the one resolver
-    (:func:`~pdsmc_ros.presets.resolve_gains`: the presets, the gains given as parameters with
+    (:func:`~pdsmc_ros.runs.builder.resolve_gains`: the presets, the gains given as parameters with
     the change, in ``joints`` order, then the scenario's factors), and passes exactly the checks
     of start-up (:meth:`Gains.from_mapping`'s and the zero-order-hold stability check at the
     running rate, ``check``) or is refused with the reason (``ros2 param set`` shows it: for an

@@ -12,10 +12,10 @@ from __future__ import annotations
 import numpy as np
 
 from ..control.law import ControlLaw
+from ..parameters.joint_map import JointMap
 from .commanding import TorqueGuard
 from .goals import GoalExecution, Tolerances
 from .hold import Hold
-from .joint_map import JointMap
 from .joint_trajectory import JointTrajectoryReference
 from .joints import JointSelector
 from .limits import JointLimits

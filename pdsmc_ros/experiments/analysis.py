@@ -1,6 +1,6 @@
 """Offline analysis of recorded runs: thesis-style tables comparing bags.
 
-Every statistic comes from :mod:`pdsmc_ros.metrics` through
+Every statistic comes from :mod:`pdsmc_ros.metrics.statistics` through
 :func:`pdsmc_ros.bag.reader.run_metrics`, the same code as the in-process simulator.
 A bag of a graph the recorder did not start (a real arm's run: :mod:`pdsmc_ros.bag.graph`)
 is analysed per action goal (:mod:`.goals`, :func:`analyze_graph_bag`).
@@ -23,10 +23,10 @@ from ..bag.loop_statistics import format_loop_statistics, loop_report_lines
 from ..bag.reader import RecordedRun, read_run, run_metrics
 from ..control import LAWS
 from ..errors import BagError, ConfigError, InvalidInputError
-from ..metrics import Metrics
-from ..scores import DEFAULT_CUTOFF_HZ
+from ..metrics.scores import DEFAULT_CUTOFF_HZ
+from ..metrics.statistics import Metrics
 from ..sim.divergence import DivergenceCheck
-from .goals import DEFAULT_SETTLE_BAND, GoalFigures, late_periods, nominal_period, run_goal_figures
+from .goal_figures import DEFAULT_SETTLE_BAND, GoalFigures, late_periods, nominal_period, run_goal_figures
 
 
 def is_bag(path: Path) -> bool:

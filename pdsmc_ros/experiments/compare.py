@@ -2,10 +2,10 @@
 
 Every registered law (:func:`pdsmc_ros.control.law_names`) can be compared; nothing here names
 one. Each law runs the same reference at the same rate through the one run builder
-(:func:`pdsmc_ros.presets.make_run`) with its own gains: the presets of ``config/gains.yaml``
+(:func:`pdsmc_ros.runs.builder.make_run`) with its own gains: the presets of ``config/gains.yaml``
 or a params file's (``pdsmc tune`` writes one). The table holds, per law, the thesis's error
 statistics (contour error mean and maximum, each joint's mean ``|e|``; docs/THESIS_NOTES.md), the
-scores of :mod:`pdsmc_ros.scores` (docs/SCORES.md) and the peak torque. In every column lower is
+scores of :mod:`pdsmc_ros.metrics.scores` (docs/SCORES.md) and the peak torque. In every column lower is
 better; the best value of each column is marked. A law whose run diverges has no number in its
 row: it shows ``DIVERGED`` and the reason.
 """
@@ -21,9 +21,9 @@ import numpy as np
 
 from ..control import law
 from ..errors import ConfigError, MissingGainsError
-from ..metrics import Samples
-from ..presets import RunSpec, make_run, scenario_gain_factors, smc_reading
-from ..scores import SCORE_NAMES
+from ..metrics.scores import SCORE_NAMES
+from ..metrics.statistics import Samples
+from ..runs.builder import RunSpec, make_run, scenario_gain_factors, smc_reading
 from ..sim import RunResult
 
 DIVERGED = "DIVERGED"
@@ -42,7 +42,7 @@ class Column:
 SCORE_COLUMNS = {"error_rms": ("RMS |e|", "rad"), "error_itae": ("ITAE", "rad s^2"),
                  "torque_tv_rate": ("TV/s", "N m/s"), "torque_hf_share": ("HF share", "1"),
                  "control_energy": ("energy", "N^2 m^2 s"), "torque_rate_peak": ("peak dtau/dt", "N m/s")}
-"""Headings of the run scores (:data:`pdsmc_ros.scores.SCORE_NAMES`, docs/SCORES.md)."""
+"""Headings of the run scores (:data:`pdsmc_ros.metrics.scores.SCORE_NAMES`, docs/SCORES.md)."""
 
 
 def columns(n: int) -> tuple[Column, ...]:
@@ -121,7 +121,7 @@ def law_specs(robot: str, contour: str, laws: Sequence[str], *, scenario: str = 
     params_files : mapping, optional
         A params file per law name (its gains replace the presets, as ``--params-file`` does).
     model : str, optional
-        The arm model the laws use (``--model``: :attr:`~pdsmc_ros.presets.RunSpec.model`).
+        The arm model the laws use (``--model``: :attr:`~pdsmc_ros.runs.builder.RunSpec.model`).
 
     Raises
     ------
@@ -130,9 +130,9 @@ def law_specs(robot: str, contour: str, laws: Sequence[str], *, scenario: str = 
         (naming it and how to give them); gains that cannot be stable at the rate.
     """
     from ..control.stability import check_rate
+    from ..parameters.params_file import read_gains
     from ..robots import make_robot
     from ..robots.catalog import resolve_robot
-    from .tuning import read_params_file
 
     for name in laws:
         law(name)
@@ -140,7 +140,7 @@ def law_specs(robot: str, contour: str, laws: Sequence[str], *, scenario: str = 
     out = []
     for name in laws:
         path = files.get(name)
-        params = read_params_file(path, make_robot(resolve_robot(robot)).n, name) if path else None
+        params = read_gains(path, make_robot(resolve_robot(robot)).n, name) if path else None
         try:
             spec = make_run(robot, contour, name, scenario=scenario, rate=rate, params=params,
                             smc_model=smc_reading(reading) if law(name).model_based else None, model=model)
@@ -242,11 +242,11 @@ def params_by_law(paths: Sequence[str], laws: Sequence[str]) -> dict[str, str]:
     ConfigError
         A file without ``type``, for a law not compared, or two files for one law.
     """
-    from .tuning import controller_parameters
+    from ..parameters.params_file import controller_values
 
     out: dict[str, str] = {}
     for path in paths:
-        name = controller_parameters(path).get("type")
+        name = controller_values(path).get("type")
         if name not in laws:
             raise ConfigError(f"params file {path!r} holds gains for type {name!r}; --laws is {','.join(laws)}: "
                               "name the law there (or set type: in the file)")

@@ -3,7 +3,7 @@
 The plants are :mod:`pdsmc_ros.experiments.montecarlo`'s (:func:`~pdsmc_ros.experiments.montecarlo.sample_plant`: run
 ``i`` draws from ``default_rng([seed, i])``, so ``pdsmc compare --runs N --seed K`` draws the
 plants of ``pdsmc montecarlo --runs N --seed K``) and every law runs on each (common random
-numbers); the runs go through the one engine (:mod:`pdsmc_ros.engine`, Dask). Each column of
+numbers); the runs go through the one engine (:mod:`pdsmc_ros.sim.engine`, Dask). Each column of
 the table gets its mean over the runs that did not diverge and a percentile-bootstrap 95 %
 confidence interval of that mean (:mod:`.bootstrap`); runs that diverged are counted, never
 averaged.
@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from ..presets import RunSpec
+from ..runs.builder import RunSpec
 from .bootstrap import Interval, bootstrap_mean
 from .compare import Column, cell
 from .montecarlo import Spread
@@ -52,7 +52,7 @@ def run_plants(specs: Sequence[RunSpec], spreads: Mapping[str, Spread], runs: in
                scheduler: str | None = None, workers: int | None = None,
                progress: Callable[[], None] | None = None) -> list[dict[str, Any]]:
     """Every law on ``runs`` drawn plants, on the engine's cluster; the rows in run order."""
-    from ..engine import dask_client, run_tasks
+    from ..sim.engine import dask_client, run_tasks
 
     rows: list[dict[str, Any]] = []
     with dask_client(scheduler, workers) as client:

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ..metrics import Samples
+from ..metrics.statistics import Samples
 from .bootstrap import LEVEL, RESAMPLES, SEED
 from .compare import DIVERGED, Column, LawRow, LawSpec, best_marks, cell, setup_description
 from .compare_mc import interval_rows

@@ -25,10 +25,10 @@ import numpy as np
 from ..checks import is_real
 from ..config import load_config, read_yaml
 from ..errors import ConfigError
-from ..presets import RunSpec, make_run
+from ..metrics.scores import SCORE_NAMES
 from ..robots import make_robot, robot_params
 from ..robots.base import RobotParams
-from ..scores import SCORE_NAMES
+from ..runs.builder import RunSpec, make_run
 
 PARAMETERS = ("link_mass", "link_com", "link_inertia", "motor_inertia", "motor_damping", "payload",
               "initial_error")
@@ -188,7 +188,7 @@ def base_specs(robot: str, contour: str, controllers: Sequence[str], **options: 
 def summarize(rows: Sequence[Mapping[str, Any]], controllers: Sequence[str], bound: float) -> dict[str, Any]:
     """Per controller: mean, p5, p50, p95 and worst of the runs' mean contour error, the share
     of runs whose mean contour error is within the bound (runs that failed count as outside), and
-    the mean of each run score (``<score>_mean``: :data:`pdsmc_ros.scores.SCORE_NAMES`).
+    the mean of each run score (``<score>_mean``: :data:`pdsmc_ros.metrics.scores.SCORE_NAMES`).
 
     The rows are taken in run order whatever order they come in (the engine hands them back as
     they finish): a sum's last digit depends on its order, and the summary depends on the seed alone.

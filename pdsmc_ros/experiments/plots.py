@@ -1,7 +1,7 @@
 """PNG figures of the thesis's kinds (analysis layer; matplotlib is imported lazily).
 
 Not part of the numeric core: nothing here computes a statistic, it only draws
-what :mod:`pdsmc_ros.metrics` and :mod:`pdsmc_ros.bag.reader` produced.
+what :mod:`pdsmc_ros.metrics.statistics` and :mod:`pdsmc_ros.bag.reader` produced.
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from ..metrics import Samples
+from ..metrics.statistics import Samples
 
 MAGNIFY = {"serial_3r": 100.0, "parallel_5r": 20.0}
 """Error magnification of the thesis's contour plots (footnotes of Figs. 4.40 ff.)."""

@@ -21,8 +21,8 @@ from ..control.gains import Gains
 from ..control.registry import law
 from ..control.stability import rate_margin
 from ..errors import InvalidInputError
-from ..presets import RunSpec, make_run
 from ..robots import make_robot
+from ..runs.builder import RunSpec, make_run
 from ..sim import simulate_many
 
 BASELINE = {"kp": 5000.0, "kd": 1000.0, "ks": 5.0, "lam": 10.0, "phi": 0.5}

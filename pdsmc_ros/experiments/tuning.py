@@ -17,21 +17,16 @@ import contextlib
 import dataclasses
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
-from pathlib import Path
-from typing import Any, cast
 
 import numpy as np
-import yaml
 
 from ..control.gains import Gains
-from ..control.registry import gain_names, law
+from ..control.registry import law
 from ..control.stability import THEOREM_LAWS, check_gains, loop_delay, plant_step
 from ..errors import ConfigError, PdsmcError
-from ..presets import RunSpec, make_run
 from ..robots import make_robot
 from ..robots.catalog import resolve_robot
-from ..robots.options import robot_key
-from ..settings import CONTROLLER_PARAMETERS, node_parameters
+from ..runs.builder import RunSpec, make_run
 
 SWEPT = ("kp", "kd", "ks", "lam", "omega_n", "k1", "k2")
 """The gains the recipe sweeps, in its order; then any other gain the law needs but :data:`KEPT`
@@ -42,8 +37,6 @@ FACTORS = (0.5, 0.7, 1.4, 2.0)
 """Multipliers tried on one swept gain (all joints at once) per round."""
 BOUNDARY_LAYER = 0.25
 """phi of the starting point: the thesis's serial arm's (Table 4.16)."""
-NODE_NAME = "controller"
-"""The node whose section of a params file holds the gains (:func:`write_params_file`)."""
 SLOWER_STARTS = 6
 """Times the starting bandwidth is halved when the starting gains fail the check."""
 
@@ -60,6 +53,11 @@ class Requirement:
         loop_delay(self.mode, self.delay_periods)  # one line if either is wrong
         if self.margin is not None and (not np.isfinite(self.margin) or self.margin <= 0.0):
             raise ConfigError(f"margin must be a positive number, got {self.margin!r}")
+
+    def command(self) -> str:
+        """The ``pdsmc check-gains`` that accepts the gains kept (a tuned params file's header)."""
+        margin = "the mode's default margin" if self.margin is None else f"margin x{self.margin:g}"
+        return f"pdsmc check-gains --mode {self.mode} --delay-periods {self.delay_periods} ({margin})"
 
 
 @dataclass(frozen=True)
@@ -212,7 +210,7 @@ def tune(
     Parameters
     ----------
     robot, contour, controller : str
-        As for :func:`~pdsmc_ros.presets.make_run`.
+        As for :func:`~pdsmc_ros.runs.builder.make_run`.
     rate : float, optional
         Control rate (Hz); the robot's default otherwise.
     rounds : int
@@ -236,7 +234,7 @@ def tune(
         Other contours the gains will serve (a gain group of config/gains.yaml): every candidate
         must pass the check on them too.
     model : str, optional
-        The arm model the law uses (:attr:`~pdsmc_ros.presets.RunSpec.model`: an identified arm).
+        The arm model the law uses (:attr:`~pdsmc_ros.runs.builder.RunSpec.model`: an identified arm).
 
     Raises
     ------
@@ -296,7 +294,7 @@ def _evaluator(spec: RunSpec, limit: np.ndarray, scheduler: str | None, requirem
     if scheduler is None:
         yield lambda batch: [evaluate(spec, gains, limit, requirement, also) for gains in batch]
         return
-    from ..engine import dask_client, run_tasks
+    from ..sim.engine import dask_client, run_tasks
 
     with dask_client(scheduler) as client:
         def remote(batch: list[Gains]) -> list[Candidate]:
@@ -320,54 +318,3 @@ def _torque_limit(spec: RunSpec) -> np.ndarray:
     """The arm's effort limits (inf where it has none): what a candidate may need at most."""
     limit = np.asarray(spec.robot_model().effort_limits, dtype=float)
     return np.where(limit > 0.0, limit, np.inf)
-
-
-def write_params_file(path: str | Path, gains: Gains, *, controller: str, robot: str, contour: str,
-                      rate: float, node: str = NODE_NAME, requirement: Requirement | None = None) -> None:
-    """A ROS 2 params file for every node of a run (``--ros-args --params-file``).
-
-    The run (robot, contour, type, rate) in ``/**``, which every node reads, and the gains in the
-    controller's section, the only node that needs them: the same file serves ``ros2 run`` of
-    any node, ``scripts/run_experiment.sh --params-file`` and ``pdsmc simulate --params-file``.
-    """
-    robot = robot_key(robot)  # a .urdf path absolute: the file serves from any directory (analyze, ros2 run)
-    run: dict[str, Any] = {"robot": robot, "contour": contour, "type": controller, "rate": float(rate)}
-    own = {k: [float(x) for x in v] for k, v in gains.as_dict().items() if k in law(controller).gain_names}
-    requirement = requirement or Requirement()
-    margin = "the mode's default margin" if requirement.margin is None else f"margin x{requirement.margin:g}"
-    header = (f"# pdsmc tune: {controller} gains for {robot}/{contour} at {float(rate):g} Hz, accepted by\n"
-              f"# pdsmc check-gains --mode {requirement.mode} --delay-periods {requirement.delay_periods} ({margin})\n")
-    body = yaml.safe_dump({"/**": {"ros__parameters": run}, node: {"ros__parameters": own}}, sort_keys=False)
-    Path(path).write_text(header + body)
-
-
-def controller_parameters(path: str | Path, *, node: str = NODE_NAME) -> dict[str, Any]:
-    """What a params file gives the controller node (its section and ``/**``, merged as rcl does).
-
-    Raises
-    ------
-    ConfigError
-        One line naming the file: not a params file, no section for the controller, or a key the
-        controller does not declare (the closest one suggested).
-    """
-    own = cast(tuple[str, ...], CONTROLLER_PARAMETERS)  # derived from the parameter tables on first use
-    return node_parameters(path, "/" + node, own + tuple(gain_names()))
-
-
-def read_params_file(path: str | Path, n: int, controller: str, *, node: str = NODE_NAME) -> dict[str, list[float]]:
-    """The gains a params file gives ``controller`` (as :func:`write_params_file` writes, or any with the
-    gain names): checked against the law's declaration, the others left to the presets (the
-    params-file layer of :func:`~pdsmc_ros.presets.make_run`).
-
-    Raises
-    ------
-    ConfigError
-        One line naming the file and what is wrong.
-    """
-    params = controller_parameters(path, node=node)
-    values = {k: params[k] for k in gain_names() if k in params and params[k]}
-    try:
-        checked = Gains.from_mapping(values, n, controller, partial=True)
-    except ConfigError as exc:
-        raise ConfigError(f"params file {str(path)!r}: {exc}") from None
-    return {k: list(checked[k]) for k in values}

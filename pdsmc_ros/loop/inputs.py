@@ -11,8 +11,8 @@ from typing import Any
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
 
+from ..ros import intra
 from ..ros.topics import LATEST_QOS, LOCKSTEP_QOS
-from . import intra
 
 MAX_BATCH_S = 0.05  # an observer lets its messages gather at most this long
 

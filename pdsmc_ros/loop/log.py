@@ -9,6 +9,8 @@ from typing import Any
 from rclpy.logging import LoggingSeverity
 from rclpy.node import Node
 
+from ..rclpy_internals import rcutils_log
+
 LOOP_LOG_KEPT = 1_000  # lines waiting for the executor at most (more: the oldest are dropped and counted)
 _logs: weakref.WeakSet[LoopLog] = weakref.WeakSet()  # this process's loop logs
 _looping = False  # a serve loop runs in this process (before and after it, lines are written at once)
@@ -21,7 +23,7 @@ class RcutilsLines:
     rclpy's ``RcutilsLogger.log`` finds its caller's file, function and line with ``inspect``
     for every line: 0.4 ms of Python here against 6 us for the write itself. In real time the
     executor's thread writes the loop's lines and holds the GIL while it does, which the loop's
-    thread waits for. A storm of goals and parameter sets (``bench/storm.py``) logs about 30
+    thread waits for. A storm of goals and parameter sets (``bench/storm``) logs about 30
     lines a second. The location written is this module's: the lines come from the loop's
     queue, not from a call site.
     """
@@ -61,12 +63,8 @@ def lines_of(logger: Any) -> Any:
     """``logger`` (rclpy's) as :class:`RcutilsLines` where this rclpy offers the write rclpy's own
     logger ends in (a private function: should its arguments change, the lines go through
     ``logger`` again), else ``logger`` itself."""
-    try:
-        from rclpy.impl.implementation_singleton import rclpy_implementation
-        write = rclpy_implementation.rclpy_logging_rcutils_log
-    except (ImportError, AttributeError):  # another rclpy: its public logger
-        return logger
-    return RcutilsLines(logger, write)
+    write = rcutils_log()
+    return logger if write is None else RcutilsLines(logger, write)  # None: another rclpy, its public logger
 
 
 def loop_running(running: bool) -> None:

@@ -21,9 +21,9 @@ from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 
 from ..errors import ConfigError, InvalidInputError, PdsmcError
 from ..parameters.overrides import check_overrides, warn_unknown_arguments
+from ..parameters.params_file import given_value
 from ..resources import config_dir
-from ..settings import given_value
-from . import intra
+from ..ros import intra
 from .inputs import Inputs
 from .lifecycle import DRAIN_TIMEOUT_S, EXIT_BAD_INPUT, EXIT_FAILURE, EXIT_OK, arm_teardown_watch
 from .realtime_params import LoopReport, loop_reports
@@ -66,7 +66,7 @@ def choose_middleware(node_names: Sequence[str], args: Sequence[str] | None) -> 
     appeared, and through the interpreter lock every thread of the process with it:
 
     * rmw_fastrtps writes synchronously by default: a write sends in the calling thread, which
-      waits while the middleware matches the new reader (``bench/storm.py``: the control loop
+      waits while the middleware matches the new reader (``bench/storm``: the control loop
       stood still 13-22 ms when clients subscribed to its commands). Real time writes
       asynchronously (``RMW_FASTRTPS_PUBLICATION_MODE=ASYNCHRONOUS``): the middleware's own
       thread sends.
@@ -75,7 +75,7 @@ def choose_middleware(node_names: Sequence[str], args: Sequence[str] | None) -> 
       ``healthy_check_timeout_ms`` (1 s by default, set by the port's owner, so by the client)
       while it holds the writer and the participant's send lock (Fast DDS 2.14
       ``SharedMemGlobal::Port::healthy_check``, reached from ``StatefulWriter::matched_reader_add``):
-      the 333 ms stand-stills of ``bench/storm.py`` as clients came and went. Real time sends over
+      the 333 ms stand-stills of ``bench/storm`` as clients came and went. Real time sends over
       UDP only, so it never opens a client's port; the other processes keep shared memory among
       themselves. For the discovery ranges SUBNET (Jazzy's default) and SYSTEM_DEFAULT that is
       ``FASTDDS_BUILTIN_TRANSPORTS=UDPv4``. For LOCALHOST rmw_fastrtps always adds a shared-memory

@@ -18,8 +18,8 @@ from collections.abc import Callable, Sequence
 from typing import Any
 
 from rclpy.executors import SingleThreadedExecutor
-from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy_impl
 
+from .. import rclpy_internals as _rclpy_impl
 from .executor_thread import ExecutorThread
 from .inputs import pending, take_all, take_batches, take_local, take_local_batches
 from .log import loop_running

@@ -8,7 +8,7 @@ robot_state_publisher); takes ``/effort_controller/commands`` (``std_msgs/Float6
 ``data[i]`` -> ``joints[i]``; a wrong length or a non-finite value is dropped with a
 throttled warning, as forward_command_controller does). The arm is braked (MuJoCo does not
 step) until the first command, then the latest command is applied every step
-(:mod:`pdsmc_ros.sim.mujoco_driver`; the model: :mod:`pdsmc_ros.sim.mujoco_model`).
+(:mod:`pdsmc_ros.mujoco_driver.driver`; the model: :mod:`pdsmc_ros.sim.mujoco_model`).
 """
 
 from __future__ import annotations
@@ -27,20 +27,20 @@ from std_msgs.msg import Float64MultiArray, String
 
 from ..bag.cdr import decode_float64_multi_array, encode_joint_state
 from ..checks import are_real
-from ..controller.joints import check_joint_names
 from ..errors import CdrError, ConfigError, InvalidInputError
 from ..loop.inputs import Inputs
 from ..loop.lifecycle import EXIT_OK
 from ..loop.process import run_node
 from ..loop.realtime import PLANT_PRIORITY
 from ..parameters import mujoco_driver_parameters
+from ..parameters.joint_map import check_joint_names
 from ..parameters.ros import declare, guard
 from ..robots.catalog import resolve_robot
 from ..robots.registry import make_robot
 from ..ros.publishers import GuardedPublisher
 from ..ros.topics import LATCHED_QOS, STREAM_QOS, TOPIC_EFFORT, TOPIC_JOINT_STATES, TOPIC_ROBOT_DESCRIPTION
-from ..sim.mujoco_driver import MujocoDriver, default_positions, initial_passive, joint_state_order
 from ..sim.mujoco_model import build_model
+from .driver import MujocoDriver, default_positions, initial_passive, joint_state_order
 
 WARN_EVERY_S = 1.0  # dropped commands: one warning a second at most
 PERIODS_KEPT = 100_000  # achieved periods summarised at the end (the last 100 s at 1 kHz)

@@ -91,8 +91,14 @@ class ParameterSpec:
     read_only : bool
         Read once at start-up: rclpy refuses a set while the node runs. False only for the
         parameters the node applies at run time (the controller's gains).
-    constraints : str
-        What it allows, in words, where the bounds and choices do not say it all.
+    constraints : str or callable
+        What it allows, in words, where the bounds and choices do not say it all (a function giving
+        it when asked: the registered robots and laws).
+    flag : str
+        The ``pdsmc`` option that sets it (``--controller`` for ``type``), derived from this row
+        (:func:`pdsmc_ros.cli.options.add_run_arguments`); empty: none.
+    node : bool
+        Declared by the nodes; False: a setting of the in-process run only (``payload_reading``).
     """
 
     name: str
@@ -108,7 +114,9 @@ class ParameterSpec:
     map_joints: bool = False
     one_for_all: bool = False
     read_only: bool = True
-    constraints: str = ""
+    constraints: str | Callable[[], str] = ""
+    flag: str = ""
+    node: bool = True
 
     def __post_init__(self) -> None:
         if self.type not in TYPES:
@@ -149,7 +157,7 @@ class ParameterSpec:
     def allowed(self) -> str:
         """What it allows, as the end of ``parameter NAME must be ...``."""
         if self.constraints:
-            return self.constraints
+            return self.constraints() if callable(self.constraints) else self.constraints
         bounds = self.bounds_text()
         choices = self.allowed_choices()
         one = {
@@ -295,7 +303,7 @@ class ParameterSpec:
 
 def check_values(specs: Sequence[ParameterSpec], values: Mapping[str, Any], *,
                  types_only: Collection[str] = ()) -> None:
-    """The start-up check of ``values`` (a params file's, :func:`pdsmc_ros.settings.node_parameters`):
+    """The start-up check of ``values`` (a params file's, :func:`pdsmc_ros.parameters.params_file.node_parameters`):
     a ConfigError for the first its spec refuses; of ``types_only`` (the gains: the resolver's
     messages name the law) only the type is checked."""
     for spec in specs:

@@ -4,7 +4,7 @@ rclpy keeps an override of an undeclared parameter and never says so (``-p typ:=
 default law), and rcl skips a params file's sections that match no node. After the nodes of a
 process are built (:func:`~pdsmc_ros.loop.process.run_nodes`), every params file given must
 have a section for one of them and no key the matching node does not declare
-(:mod:`pdsmc_ros.settings`), and each ``-p`` override left undeclared is warned about, naming
+(:mod:`pdsmc_ros.parameters.params_file`), and each ``-p`` override left undeclared is warned about, naming
 the closest declared parameter (every name some node declares: the tables of :mod:`pdsmc_ros.parameters`).
 """
 
@@ -15,7 +15,9 @@ from collections.abc import Sequence
 
 from rclpy.node import Node
 
-from ..settings import (
+from ..rclpy_internals import parameter_overrides
+from . import package_parameter_names
+from .params_file import (
     ALWAYS_DECLARED,
     is_declared,
     node_parameters,
@@ -25,7 +27,6 @@ from ..settings import (
     section_matches,
     unknown_parameter,
 )
-from . import package_parameter_names
 
 
 def declared_names(node: Node) -> list[str]:
@@ -51,7 +52,10 @@ def check_overrides(nodes: Sequence[Node], args: Sequence[str] | None) -> None:
             node_parameters(path, node.get_fully_qualified_name(), declared_names(node), sections=sections)
     for node in nodes:
         declared = declared_names(node)
-        overrides = getattr(node, "_parameter_overrides", {})  # rclpy keeps no public list of them
+        try:
+            overrides = parameter_overrides(node)
+        except AttributeError:  # another rclpy: no warning rather than no node
+            overrides = {}
         for name in overrides:
             if not is_declared(name, declared):
                 node.get_logger().warning(f"{unknown_parameter(name, declared)}: ignored")

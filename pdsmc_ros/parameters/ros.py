@@ -20,6 +20,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 
 from ..errors import ConfigError
+from ..rclpy_internals import declared_value, parameter_overrides
 from .declaration import ParameterSpec
 
 ROS_TYPES = {
@@ -69,7 +70,7 @@ def declare(node: Node, specs: Sequence[ParameterSpec], *, defaults: Mapping[str
     ConfigError
         One line naming the parameter and what it allows.
     """
-    overrides: dict[str, Parameter] = node._parameter_overrides  # noqa: SLF001 - rclpy has no public setter
+    overrides = parameter_overrides(node)
     values: dict[str, Any] = {}
     for spec in _expanded(specs, values, defaults):
         if node.has_parameter(spec.name):
@@ -108,8 +109,7 @@ def _expanded(specs: Sequence[ParameterSpec], values: dict[str, Any],
 def value_of(node: Node, name: str) -> Any:
     """A declared parameter's value, None if unset (rclpy's ``get_parameter`` raises for an
     unset statically typed parameter: a gain not given)."""
-    parameter = node._parameters.get(name)  # noqa: SLF001 - no public access to an unset typed parameter
-    return None if parameter is None else parameter.value
+    return declared_value(node, name)
 
 
 Check = Callable[[Sequence[Parameter]], "str | None"]

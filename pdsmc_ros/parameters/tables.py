@@ -3,7 +3,7 @@
 Each node's table is a tuple of :class:`~.declaration.ParameterSpec` built by a function, so
 what changes with the registries -- the gains every registered law declares (a plugin law's
 ``ki`` among them), the laws and robots a parameter accepts -- is read when a node starts
-or the documentation is generated. :mod:`.ros` declares a table on a node; :mod:`pdsmc_ros.settings`
+or the documentation is generated. :mod:`.ros` declares a table on a node; :mod:`pdsmc_ros.parameters.params_file`
 checks params files against the names; :func:`catalog` is the parameter reference.
 
 Groups shared by several nodes: :func:`run_parameters` (the run: every node of a run takes the
@@ -17,18 +17,50 @@ from __future__ import annotations
 from collections.abc import Collection
 from typing import Any
 
-from ..control.registry import GAINS, law_names
+from ..control.registry import GAINS
 from ..control.soft_limits import DEFAULT_K_POSITION, SOFT_VELOCITY_BAND
-from ..control.stability import MODES
-from ..controller.commanding import DEFAULT_RUNAWAY_POSITION_MARGIN, DEFAULT_RUNAWAY_VELOCITY_FACTOR, RUNAWAY_STOPS
-from ..controller.goals import STOPPED_VELOCITY_TOLERANCE
-from ..controller.limits import START_TOLERANCE
+from ..errors import ConfigError
 from ..loop.realtime import AUTO_BUSY_WAIT, DEFAULT_PRIORITY, MAX_PRIORITY, PLANT_PRIORITY, TRAJECTORY_PRIORITY
-from ..sim.safe_mode import MAX_SAFE_DAMPING, MAX_SAFE_STIFFNESS, SAFE_MODES
-from ..viewer.live_view import DEFAULT_DISPLAY_RATE
+from ..robots.catalog import allowed_robots
 from .declaration import JOINT, ParameterSpec
+from .run_table import run_parameters
 
 P = ParameterSpec
+
+# -- defaults and choices the components read from here (the table is their one source, as a
+# -- controller reads generate_parameter_library's generated parameters) -------------------------
+STOPPED_VELOCITY_TOLERANCE = 0.01
+"""rad/s: joint_trajectory_controller's default goal velocity tolerance (``constraints.stopped_velocity_tolerance``)."""
+START_TOLERANCE = 0.01
+"""rad: MoveIt's ``trajectory_execution/allowed_start_tolerance`` default (``allowed_start_tolerance``)."""
+RUNAWAY_STOPS = ("damp", "zero")
+"""What the runaway guard outputs once tripped (``runaway.stop``)."""
+DEFAULT_RUNAWAY_VELOCITY_FACTOR = 1.25
+"""A joint faster than this many times its velocity limit trips the runaway guard: the soft
+limits hold a well-behaved loop below the limit, so a quarter beyond it is a loop out of control
+(a real drive's own overspeed fault typically sits there too)."""
+DEFAULT_RUNAWAY_POSITION_MARGIN = 0.02
+"""rad: a joint this far beyond a position limit trips the runaway guard (about one degree: beyond
+encoder noise and the soft limits' small overshoot, well before a hard stop is reached)."""
+SAFE_MODES = ("damp", "hold")
+"""The plant's safe modes (``safe_mode``)."""
+ON_LOSS = ("resume", "end")
+"""What the plant does after safe mode (``on_controller_loss``)."""
+MAX_SAFE_DAMPING = 1.0e6
+"""N m s/rad: the highest ``safe_damping``: far above any useful value, low enough that the safe
+torque stays finite."""
+MAX_SAFE_STIFFNESS = 1.0e7
+"""N m/rad: the highest ``safe_stiffness`` (as :data:`MAX_SAFE_DAMPING`)."""
+DEFAULT_DISPLAY_RATE = 30.0
+"""The viewer's frames per second of wall time (``display_rate``)."""
+DEFAULT_COMMAND_TIMEOUT_S = 0.1
+"""Seconds without a command after which the MuJoCo stand-in's brakes close (``command_timeout``):
+a real arm's driver stops the arm when its commands stop (a watchdog), where ros2_control's
+forward command controller would apply the last command forever. 0.1 s is 100 periods of a
+1 kHz controller, far beyond its late ticks, and short enough that a dead controller's last
+torque moves the arm little."""
+JOINT_STATE_ORDERS = ("alphabetical", "urdf", "reversed")
+"""The orders the MuJoCo stand-in can publish ``/joint_states`` in (``joint_state_order``)."""
 
 INTROSPECTION_STATES = ("disabled", "metadata", "contents")
 """rcl's service introspection states (``RCL_SERVICE_INTROSPECTION_OFF``, ``_METADATA``, ``_CONTENTS``)."""
@@ -41,41 +73,6 @@ LOOKAHEAD_STEPS = 500
 """The trajectory's ``lookahead_steps`` default (lockstep: 50 ms at 10 kHz)."""
 MAX_LOOKAHEAD_STEPS = 5000
 """Half the depth of the lockstep streams' queues (:data:`pdsmc_ros.ros.topics.STREAM_DEPTH`)."""
-
-
-def _scenarios() -> tuple[str, ...]:
-    from ..presets import scenario_names
-
-    return scenario_names()
-
-
-def _smc_readings() -> tuple[str, ...]:
-    from ..config import load_config
-
-    return tuple(load_config("smc_readings"))
-
-
-def run_parameters() -> tuple[ParameterSpec, ...]:
-    """The parameters that define a run (every node of it but the MuJoCo stand-in)."""
-    from ..robots.catalog import allowed_robots
-
-    return (
-        P("robot", "string", "serial_3r", "manipulator", constraints="one of: " + allowed_robots()),
-        P("contour", "string", "circle", "contour preset (config/contours.yaml) or csv"),
-        P("type", "string", "pdsmc", "controller type", constraints="one of: " + ", ".join(law_names())),
-        P("scenario", "string", "nominal", "robustness scenario (config/scenarios.yaml)",
-          constraints="one of: " + ", ".join(_scenarios())),
-        P("mode", "string", "lockstep", "timing mode", choices=MODES),
-        P("rate", "double", 0.0, "control rate in Hz (0: preset, 10 kHz serial / 5 kHz parallel)", lo=0.0, hi=1.0e6),
-        P("sample_rate", "double", 0.0, "statistics rate in Hz (0: thesis value)", lo=0.0, hi=1.0e6),
-        P("duration_factor", "double", 1.0, "multiplies the contour duration", lo=0.001, hi=1000.0),
-        P("smc_reading", "string", "literal", "SMC model estimate (config/smc_readings.yaml)",
-          constraints="one of: " + ", ".join(_smc_readings())),
-        P("ellipse_error", "string", "nearest", "ellipse contour error", choices=("nearest", "osculating")),
-        P("waypoints_file", "string", "", "CSV of task-space waypoints for contour csv"),
-        P("segment_duration", "double", 2.0, "seconds per CSV segment", lo=0.001, hi=1000.0),
-        P("clock_rate", "double", 100.0, "lockstep: /clock publication rate in sim-time Hz", lo=1.0, hi=1.0e6),
-    )
 
 
 def gain_parameters(*, applied: bool | Collection[str]) -> tuple[ParameterSpec, ...]:
@@ -169,7 +166,7 @@ SAFETY = (
     P("safe_mode", "string", "damp", "safe mode: damp (braking only) or hold (hold position)", choices=SAFE_MODES),
     P("safe_damping", "double", 5.0, "safe-mode braking gain in N m s/rad", lo=0.0, hi=MAX_SAFE_DAMPING),
     P("safe_stiffness", "double", 200.0, "hold-mode stiffness in N m/rad", lo=0.0, hi=MAX_SAFE_STIFFNESS),
-    P("on_controller_loss", "string", "resume", "after safe mode", choices=("resume", "end")),
+    P("on_controller_loss", "string", "resume", "after safe mode", choices=ON_LOSS),
     P("safe_time_scale", "double", 1.0,
       "lockstep: sim seconds the plant advances per wall second in safe mode (1: real time, 0: frozen)",
       lo=0.0, hi=1000.0),
@@ -220,9 +217,6 @@ def realtime_parameters(priority: int = DEFAULT_PRIORITY) -> tuple[ParameterSpec
 
 def mujoco_driver_parameters() -> tuple[ParameterSpec, ...]:
     """The MuJoCo stand-in's (a driver of its own: no run, no gains)."""
-    from ..robots.catalog import allowed_robots
-    from ..sim.mujoco_driver import DEFAULT_COMMAND_TIMEOUT_S, JOINT_STATE_ORDERS
-
     return (
         P("robot", "string", "serial_3r", "the arm: " + allowed_robots()),
         P("rate", "double", 1000.0, "state rate and physics period in Hz", lo=1.0, hi=20000.0),
@@ -251,8 +245,6 @@ def node_parameters(node: str) -> tuple[ParameterSpec, ...]:
         "mujoco_driver": lambda: (*mujoco_driver_parameters(), *realtime_parameters(PLANT_PRIORITY)),
     }
     if node not in tables:
-        from ..errors import ConfigError
-
         raise ConfigError(f"unknown node {node!r}; choose one of: {', '.join(NODES)}")
     return tables[node]()
 

@@ -20,7 +20,7 @@ velocity limit is a warning, and a diverged state (not finite, or beyond the bou
 
 ``/robot_description`` (``std_msgs/String``, transient local, as
 robot_state_publisher publishes it): the URDF of the arm, generated from
-``config/robots.yaml`` (:mod:`pdsmc_ros.urdf`: the arms in the x-z plane, z up).
+``config/robots.yaml`` (:mod:`pdsmc_ros.robots.urdf`: the arms in the x-z plane, z up).
 """
 
 from __future__ import annotations
@@ -45,9 +45,8 @@ from ..loop.lifecycle import EXIT_FAILURE, EXIT_OK
 from ..loop.process import run_node
 from ..loop.realtime import PLANT_PRIORITY
 from ..parameters.descriptors import decimation
-from ..parameters.run import declare_node_run
-from ..presets import control_steps
 from ..ros.diagnostics import Diagnostics
+from ..ros.node_run import declare_node_run
 from ..ros.publishers import GuardedPublisher
 from ..ros.topics import (
     LATCHED_QOS,
@@ -61,6 +60,7 @@ from ..ros.topics import (
     TOPIC_JOINT_STATES_THROTTLED,
     TOPIC_ROBOT_DESCRIPTION,
 )
+from ..runs.builder import control_steps
 from ..sim.plant import PlantStepper
 from ..sim.supervised import SupervisedPlant
 from .parameters import declare_plant_parameters

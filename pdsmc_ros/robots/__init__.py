@@ -11,7 +11,7 @@ a ``.urdf`` path).
 """
 
 # before any kernel runs: drop cached kernels built from other sources (see kernel_cache)
-from ..kernel_cache import refresh as _refresh_kernel_cache  # noqa: I001
+from ..kernels.cache import refresh as _refresh_kernel_cache  # noqa: I001
 
 _refresh_kernel_cache()
 

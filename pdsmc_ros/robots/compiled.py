@@ -35,7 +35,7 @@ from numba.core import types
 from numba.core.errors import TypingError
 from numba.extending import overload
 
-from ..kernel_options import ALLOCATION_FREE
+from ..kernels.options import ALLOCATION_FREE
 from . import parallel_5r_kernels as five_bar
 from . import python_form, spatial_layout
 from . import serial_3r as serial

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from numba import njit
 
-from ..kernel_options import ALLOCATION_FREE
+from ..kernels.options import ALLOCATION_FREE
 from .kernel_math import rotation_vector, solve_spd
 from .spatial_kernels import ee_jacobian, ee_pose
 from .spatial_layout import POSE_SIZE, WORK_STRIDE, workspace_size

@@ -12,7 +12,7 @@ import math
 
 from numba import njit
 
-from ..kernel_options import ALLOCATION_FREE
+from ..kernels.options import ALLOCATION_FREE
 
 
 @njit(**ALLOCATION_FREE)

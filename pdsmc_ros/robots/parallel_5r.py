@@ -19,6 +19,7 @@ from .base import FloatArray, Manipulator, RobotParams, as_vector
 from .chain import PlanarChain
 from .parallel_5r_kernels import PARALLEL_5R, batch_coriolis_matrix, batch_terms
 from .registry import robot_params
+from .urdf import five_bar_urdf
 
 _SINGULAR_TOL = 1e-9
 _WORK = 64  # floats of the compiled form's scratch (its largest use: the geometry's 24, and the batch's 4 at the end)
@@ -118,9 +119,7 @@ class Parallel5R(Manipulator):
         return np.concatenate([np.asarray(x, dtype=float).ravel() for x in parts])
 
     def description(self, payload: float | None = None) -> str:
-        """The mechanism's URDF, its open tree (:func:`pdsmc_ros.urdf.five_bar_urdf`)."""
-        from ..urdf import five_bar_urdf  # the URDF writer reads robots' parameters
-
+        """The mechanism's URDF, its open tree (:func:`pdsmc_ros.robots.urdf.five_bar_urdf`)."""
         return five_bar_urdf(self.name, self.params, self.payload if payload is None else payload)
 
     def with_payload(self, payload: float) -> Parallel5R:

@@ -11,7 +11,7 @@ import math
 
 from numba import njit
 
-from ..kernel_options import ALLOCATION_FREE
+from ..kernels.options import ALLOCATION_FREE
 from .kernel_math import entry_at
 
 PARALLEL_5R = 1

@@ -17,7 +17,7 @@ import weakref
 import numpy as np
 from numba import njit, objmode
 
-from ..kernel_options import WITH_RUNTIME
+from ..kernels.options import WITH_RUNTIME
 from .base import FloatArray, Manipulator
 
 PYTHON = -1

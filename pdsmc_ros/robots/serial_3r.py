@@ -13,11 +13,12 @@ from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
 from ..errors import InvalidInputError, UnreachableError
-from ..kernel_options import ALLOCATION_FREE
+from ..kernels.options import ALLOCATION_FREE
 from .base import FloatArray, Manipulator, RobotParams, as_vector, diag
 from .chain import PlanarChain, chain_coriolis_times
 from .kernel_math import entry_at
 from .registry import robot_params
+from .urdf import serial_urdf
 
 SERIAL_3R = 0
 """Code of the compiled form (:mod:`pdsmc_ros.robots.compiled`)."""
@@ -74,9 +75,7 @@ class Serial3R(Manipulator):
         return np.concatenate([np.asarray(x, dtype=float).ravel() for x in parts])
 
     def description(self, payload: float | None = None) -> str:
-        """The arm's URDF (:func:`pdsmc_ros.urdf.serial_urdf`)."""
-        from ..urdf import serial_urdf  # the URDF writer reads robots' parameters
-
+        """The arm's URDF (:func:`pdsmc_ros.robots.urdf.serial_urdf`)."""
         return serial_urdf(self.name, self.params, self.payload if payload is None else payload)
 
     def _fk(self, q: FloatArray) -> FloatArray:

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 from numba import njit
 
-from ..kernel_options import ALLOCATION_FREE
+from ..kernels.options import ALLOCATION_FREE
 from . import spatial_layout as lay
 from .kernel_math import solve_spd
 from .spatial_kernels import kinematics_pass

@@ -12,7 +12,7 @@ import math
 
 from numba import njit
 
-from ..kernel_options import ALLOCATION_FREE
+from ..kernels.options import ALLOCATION_FREE
 from .spatial_layout import (
     EE_JOINT,
     EE_ROTATION,

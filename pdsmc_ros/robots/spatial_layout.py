@@ -61,7 +61,7 @@ from numba import njit
 from numpy.typing import ArrayLike
 
 from ..errors import InvalidInputError
-from ..kernel_options import ALLOCATION_FREE
+from ..kernels.options import ALLOCATION_FREE
 from .base import FloatArray
 
 SERIAL_CHAIN = 2

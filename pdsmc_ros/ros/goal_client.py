@@ -1,7 +1,7 @@
 """A FollowJointTrajectory client: what ``ros2 action send_goal`` does, for any such server.
 
 :func:`goal_message` builds ``control_msgs/action/FollowJointTrajectory``'s goal from a goal
-file's data (:mod:`pdsmc_ros.trajectories.goal_file`); :func:`send_goal` sends it from a plain
+file's data (:mod:`pdsmc_ros.contours.goal_file`); :func:`send_goal` sends it from a plain
 rclpy node of its own (:class:`~.spun_node.SpunNode`: a context of its own, so no rclpy signal
 handler -- Ctrl-C reaches Python), reports progress from the server's feedback, waits for the
 result and cancels the goal on Ctrl-C, as ``ros2 action send_goal`` does.
@@ -44,7 +44,7 @@ def _duration(value: Mapping[str, Any]) -> Duration:
 
 
 def goal_message(data: Mapping[str, Any]) -> FollowJointTrajectory.Goal:
-    """The goal of a goal file's checked data (:func:`~pdsmc_ros.trajectories.goal_file.read_goal`)."""
+    """The goal of a goal file's checked data (:func:`~pdsmc_ros.contours.goal_file.read_goal`)."""
     trajectory = data["trajectory"]
     header = trajectory.get("header", {})
     msg = JointTrajectory()

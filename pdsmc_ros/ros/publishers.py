@@ -11,12 +11,12 @@ from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
-from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy_impl
 from rclpy.node import Node
 from rclpy.serialization import serialize_message
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 
-from ..loop import intra
+from .. import rclpy_internals as _rclpy_impl
+from . import intra
 from .topics import STREAM_QOS
 
 RCLError = _rclpy_impl.RCLError

@@ -1,6 +1,6 @@
 """Simulation: the plant step (RK4, zero-order hold), the closed loop, whole runs."""
 
-from ..metrics import build_samples
+from ..metrics.statistics import build_samples
 from .loop import closed_loop
 from .plant import PlantStepper
 from .rk4 import rk4_step_compiled

@@ -16,10 +16,10 @@ import numpy as np
 
 from ..control.law import ControlLaw
 from ..errors import InvalidInputError
-from ..metrics import build_samples, compute_metrics
-from ..presets import RunSpec, control_steps
+from ..metrics.statistics import build_samples, compute_metrics
 from ..robots import compiled as robot_compiled
 from ..robots.base import FloatArray
+from ..runs.builder import RunSpec, control_steps
 from .simulator import RunResult
 
 

@@ -15,7 +15,7 @@ from numba import njit
 from numpy.typing import NDArray
 
 from ..errors import InvalidInputError
-from ..kernel_options import ALLOCATION_FREE
+from ..kernels.options import ALLOCATION_FREE
 from ..robots.base import FloatArray, Manipulator
 
 # Divergence bounds (DivergenceCheck): a state this far beyond the arm's limits is no longer

@@ -17,7 +17,7 @@ from numba import njit
 
 from ..control.law import ControlLaw, law_torque
 from ..control.soft_limits import effort_only_table, soft_limit
-from ..kernel_options import ALLOCATION_FREE
+from ..kernels.options import ALLOCATION_FREE
 from ..robots import compiled as robot_compiled
 from ..robots.base import FloatArray, Manipulator
 from .divergence import DivergenceCheck, watch
@@ -45,7 +45,7 @@ def _loop(  # noqa: ANN202, PLR0913
 ):  # noqa: ANN001
     # ``q`` and ``qd`` start the run and are stepped in place: the loop ends with the state a
     # following stretch of the run starts from; ``tau`` is the step's torque (scratch). The loop
-    # allocates nothing (:data:`~pdsmc_ros.kernel_options.ALLOCATION_FREE`)
+    # allocates nothing (:data:`~pdsmc_ros.kernels.options.ALLOCATION_FREE`)
     n = robot_compiled.size(kind, q.shape[0])
     steps = refs.shape[0] - 1
     every_step = step_error.shape[0] > 0  # the error and torque of every step too (the scores')

@@ -1,7 +1,7 @@
 """A MuJoCo model of an arm the project loads, built from the same description (ROS-free).
 
 MuJoCo (PyPI ``mujoco``) is an independent physics engine: it is given the arm's
-*description* -- the URDF our own model is built from (:func:`pdsmc_ros.urdf.robot_urdf`
+*description* -- the URDF our own model is built from (:func:`pdsmc_ros.robots.urdf.robot_urdf`
 for the thesis arms, from ``config/robots.yaml``; the arm's URDF for a URDF arm) plus
 the motor inertia, which URDF cannot express -- and never our matrices. MuJoCo's own
 URDF parser reads the links' masses, centres of mass and inertia tensors, the joints'

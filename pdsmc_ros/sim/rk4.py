@@ -12,7 +12,7 @@ from collections.abc import Callable
 
 from numba import njit
 
-from ..kernel_options import ALLOCATION_FREE
+from ..kernels.options import ALLOCATION_FREE
 from ..robots import compiled as robot
 from ..robots.base import FloatArray
 
@@ -31,7 +31,7 @@ def rk4_advance(kind, p, q, qd, tau, h, stages, work):  # noqa: ANN001, ANN201, 
     ``stages`` is ``(STAGE_ROWS, n)`` (rows :data:`A1` ... :data:`QD_OUT`), ``work`` the rest: a loop of
     many steps carves them once (:func:`pdsmc_ros.sim.loop.closed_loop`). The arithmetic indexes
     ``stages`` by row and joint rather than through a named view of each row: with numba's reference
-    counts the views cost the closed loop about 5 %; without them (:mod:`pdsmc_ros.kernel_options`)
+    counts the views cost the closed loop about 5 %; without them (:mod:`pdsmc_ros.kernels.options`)
     still 2-4 % of the five-bar's (``bench/kernel.py`` x1.03-1.05 against x1.01).
     """
     n = robot.size(kind, tau.shape[0])

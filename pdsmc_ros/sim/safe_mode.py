@@ -16,14 +16,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InvalidInputError
+from ..parameters.tables import MAX_SAFE_DAMPING, MAX_SAFE_STIFFNESS, ON_LOSS, SAFE_MODES
 from ..robots.base import FloatArray
-
-SAFE_MODES = ("damp", "hold")
-ON_LOSS = ("resume", "end")
-# Upper bounds of the safe-mode gains (also the plant parameters' declared ranges): far
-# above any useful value, low enough that the safe torque stays finite.
-MAX_SAFE_DAMPING = 1.0e6  # N m s/rad
-MAX_SAFE_STIFFNESS = 1.0e7  # N m/rad
 
 
 @dataclass(frozen=True)

@@ -15,14 +15,14 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
+from ..contours import JointReference
 from ..control.law import ControlLaw
 from ..control.soft_limits import effort_only_table
 from ..control.stability import check_rate
-from ..metrics import Metrics, RunStatistics, Samples, build_samples
-from ..presets import RunSpec, control_steps
+from ..metrics.statistics import Metrics, RunStatistics, Samples, build_samples
 from ..robots import ROBOTS
 from ..robots.base import FloatArray, Manipulator
-from ..trajectories import JointReference
+from ..runs.builder import RunSpec, control_steps
 from .loop import run_loop
 from .stretches import run_in_stretches
 
@@ -165,10 +165,10 @@ def simulate_many(
     progress: Callable[[int, int, RunResult], None] | None = None,
     scheduler: str | None = None,
 ) -> list[RunResult]:
-    """Simulate several runs on the project's one parallel engine (:mod:`pdsmc_ros.engine`):
+    """Simulate several runs on the project's one parallel engine (:mod:`pdsmc_ros.sim.engine`):
     a local Dask cluster of ``workers`` processes (default: all cores), or the cluster of
     ``scheduler`` (``tcp://HOST:PORT``); one worker or one run: in this process."""
-    from ..engine import dask_client, run_tasks
+    from .engine import dask_client, run_tasks
 
     results: list[RunResult | None] = [None] * len(specs)
     workers = min(workers or os.cpu_count() or 1, max(len(specs), 1))

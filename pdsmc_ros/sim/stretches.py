@@ -4,7 +4,7 @@ reference, the states and the errors of a long run.
 :func:`pdsmc_ros.sim.simulate` with ``keep_samples=False``. The loop runs the same steps as in
 one call (:func:`~pdsmc_ros.sim.loop.run_loop` carries the state, the law's internal state and the
 step count from one stretch to the next); the reference is sampled one stretch at a time, and each
-stretch's statistics instants and control steps go into :class:`pdsmc_ros.metrics.RunStatistics`,
+stretch's statistics instants and control steps go into :class:`pdsmc_ros.metrics.statistics.RunStatistics`,
 which accumulates them row by row: the same statistics and scores as the run that keeps its
 samples, to the last digit (a test runs both). Nothing grows with the run but the process's
 bookkeeping (bench/long_run.py).
@@ -15,12 +15,12 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike
 
+from ..contours import JointReference
 from ..control.law import ControlLaw
 from ..control.soft_limits import effort_only_table
-from ..metrics import Metrics, RunStatistics, build_samples
-from ..presets import RunSpec, control_steps
+from ..metrics.statistics import Metrics, RunStatistics, build_samples
 from ..robots.base import Manipulator
-from ..trajectories import JointReference
+from ..runs.builder import RunSpec, control_steps
 from .divergence import DivergenceCheck
 from .loop import LoopOutcome, run_loop
 

@@ -43,17 +43,17 @@ from ..loop.process import run_node
 from ..loop.realtime import TRAJECTORY_PRIORITY
 from ..parameters import TRAJECTORY
 from ..parameters.ros import declare
-from ..parameters.run import declare_node_run
-from ..presets import control_steps
+from ..ros.node_run import declare_node_run
 from ..ros.publishers import GuardedPublisher
 from ..ros.topics import STEADY_CLOCK, STREAM_QOS, TOPIC_EE_DESIRED, TOPIC_JOINT_STATES, TOPIC_REFERENCE
+from ..runs.builder import control_steps
 from .reference_windows import ReferenceWindows
 
 TRAJECTORY_BATCH_S = 0.002  # lockstep: take the plant's states every 2 ms, in batches
 
 
 class TrajectoryNode:
-    """Thin wrapper around :class:`~pdsmc_ros.trajectories.JointReference`."""
+    """Thin wrapper around :class:`~pdsmc_ros.contours.JointReference`."""
 
     realtime_priority = TRAJECTORY_PRIORITY  # thread_priority's default in real time: below the plant's
 

@@ -22,12 +22,10 @@ from typing import Any
 import numpy as np
 
 from ..bag.stamps import stamp_step, step_stamp
-from ..presets import RunSpec
 from ..robots.base import FloatArray
 from ..robots.frames import LinkFrames, Transform
+from ..runs.builder import RunSpec
 
-DEFAULT_DISPLAY_RATE = 30.0
-"""Frames per second of wall time."""
 PATH_POINTS = 2000
 """End-effector points kept per path (the oldest dropped)."""
 CHANNELS = ("/tf", "/robot_description", "/end_effector/paths", "/pdsmc/errors")

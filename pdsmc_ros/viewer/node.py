@@ -24,7 +24,7 @@ from ..loop.lifecycle import EXIT_OK, end_when_plant_leaves
 from ..loop.process import run_node
 from ..parameters import VIEWER
 from ..parameters.ros import declare
-from ..parameters.run import declare_node_run
+from ..ros.node_run import declare_node_run
 from ..ros.topics import OBSERVER_QOS, STEADY_CLOCK, TOPIC_JOINT_STATES_THROTTLED
 from .live_view import FoxgloveView, LiveView
 

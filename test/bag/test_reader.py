@@ -11,7 +11,7 @@ from rosbags.typesys import Stores, get_typestore
 
 from pdsmc_ros.bag.reader import RECORDER_DESCRIPTION_TOPIC, read_run
 from pdsmc_ros.errors import BagError
-from pdsmc_ros.presets import make_run
+from pdsmc_ros.runs.builder import make_run
 
 TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
 String = TYPESTORE.types["std_msgs/msg/String"]

@@ -6,8 +6,8 @@ from collections.abc import Iterator
 
 import numpy as np
 
-from pdsmc_ros.presets import RunSpec
 from pdsmc_ros.robots.base import FloatArray
+from pdsmc_ros.runs.builder import RunSpec
 
 
 def states(spec: RunSpec, count: int, seed: int) -> Iterator[tuple[FloatArray, ...]]:

@@ -9,7 +9,7 @@ from law_inputs import states
 
 from pdsmc_ros.control import ControlLaw, law
 from pdsmc_ros.control.stability import effective_gains
-from pdsmc_ros.presets import make_run, preset_gains
+from pdsmc_ros.runs.builder import make_run, preset_gains
 from pdsmc_ros.sim.loop import run_loop
 from pdsmc_ros.sim.simulator import _reference_samples
 

@@ -11,7 +11,7 @@ import pytest
 
 from pdsmc_ros.control import ControlLaw, law
 from pdsmc_ros.errors import InvalidInputError
-from pdsmc_ros.presets import make_run
+from pdsmc_ros.runs.builder import make_run
 from pdsmc_ros.sim import PlantStepper
 from pdsmc_ros.sim.loop import run_loop
 from pdsmc_ros.sim.simulator import _reference_samples

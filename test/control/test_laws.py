@@ -9,7 +9,7 @@ from law_readings import pdsmc_reading, smc_reading
 
 from pdsmc_ros.control import ControlLaw, LawEntry, LawSetup, register_law, unregister_law
 from pdsmc_ros.control.laws import pdsmc_linear_gains
-from pdsmc_ros.presets import make_run
+from pdsmc_ros.runs.builder import make_run
 from pdsmc_ros.sim import simulate
 
 

@@ -7,13 +7,13 @@ import pytest
 from law_inputs import states
 
 from pdsmc_ros.config import load_config
-from pdsmc_ros.contour_presets import contour_set
+from pdsmc_ros.contours.presets import contour_set
 from pdsmc_ros.control import ControlLaw, law
 from pdsmc_ros.control.stability import check_gains, effective_gains
 from pdsmc_ros.errors import MissingGainsError
-from pdsmc_ros.presets import make_run, preset_gains
 from pdsmc_ros.robots import robot_names
 from pdsmc_ros.robots.catalog import catalog
+from pdsmc_ros.runs.builder import make_run, preset_gains
 from pdsmc_ros.sim import simulate
 
 ROBOT_CONTOURS = [("serial_3r", "circle"), ("parallel_5r", "circle"), ("ur5", "circle")]

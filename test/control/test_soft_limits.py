@@ -24,9 +24,9 @@ from pdsmc_ros.control.soft_limits import (
     soft_limit_table,
 )
 from pdsmc_ros.errors import InvalidInputError
-from pdsmc_ros.presets import make_run
 from pdsmc_ros.robots.catalog import resolve_robot
 from pdsmc_ros.robots.registry import make_robot
+from pdsmc_ros.runs.builder import make_run
 from pdsmc_ros.sim.loop import run_loop
 
 

@@ -17,7 +17,7 @@ from pdsmc_ros.controller.parameters import (
     declare_controller_parameters,  # noqa: E402
 )
 from pdsmc_ros.errors import ConfigError  # noqa: E402
-from pdsmc_ros.parameters.run import declare_node_run  # noqa: E402
+from pdsmc_ros.ros.node_run import declare_node_run  # noqa: E402
 
 REORDERED = ["joint3", "joint1", "joint2"]
 

@@ -16,7 +16,7 @@ from pdsmc_ros.control import Gains
 from pdsmc_ros.control.stability import check_rate
 from pdsmc_ros.controller.gain_check import CheckProcess, checked
 from pdsmc_ros.errors import ConfigError, PdsmcError
-from pdsmc_ros.presets import make_run
+from pdsmc_ros.runs.builder import make_run
 
 STABILITY = {"mode": "realtime", "delay_periods": 0, "margin": None, "entry": "node"}
 

@@ -17,11 +17,11 @@ from pdsmc_ros.controller import goals as g
 from pdsmc_ros.controller.commanding import TorqueGuard
 from pdsmc_ros.controller.core import ControllerCore
 from pdsmc_ros.controller.goal_process import STATE_BACKLOG, FrameReader, FrameWriter, GoalProcess
-from pdsmc_ros.controller.joint_map import JointMap
 from pdsmc_ros.controller.joint_trajectory import MAX_POINTS
 from pdsmc_ros.controller.joints import JointSelector
 from pdsmc_ros.controller.limits import JointLimits
-from pdsmc_ros.presets import make_run
+from pdsmc_ros.parameters.joint_map import JointMap
+from pdsmc_ros.runs.builder import make_run
 
 SPEC = make_run("serial_3r", "circle", "pd")
 ROBOT = SPEC.robot_model()

@@ -9,11 +9,11 @@ import pytest
 from pdsmc_ros.controller import goals as g
 from pdsmc_ros.controller.commanding import LatestInputs
 from pdsmc_ros.controller.hold import Hold
-from pdsmc_ros.controller.joint_map import JointMap
 from pdsmc_ros.controller.joint_trajectory import JointTrajectoryReference
 from pdsmc_ros.controller.joints import JointSelector
 from pdsmc_ros.controller.limits import JointLimits
 from pdsmc_ros.errors import ConfigError
+from pdsmc_ros.parameters.joint_map import JointMap
 
 NAMES = ("joint1", "joint2", "joint3")
 SELECTOR = JointSelector(NAMES)

@@ -12,10 +12,11 @@ from hypothesis import strategies as st
 
 from pdsmc_ros.bag import cdr
 from pdsmc_ros.controller.joint_trajectory import JointTrajectoryReference, TrajectoryRules
-from pdsmc_ros.controller.joints import JointSelector, check_joint_names
+from pdsmc_ros.controller.joints import JointSelector
 from pdsmc_ros.errors import CdrError, ConfigError
+from pdsmc_ros.parameters.joint_map import check_joint_names
 from pdsmc_ros.robots import Parallel5R, Serial3R, robot_params
-from pdsmc_ros.urdf import robot_urdf
+from pdsmc_ros.robots.urdf import robot_urdf
 
 JOINTS = ("joint1", "joint2", "joint3")
 

@@ -15,11 +15,11 @@ from pdsmc_ros.control.soft_limits import robot_soft_limits
 from pdsmc_ros.controller import goals as g
 from pdsmc_ros.controller.commanding import RunawayGuard, TorqueGuard
 from pdsmc_ros.controller.core import CONTINUITY_TOLERANCE, ControllerCore
-from pdsmc_ros.controller.joint_map import JointMap
 from pdsmc_ros.controller.joints import JointSelector
 from pdsmc_ros.controller.limits import JointLimits
 from pdsmc_ros.errors import InvalidInputError
-from pdsmc_ros.presets import make_run
+from pdsmc_ros.parameters.joint_map import JointMap
+from pdsmc_ros.runs.builder import make_run
 
 SPEC = make_run("serial_3r", "circle", "pd", rate=1000.0)
 ROBOT = SPEC.robot_model()

@@ -12,7 +12,7 @@ from pdsmc_ros.control import Gains
 from pdsmc_ros.control.lyapunov import theorem_conditions
 from pdsmc_ros.errors import InvalidInputError
 from pdsmc_ros.experiments.sweep import sweep_specs, thesis_values
-from pdsmc_ros.presets import make_run
+from pdsmc_ros.runs.builder import make_run
 
 
 def test_thesis_increments_of_table_4_15() -> None:

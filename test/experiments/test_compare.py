@@ -21,8 +21,8 @@ import yaml
 from pdsmc_ros import cli
 from pdsmc_ros.control import GainSpec, LawEntry, LawSetup, register_law, unregister_law
 from pdsmc_ros.experiments.compare import Column, LawRow, best_marks, law_specs, text_table
-from pdsmc_ros.presets import make_run
 from pdsmc_ros.robots.base import FloatArray
+from pdsmc_ros.runs.builder import make_run
 from pdsmc_ros.sim import simulate
 
 FIVE_BAR = ["--robot", "parallel_5r", "--contour", "circle", "--scenario", "high_speed"]

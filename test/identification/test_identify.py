@@ -136,7 +136,7 @@ def test_the_identified_model_fed_back_to_computed_torque(simulated: dict[str, P
     capsys.readouterr()
     assert main(["check-gains", "--robot", "ur5", "--contour", "circle", "--controller", "ctc", "--gain",
                  "omega_n=30", "--gain", "zeta=1", "--model", str(out / "identified.yaml")]) == 0
-    from pdsmc_ros.presets import RunSpec, make_run
+    from pdsmc_ros.runs.builder import RunSpec, make_run
 
     spec = make_run("ur5", "circle", "ctc", gains=None, overrides={"omega_n": [30.0], "zeta": [1.0]},
                     model=str(out / "identified.yaml"))

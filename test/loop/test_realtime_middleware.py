@@ -1,6 +1,6 @@
 """Real-time processes write asynchronously and over UDP only (pdsmc_ros/loop/process.py
 choose_middleware): the mode each node is given, read before rclpy starts as rcl will resolve it,
-chooses; the environment's own choices are kept. bench/storm.py measures why (a synchronous write
+chooses; the environment's own choices are kept. bench/storm/ measures why (a synchronous write
 stood the loop still 13-22 ms while clients subscribed, a shared-memory port's health check 333 ms)."""
 
 from __future__ import annotations
@@ -21,8 +21,8 @@ from pdsmc_ros.loop.process import (  # noqa: E402
     TRANSPORTS_CHOSEN_BY,
     choose_middleware,
 )
+from pdsmc_ros.parameters.params_file import given_value  # noqa: E402
 from pdsmc_ros.resources import config_dir  # noqa: E402
-from pdsmc_ros.settings import given_value  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
 

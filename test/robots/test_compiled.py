@@ -7,9 +7,9 @@ import pytest
 from numba import njit
 from numba.core.errors import TypingError
 
-from pdsmc_ros.presets import make_run
 from pdsmc_ros.robots import compiled, make_robot
 from pdsmc_ros.robots.catalog import resolve_robot
+from pdsmc_ros.runs.builder import make_run
 
 UNKNOWN = 99
 N = 3

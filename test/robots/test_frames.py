@@ -12,7 +12,7 @@ import pinocchio as pin  # noqa: E402
 from pdsmc_ros.robots import make_robot, robot_params  # noqa: E402
 from pdsmc_ros.robots.catalog import resolve_robot  # noqa: E402
 from pdsmc_ros.robots.frames import LinkFrames, compose  # noqa: E402
-from pdsmc_ros.urdf import robot_urdf  # noqa: E402
+from pdsmc_ros.robots.urdf import robot_urdf  # noqa: E402
 
 
 @pytest.mark.parametrize("arm", ["ur5", "panda", "parallel_5r"])

@@ -16,10 +16,10 @@ import pytest
 from arm4 import EFFORT, OPTIONS, VELOCITY, write_arm
 
 from pdsmc_ros.errors import ConfigError
-from pdsmc_ros.presets import make_run
 from pdsmc_ros.robots import ROBOTS, make_robot
 from pdsmc_ros.robots.catalog import resolve_robot
 from pdsmc_ros.robots.registry import unregister_robot
+from pdsmc_ros.runs.builder import make_run
 from pdsmc_ros.sim import simulate
 
 

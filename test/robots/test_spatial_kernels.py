@@ -18,7 +18,7 @@ from pdsmc_ros.robots import robot_params  # noqa: E402
 from pdsmc_ros.robots import spatial_dynamics as dyn  # noqa: E402
 from pdsmc_ros.robots import spatial_kernels as kin  # noqa: E402
 from pdsmc_ros.robots import spatial_layout as lay  # noqa: E402
-from pdsmc_ros.urdf import robot_urdf  # noqa: E402
+from pdsmc_ros.robots.urdf import robot_urdf  # noqa: E402
 
 TOL = 1e-10
 SAMPLES = 20

@@ -12,16 +12,16 @@ import pytest
 
 pytest.importorskip("pinocchio")
 
+from pdsmc_ros.contours import JointReference  # noqa: E402
 from pdsmc_ros.errors import ConfigError, InvalidInputError, UnreachableError  # noqa: E402
-from pdsmc_ros.presets import build_contour, make_run  # noqa: E402
 from pdsmc_ros.resources import config_dir  # noqa: E402
 from pdsmc_ros.robots import Serial3R, make_robot, robot_params  # noqa: E402
 from pdsmc_ros.robots.catalog import resolve_robot  # noqa: E402
 from pdsmc_ros.robots.task import TaskPlane, rotation_log  # noqa: E402
+from pdsmc_ros.robots.urdf import robot_urdf  # noqa: E402
 from pdsmc_ros.robots.urdf_robot import from_urdf  # noqa: E402
+from pdsmc_ros.runs.builder import build_contour, make_run  # noqa: E402
 from pdsmc_ros.sim import simulate  # noqa: E402
-from pdsmc_ros.trajectories import JointReference  # noqa: E402
-from pdsmc_ros.urdf import robot_urdf  # noqa: E402
 
 PARAMS = robot_params("serial_3r")
 THESIS_PLANE = TaskPlane(origin=np.zeros(3), u=np.array([1.0, 0.0, 0.0]), v=np.array([0.0, 0.0, 1.0]))
@@ -161,12 +161,12 @@ def test_the_cli_takes_a_urdf_file_and_refuses_a_broken_one_in_one_line(tmp_path
 def test_cached_kernels_built_from_other_sources_are_dropped(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """numba checks a cached kernel against its own file only: after a change to another kernel
     module (the robot dispatch, say) the package's cache must not survive."""
-    from pdsmc_ros import kernel_cache
+    from pdsmc_ros.kernels import cache as kernel_cache
 
     sources = kernel_cache.kernel_sources()
     assert {p.name for p in sources} >= {"compiled.py", "loop.py", "spatial_layout.py", "spatial_kernels.py",
                                          "spatial_dynamics.py", "ik_kernels.py", "kernel_math.py",
-                                         "kernel_options.py"}
+                                         "options.py"}
     cache = tmp_path / "cache"
     cache.mkdir()
     stale = cache / "loop._closed_loop_compiled-22.py311.nbi"

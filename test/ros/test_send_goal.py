@@ -27,8 +27,8 @@ from control_msgs.action import FollowJointTrajectory  # noqa: E402
 from rclpy.action import ActionServer, CancelResponse, GoalResponse  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 
+from pdsmc_ros.contours.goal_file import goal_data, write_goal  # noqa: E402
 from pdsmc_ros.ros.spun_node import SpunNode  # noqa: E402
-from pdsmc_ros.trajectories.goal_file import goal_data, write_goal  # noqa: E402
 
 ACTION = "/arm/follow_joint_trajectory"
 

@@ -1,6 +1,6 @@
 """The real-time command's writer thread (:class:`~pdsmc_ros.ros.publishers.WriterThread`): what a
 plain rclpy subscription receives from it: the bytes as handed over, in order, the newest always
-last. (That the loop no longer waits in the middleware is measured by ``bench/storm.py``.)"""
+last. (That the loop no longer waits in the middleware is measured by ``bench/storm/``.)"""
 
 from __future__ import annotations
 

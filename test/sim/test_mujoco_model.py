@@ -19,8 +19,8 @@ from pdsmc_ros.robots.registry import make_robot, unregister_robot
 
 mujoco = pytest.importorskip("mujoco")
 
+from pdsmc_ros.mujoco_driver.driver import MujocoDriver, default_positions, initial_passive  # noqa: E402
 from pdsmc_ros.sim import mujoco_model as mm  # noqa: E402
-from pdsmc_ros.sim.mujoco_driver import MujocoDriver, default_positions, initial_passive  # noqa: E402
 from pdsmc_ros.sim.plant import PlantStepper  # noqa: E402
 
 TIGHT = 1e-10  # relative to the largest entry: both sides are exact rigid-body algorithms

@@ -8,7 +8,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from pdsmc_ros.presets import make_run
+from pdsmc_ros.runs.builder import make_run
 from pdsmc_ros.sim import simulate, stretches
 
 

@@ -15,7 +15,7 @@ import numpy as np
 
 from ...config import load_config
 from ...control import Gains, law, law_label
-from ...presets import RunSpec, control_steps, make_run, preset_gains, smc_reading
+from ...runs.builder import RunSpec, control_steps, make_run, preset_gains, smc_reading
 from ...sim import RunResult
 
 THESIS_LAWS = ("pd", "smc", "pdsmc")

@@ -14,7 +14,7 @@ import numpy as np
 from ... import __version__
 from ...config import load_config
 from ...errors import ConfigError
-from ...presets import PAYLOAD_READINGS, preset_gains
+from ...runs.builder import PAYLOAD_READINGS, preset_gains
 from .cells import (
     CONTINUOUS_CASE,
     GAIN_READINGS,

@@ -16,9 +16,9 @@ import numpy as np
 from ...bag.reader import read_run, run_samples
 from ...config import choice, load_config
 from ...errors import BagError, ConfigError
-from ...metrics import compute_metrics
-from ...presets import PAYLOAD_READINGS, RunSpec, make_run, smc_reading
+from ...metrics.statistics import compute_metrics
 from ...resources import ros_environment, script_path
+from ...runs.builder import PAYLOAD_READINGS, RunSpec, make_run, smc_reading
 from ...sim import RunResult, simulate, simulate_many
 from .cells import (
     CONTINUOUS_CASE,

@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 
 from ...config import load_config
-from ...presets import make_run
+from ...runs.builder import make_run
 from ...sim import RunResult, simulate
 from .cells import (
     CONTINUOUS_CASE,

@@ -20,8 +20,8 @@ from pdsmc_ros.experiments.thesis.cells import VERDICTS, Cell, Reproduction, nee
 from pdsmc_ros.experiments.thesis.report import write_report
 from pdsmc_ros.experiments.thesis.reproduce import run_reproduction
 from pdsmc_ros.experiments.thesis.verdicts import classify, count_verdicts
-from pdsmc_ros.presets import PAYLOAD_READINGS, RunSpec, loaded_params, make_run
 from pdsmc_ros.robots import Parallel5R, Serial3R, robot_params
+from pdsmc_ros.runs.builder import PAYLOAD_READINGS, RunSpec, loaded_params, make_run
 from pdsmc_ros.sim import simulate
 
 TABLES = load_config("thesis_tables")

@@ -1,0 +1,114 @@
+"""Every private name of rclpy (and of its rcl bindings) the package uses, in one place.
+
+rclpy's public API has no way to take a subscription's serialized messages in a wait set of one's
+own, to trigger a guard condition that belongs to no node, to write a log line without rclpy's
+per-call caller lookup, or to read and rewrite the parameter overrides a node was started with.
+The package needs each (the serve loop, the recorder, the intra-process routes, the loop's log,
+the parameter tables' start-up check); this module is where they are taken from rclpy, so an rclpy
+update that changes them breaks here, named, and nowhere else: ``test/test_rclpy_internals.py``
+fails with this module's name and what is missing (:func:`missing`).
+
+Written against rclpy :data:`WRITTEN_AGAINST` (ROS 2 Jazzy). Where the public API can do the same,
+it is used (:func:`declared_value`) or taken as the fallback (:func:`rcutils_log` is None without
+the private writer: the caller logs through rclpy's logger).
+
+Not here yet: the controller's sidecar processes (``controller/goal_process.py``: a stand-in
+overriding rclpy's private ``_parameter_event_publisher``, reading ``node._parameters``;
+``controller/gain_check.py``) and the command writer's ``rcl_publish_serialized_message``
+through ctypes (``ros/publishers.py``'s ``WriterThread``): whether they stay is being measured.
+"""
+
+from __future__ import annotations
+
+import importlib.metadata
+from typing import Any
+
+from rclpy.exceptions import ParameterNotDeclaredException, ParameterUninitializedException
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+
+WRITTEN_AGAINST = "7.1.5"
+"""The rclpy release this module was written and tested against (ROS 2 Jazzy's)."""
+
+WaitSet = _rclpy.WaitSet
+"""rcl's wait set: the serve loop and the recorder wait on their subscriptions' handles with it
+(``clear_entities``, ``add_subscription``, ``add_guard_condition``, ``wait``)."""
+GuardCondition = _rclpy.GuardCondition
+"""rcl's guard condition, made from a context's handle (the intra-process routes wake the loop with it)."""
+RCLError = _rclpy.RCLError
+"""What rcl's bindings raise (a publish on a destroyed publisher, say)."""
+
+USED = {
+    "rclpy.impl.implementation_singleton.rclpy_implementation": (
+        "WaitSet", "GuardCondition", "RCLError", "rclpy_logging_rcutils_log"),
+    "rclpy_implementation.WaitSet": ("clear_entities", "add_subscription", "add_guard_condition", "wait"),
+    "rclpy_implementation.Subscription": ("take_message",),
+    "rclpy_implementation.Publisher": ("publish_raw",),
+    "rclpy.node.Node (an instance)": ("_parameter_overrides",),
+}
+"""Every private name used, by what holds it: the C extension's classes and functions, the methods
+called on a subscription's or publisher's ``handle`` (``take_message(msg_type, raw)``: the
+recorder and the serve loop take serialized messages; ``publish_raw``: the guarded publishers),
+and a node's parameter overrides."""
+
+
+def missing(node: Node | None = None) -> list[str]:
+    """The names of :data:`USED` this rclpy lacks (``node``: an instance to check the node's names on)."""
+    holders: dict[str, Any] = {
+        "rclpy.impl.implementation_singleton.rclpy_implementation": _rclpy,
+        "rclpy_implementation.WaitSet": getattr(_rclpy, "WaitSet", None),
+        "rclpy_implementation.Subscription": getattr(_rclpy, "Subscription", None),
+        "rclpy_implementation.Publisher": getattr(_rclpy, "Publisher", None),
+        "rclpy.node.Node (an instance)": node,
+    }
+    out = []
+    for holder, names in USED.items():
+        obj = holders[holder]
+        if obj is None and holder.endswith("(an instance)"):
+            continue
+        out += [f"{holder}.{name}" for name in names if obj is None or not hasattr(obj, name)]
+    return out
+
+
+def installed_version() -> str:
+    """The installed rclpy's version ("unknown" where its metadata is absent: a source build)."""
+    try:
+        return importlib.metadata.version("rclpy")
+    except importlib.metadata.PackageNotFoundError:
+        return "unknown"
+
+
+def rcutils_log() -> Any:
+    """rcutils' log call that rclpy's own logger ends in (``rclpy_logging_rcutils_log``): the loop's
+    log writes its lines with it (no caller lookup, no logging mutex); None where this rclpy has
+    none (the caller keeps rclpy's logger)."""
+    return getattr(_rclpy, "rclpy_logging_rcutils_log", None)
+
+
+def parameter_overrides(node: Node) -> dict[str, Parameter]:
+    """The parameter overrides ``node`` was started with (``-p``, params files), by name: rclpy keeps
+    them in a private dict it reads when a parameter is declared, and has no public accessor. The
+    dict itself is returned: the tables' start-up check replaces an override by its checked value
+    (or removes an empty one) before the declaration reads it.
+
+    Raises
+    ------
+    AttributeError
+        Naming this module, if this rclpy keeps them elsewhere.
+    """
+    try:
+        overrides: dict[str, Parameter] = node._parameter_overrides  # noqa: SLF001 - no public accessor
+    except AttributeError:
+        raise AttributeError(f"{__name__}: this rclpy ({installed_version()}) keeps no Node._parameter_overrides "
+                             f"(written against {WRITTEN_AGAINST})") from None
+    return overrides
+
+
+def declared_value(node: Node, name: str) -> Any:
+    """A declared parameter's value, None if it is unset (a statically typed parameter with no value:
+    a gain not given) or not declared. Public API: rclpy's ``get_parameter`` raises for both."""
+    try:
+        return node.get_parameter(name).value
+    except (ParameterUninitializedException, ParameterNotDeclaredException):
+        return None
