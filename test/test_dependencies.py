@@ -42,7 +42,7 @@ KNOWN_UPWARD: set[tuple[str, str]] = {
 }
 """Imports against the direction still in the package, each (importer, imported)."""
 
-MATHS = ("kernels", "control", "robots", "contours", "metrics", "sim")
+MATHS = ("kernels", "control", "robots", "contours", "metrics", "sim", "identification")
 """The ROS-free maths."""
 COMPONENTS = ("controller", "plant", "trajectory", "recorder", "mujoco_driver", "viewer", "composed")
 """The ROS components, each its ROS-free decisions and its node."""
@@ -56,7 +56,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("parameters",),  # the one source of settings: the tables, params files, their rclpy declaration
     ("runs",),  # the run: RunSpec, the one builder, defaults from the tables
     ("sim",),  # simulation: the plant step, the closed loop, whole runs, the parallel engine
-    ("bag", "experiments"),  # bags; experiments over runs
+    ("bag", "experiments", "identification"),  # bags; experiments over runs; the model from a run
     ("ros", "loop"),  # the ROS plumbing: topics, publishers, the nodes' start-up, the loop
     COMPONENTS,
     ("cli",),  # the commands

@@ -20,7 +20,8 @@ CORE = ["pdsmc_ros/bag", "pdsmc_ros/robots", "pdsmc_ros/control", "pdsmc_ros/sim
         *(f"pdsmc_ros/controller/{m}.py" for m in ("core", "commanding", "goals", "joint_trajectory", "hold",
                                                    "joints", "limits", "warm")),
         "pdsmc_ros/trajectory/reference_windows.py", "pdsmc_ros/loop/realtime.py", "pdsmc_ros/loop/statistics.py",
-        "pdsmc_ros/resources.py", "pdsmc_ros/metrics/scores.py", "pdsmc_ros/experiments"]
+        "pdsmc_ros/resources.py", "pdsmc_ros/metrics/scores.py", "pdsmc_ros/experiments",
+        "pdsmc_ros/identification"]
 
 
 def mypy() -> list[str]:

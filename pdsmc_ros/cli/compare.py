@@ -25,7 +25,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from ..errors import ConfigError, InvalidInputError
-from .options import name_list, positive_float, run_count, seed_value, worker_count
+from .options import add_model_argument, name_list, positive_float, run_count, seed_value, worker_count
 from .stand_in import add_stand_in_arguments, describe_plant, stand_in_from_args
 
 if TYPE_CHECKING:
@@ -51,6 +51,7 @@ def add_parser(sub: argparse._SubParsersAction, commands: dict) -> None:  # type
     p.add_argument("--params-file", action="append", default=None, metavar="FILE",
                    help="gains of the file's law (its type:) from a ROS 2 params file (pdsmc tune writes one); "
                    "repeat for other laws; the others use config/gains.yaml's presets")
+    add_model_argument(p)
     p.add_argument("--runs", type=run_count, default=None, help="also run every law on this many drawn plants")
     p.add_argument("--uncertainty", default=None,
                    help="with --runs: YAML of parameter spreads (default: config/uncertainty.yaml)")
@@ -101,7 +102,7 @@ def run(args: argparse.Namespace) -> int:
         law(name)
     files = params_by_law(args.params_file or [], args.laws)
     entries = law_specs(args.robot, args.contour, args.laws, scenario=args.scenario, rate=args.rate,
-                        reading=args.smc_reading, params_files=files)
+                        reading=args.smc_reading, params_files=files, model=args.model)
     spreads = _check_montecarlo(args, entries) if args.runs else None
     stand_in = stand_in_from_args(args, seed=args.seed)
     plant = describe_plant(stand_in, entries[0].spec.robot, entries[0].spec.rate)  # a bad nuisance: before any run

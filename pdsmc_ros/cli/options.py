@@ -108,6 +108,13 @@ def add_loop_arguments(p: argparse.ArgumentParser) -> None:
                    help="required rate / lowest stable rate (default 2 in realtime, 1 in lockstep)")
 
 
+def add_model_argument(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--model", default=None, metavar="ROBOT",
+                   help="the arm model the model-based laws use instead of --robot's own, e.g. pdsmc identify's "
+                   "DIR/identified.yaml (or .urdf): the same joints; the simulated arm stays --robot (with "
+                   "--smc-reading exact the laws take it as it is)")
+
+
 REQUIRED = ("robot", "contour", "type")
 """Run settings a ``pdsmc`` command needs named (a node takes the table's default)."""
 
@@ -162,6 +169,7 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--gain", type=gain_value, action="append", default=None, metavar="NAME=V1,V2,...",
                    help="one gain the law declares (its -p NAME:= parameter), one value per joint; repeat for "
                    "others; replaces the preset's and the params file's, before the scenario's factors")
+    add_model_argument(p)
     p.add_argument("--no-enforce-limits", action="store_true",
                    help="do not clamp the torque to the arm's effort limits (URDF <limit effort>, "
                    "config/robots.yaml); the clamp is on by default")
@@ -201,11 +209,11 @@ def spec_from_args(args: argparse.Namespace) -> RunSpec:
         if not settings["rate"] and given.get("rate"):  # the rate the file's gains were chosen for
             settings["rate"] = positive_float(str(given["rate"]))
         params = read_gains(args.params_file, make_robot(resolve_robot(args.robot)).n, args.controller)
-    return run_from_settings(settings, params=params, overrides=dict(args.gain or ()))
+    return run_from_settings(settings, params=params, overrides=dict(args.gain or ()), model=args.model)
 
 
 RUN_DEFAULTS = {**{dest(spec): spec.default or None for spec in RUN if spec.flag and spec.name not in REQUIRED},
-                "no_enforce_limits": False, "gain": None}
+                "no_enforce_limits": False, "gain": None, "model": None}
 """The run options montecarlo does not take (its runs are nominal, at the robot's rate), at the table's defaults."""
 
 

@@ -9,6 +9,7 @@ from pathlib import Path
 from ..errors import ConfigError
 from .options import (
     add_loop_arguments,
+    add_model_argument,
     positive_float,
     positive_int,
 )
@@ -27,6 +28,7 @@ def add_parser(sub: argparse._SubParsersAction, commands: dict) -> None:  # type
                    help="the params file to write (default: <robot>_<contour>_<controller>.yaml here)")
     p.add_argument("--quiet", action="store_true", help="no line per candidate")
     p.add_argument("--scheduler", default=None, help="run each gain's candidates on a Dask cluster, tcp://HOST:PORT")
+    add_model_argument(p)
     add_loop_arguments(p)
     commands["tune"] = run
 
@@ -51,7 +53,8 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError(f"--out {str(out)!r}: cannot create {str(out.parent)!r} ({exc.strerror})") from None
     requirement = Requirement(args.mode, args.delay_periods, args.margin)
     result = tune(args.robot, args.contour, args.controller, rate=args.rate, rounds=args.rounds,
-                  progress=None if args.quiet else progress, scheduler=args.scheduler, requirement=requirement)
+                  progress=None if args.quiet else progress, scheduler=args.scheduler, requirement=requirement,
+                  model=args.model)
     spec = result.spec
     try:
         write_params_file(out, result.best.gains, controller=spec.controller, robot=spec.robot,

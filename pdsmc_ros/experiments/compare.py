@@ -112,7 +112,7 @@ def law_row(result: RunResult) -> LawRow:
 
 def law_specs(robot: str, contour: str, laws: Sequence[str], *, scenario: str = "nominal",
               rate: float | None = None, reading: str = "literal",
-              params_files: Mapping[str, str] | None = None) -> list[LawSpec]:
+              params_files: Mapping[str, str] | None = None, model: str | None = None) -> list[LawSpec]:
     """Each law's run on ``robot``/``contour`` at one rate, checked before anything runs.
 
     Parameters
@@ -123,6 +123,8 @@ def law_specs(robot: str, contour: str, laws: Sequence[str], *, scenario: str = 
         The model-based laws' model estimate (``config/smc_readings.yaml``), as ``pdsmc simulate``.
     params_files : mapping, optional
         A params file per law name (its gains replace the presets, as ``--params-file`` does).
+    model : str, optional
+        The arm model the laws use (``--model``: :attr:`~pdsmc_ros.runs.builder.RunSpec.model`).
 
     Raises
     ------
@@ -144,7 +146,7 @@ def law_specs(robot: str, contour: str, laws: Sequence[str], *, scenario: str = 
         params = read_gains(path, make_robot(resolve_robot(robot)).n, name) if path else None
         try:
             spec = make_run(robot, contour, name, scenario=scenario, rate=rate, params=params,
-                            smc_model=smc_reading(reading) if law(name).model_based else None)
+                            smc_model=smc_reading(reading) if law(name).model_based else None, model=model)
         except MissingGainsError as exc:
             raise MissingGainsError(
                 f"law {name} has no gains for {robot}/{contour} ({exc}); give them in a params file: "

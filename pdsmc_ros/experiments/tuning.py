@@ -203,6 +203,7 @@ def tune(
     scheduler: str | None = None,
     requirement: Requirement | None = None,
     also: Sequence[str] = (),
+    model: str | None = None,
 ) -> TuneResult:
     """Gains for ``robot`` on ``contour`` with ``controller`` by the recipe of Section 4.2.3.
 
@@ -232,6 +233,8 @@ def tune(
     also : sequence of str
         Other contours the gains will serve (a gain group of config/gains.yaml): every candidate
         must pass the check on them too.
+    model : str, optional
+        The arm model the law uses (:attr:`~pdsmc_ros.runs.builder.RunSpec.model`: an identified arm).
 
     Raises
     ------
@@ -246,12 +249,12 @@ def tune(
         raise ConfigError(f"factors must be positive numbers, got {list(factors)!r}")
     needed = law(controller).gain_names
     requirement = requirement or Requirement()
-    spec = _spec(robot, contour, controller, rate)
+    spec = _spec(robot, contour, controller, rate, model)
     reference = spec.reference()
     step = plant_step(spec.robot_model(), reference.sample(np.linspace(0.0, reference.duration, 13)).q, spec.rate)
     if not step.holds:  # no gains can help: say which joint and what fixes it
         raise ConfigError(f"tune {robot}/{contour}/{controller} at {spec.rate:g} Hz: {step.problem()}")
-    others = tuple(_spec(robot, name, controller, rate) for name in also)
+    others = tuple(_spec(robot, name, controller, rate, model) for name in also)
     limit = _torque_limit(spec)
     tried: list[Candidate] = []
     w = bandwidth(spec.rate)
@@ -303,12 +306,12 @@ def _evaluator(spec: RunSpec, limit: np.ndarray, scheduler: str | None, requirem
         yield remote
 
 
-def _spec(robot: str, contour: str, controller: str, rate: float | None) -> RunSpec:
+def _spec(robot: str, contour: str, controller: str, rate: float | None, model: str | None = None) -> RunSpec:
     """The run to tune: the robot's settings with placeholder gains (replaced per candidate)."""
     needed = law(controller).gain_names
     n = make_robot(resolve_robot(robot)).n
     placeholder = Gains.from_mapping({k: [1.0] for k in needed}, n, controller)  # one value: every joint
-    return make_run(robot, contour, controller, rate=rate, gains=placeholder)
+    return make_run(robot, contour, controller, rate=rate, gains=placeholder, model=model)
 
 
 def _torque_limit(spec: RunSpec) -> np.ndarray:

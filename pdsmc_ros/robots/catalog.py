@@ -114,6 +114,24 @@ def resolve_robot(name: str) -> str:
     raise ConfigError(f"unknown robot {name!r}; allowed: {allowed_robots()}")
 
 
+def resolve_model(name: str) -> str:
+    """A model of the arm (``--model``) registered like any robot (:func:`resolve_robot`); an options
+    file ``arm.yaml`` names the URDF arm ``arm.urdf`` beside it (``pdsmc identify`` writes the pair).
+
+    Raises
+    ------
+    ConfigError
+        As :func:`resolve_robot`, or an options file without its URDF beside it.
+    """
+    if isinstance(name, str) and name.lower().endswith((".yaml", ".yml")):
+        urdf = Path(name).with_suffix(".urdf")
+        if not urdf.is_file():
+            raise ConfigError(f"model {name!r}: no URDF {str(urdf)!r} beside the options file (an arm is X.urdf with "
+                              "its options X.yaml)")
+        return resolve_robot(str(urdf))
+    return resolve_robot(name)
+
+
 def register_description(xml: str, *, name: str = ROBOT_DESCRIPTION) -> str:
     """Register the arm of a ``/robot_description`` URDF under ``name`` (replacing an earlier one).
 

@@ -17,7 +17,12 @@ from ..errors import ConfigError, InvalidInputError
 from .base import FloatArray
 
 OPTION_KEYS = ("armature", "ee_frame", "locked_joints", "home", "plane", "orientation", "effort_limits",
-               "velocity_limits", "position_limits")
+               "velocity_limits", "position_limits", "friction_coulomb", "friction_viscous", "payload_mass",
+               "payload_com")
+"""The task and model options of an arm. ``friction_coulomb``, ``friction_viscous``, ``payload_mass`` and
+``payload_com`` are the MuJoCo stand-in's own parameter names (what ``pdsmc identify`` writes): Coulomb
+and viscous friction per joint (N m, N m s; the viscous adds to the URDF's ``<dynamics damping>``), a
+point mass (kg) at ``payload_com`` (m, in the end-effector frame)."""
 SETTING_KEYS = ("control_rate", "sample_rate", "contour_bound", "contour_size", "contours", "gains")
 
 
@@ -65,6 +70,13 @@ def check_entry(entry: Mapping[str, Any], where: str) -> None:
     size = entry.get("contour_size")
     if size is not None and not (is_real(size) and 0.0 < size < float("inf")):
         raise ConfigError(f"{where}: contour_size must be a number > 0 (m) or null, got {size!r}")
+    mass = entry.get("payload_mass")
+    if mass is not None and not (is_real(mass) and 0.0 <= mass < float("inf")):
+        raise ConfigError(f"{where}: payload_mass must be a number >= 0 (kg), got {mass!r}")
+    com = entry.get("payload_com")
+    if com is not None and not (isinstance(com, list) and len(com) == 3 and are_real(com)
+                                and all(np.isfinite(com))):
+        raise ConfigError(f"{where}: payload_com must be 3 finite numbers (m, in the end-effector frame), got {com!r}")
     gains = entry.get("gains")
     if gains is not None and not isinstance(gains, (str, dict)):
         raise ConfigError(f"{where}: gains must name a table of config/gains.yaml or give one (contour group -> "

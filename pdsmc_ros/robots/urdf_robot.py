@@ -38,7 +38,7 @@ import os
 import sys
 import tempfile
 from collections.abc import Callable, Iterator, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 from xml.etree import ElementTree
@@ -182,6 +182,12 @@ class UrdfArm:
         Run settings and presets (``control_rate``, ``contour_size``, ``contours``, ``gains`` ...).
     options : mapping
         The task options it was made with, as plain data (its ``<pdsmc_ros>`` element).
+    friction_coulomb : ndarray
+        Coulomb friction per joint (N m): carried for the stand-in and the identification, not
+        in the laws' model (``damping`` holds the viscous part).
+    payload_mass, payload_com
+        The options' point mass (kg) and where it is in the end-effector frame (m): already in
+        ``model`` (on the inertia of the end-effector frame's joint).
     """
 
     name: str
@@ -203,6 +209,9 @@ class UrdfArm:
     rows: NDArray[np.intp]
     settings: Mapping[str, Any]
     options: Mapping[str, Any]
+    friction_coulomb: FloatArray = field(default_factory=lambda: np.zeros(0))
+    payload_mass: float = 0.0
+    payload_com: FloatArray = field(default_factory=lambda: np.zeros(3))
 
     def create(self, payload: float = 0.0, *, params: RobotParams | None = None) -> UrdfRobot:
         """A robot of this arm (its own Pinocchio data). ``payload`` must be 0: a load is a fixed
@@ -242,6 +251,10 @@ def urdf_arm(
     effort_limits: ArrayLike | None = None,
     velocity_limits: ArrayLike | None = None,
     position_limits: ArrayLike | None = None,
+    friction_coulomb: ArrayLike | None = None,
+    friction_viscous: ArrayLike | None = None,
+    payload_mass: float | None = None,
+    payload_com: ArrayLike | None = None,
     options_label: str | None = None,
 ) -> UrdfArm:
     """The arm of a URDF file or text, with its settings (:meth:`UrdfArm.create` builds the robot).
@@ -273,6 +286,12 @@ def urdf_arm(
         URDF's ``<limit effort velocity>``.
     position_limits : array_like, optional
         ``(n, 2)`` lower and upper limits (rad or m); by default the URDF's ``<limit lower upper>``.
+    friction_coulomb, friction_viscous : array_like, optional
+        Per joint (or one for all), N m and N m s, >= 0; 0 by default. The viscous friction adds
+        to the URDF's ``<dynamics damping>`` (the motor damping ``B``).
+    payload_mass, payload_com : optional
+        A point mass (kg, >= 0) at ``payload_com`` (m, in the end-effector frame; its origin by
+        default), added to the model: a tool or load the URDF does not have.
     options_label : str, optional
         What the options' errors name (the options file); by default the URDF.
 
@@ -301,10 +320,24 @@ def urdf_arm(
                              np.asarray(model.upperPositionLimit, dtype=float)], axis=-1)
     else:
         position = position_pairs(position_limits, names, where)
-    damping = np.asarray(model.damping, dtype=float).copy()
+    coulomb = per_joint(0.0 if friction_coulomb is None else friction_coulomb, names, "friction_coulomb", where,
+                        lowest=0.0, finite=True)
+    viscous = per_joint(0.0 if friction_viscous is None else friction_viscous, names, "friction_viscous", where,
+                        lowest=0.0, finite=True)
+    damping = np.asarray(model.damping, dtype=float).copy() + viscous
     model.armature[:] = 0.0  # J is added by the robot, as for the built-in ones (Mbar = M + J)
-    data = model.createData()
     ee_id = model.getFrameId(frame)
+    load = 0.0 if payload_mass is None else float(payload_mass)
+    load_com = np.zeros(3) if payload_com is None else np.asarray(payload_com, dtype=float)
+    if not (np.isfinite(load) and load >= 0.0) or load_com.shape != (3,) or not np.all(np.isfinite(load_com)):
+        raise InvalidInputError(f"{where}: payload_mass must be >= 0 kg and payload_com 3 finite numbers (m), got "
+                                f"{payload_mass!r} and {payload_com!r}")
+    if load > 0.0:  # a point mass at payload_com in the end-effector frame, on that frame's joint
+        placed_frame = model.frames[ee_id]
+        point = pin.Inertia(load, load_com, np.zeros((3, 3)))
+        joint = placed_frame.parentJoint
+        model.inertias[joint] = model.inertias[joint] + placed_frame.placement.act(point)
+    data = model.createData()
     pin.framesForwardKinematics(model, data, q_home)
     x_home = data.oMf[ee_id].translation.copy()
     r_home = data.oMf[ee_id].rotation.copy()
@@ -335,7 +368,12 @@ def urdf_arm(
             **({} if effort_limits is None else {"effort_limits": effort.tolist()}),
             **({} if velocity_limits is None else {"velocity_limits": velocity.tolist()}),
             **({} if position_limits is None else {"position_limits": position.tolist()}),
+            **({} if friction_coulomb is None else {"friction_coulomb": coulomb.tolist()}),
+            **({} if friction_viscous is None else {"friction_viscous": viscous.tolist()}),
+            **({} if payload_mass is None else {"payload_mass": load}),
+            **({} if payload_com is None else {"payload_com": load_com.tolist()}),
         },
+        friction_coulomb=coulomb, payload_mass=load, payload_com=load_com,
     )
 
 

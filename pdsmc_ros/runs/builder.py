@@ -24,7 +24,7 @@ from ..errors import ConfigError, InvalidInputError, MissingGainsError
 from ..parameters.run_table import PAYLOAD_READINGS, RUN_DEFAULTS
 from ..robots import ROBOTS, Manipulator, RobotParams, make_robot, robot_settings
 from ..robots.base import FloatArray
-from ..robots.catalog import resolve_robot
+from ..robots.catalog import resolve_model, resolve_robot
 
 __all__ = [
     "MAX_CONTROL_STEPS",
@@ -93,6 +93,9 @@ class RunSpec:
     enforce_limits : bool
         Clamp the controller's torque to the arm's effort limits (``robot.effort_limits``) at
         every step; False opts out (``--no-enforce-limits``, ``enforce_limits:=false``).
+    model : str or None
+        The robot whose model the law knows (``--model``: an identified arm, say), with the same
+        joints as ``robot``; None: ``robot``'s own (the simulated plant stays ``robot``).
     """
 
     robot: str
@@ -111,9 +114,16 @@ class RunSpec:
     segment_duration: float = DEFAULT["segment_duration"]
     bound: float = 0.0
     enforce_limits: bool = True
+    model: str | None = None
 
     def __post_init__(self) -> None:
         resolve_robot(self.robot)
+        if self.model is not None:
+            known = make_robot(resolve_model(self.model)).joint_names
+            own = make_robot(resolve_robot(self.robot)).joint_names
+            if tuple(known) != tuple(own):
+                raise ConfigError(f"model {self.model!r} has joints {list(known)}; robot {self.robot!r} has "
+                                  f"{list(own)}: a model of this arm has its joints, in its order")
         law(self.controller)
         for label, value in (("rate", self.rate), ("sample_rate", self.sample_rate)):
             if not np.isfinite(value) or value <= 0.0:
@@ -149,8 +159,10 @@ class RunSpec:
         return make_robot(self.robot, payload=self.payload)
 
     def nominal_model(self) -> Manipulator:
-        """The model the SMC knows: the nominal robot (``tip``: never the payload;
-        ``link_com``: rebuilt with the load on its link)."""
+        """The model the SMC knows: :attr:`model` if given, else the nominal robot (``tip``: never
+        the payload; ``link_com``: rebuilt with the load on its link)."""
+        if self.model is not None:
+            return make_robot(resolve_model(self.model))
         if self.payload_reading == "link_com":
             return make_robot(self.robot, params=loaded_params(self.robot, self.payload))
         return make_robot(self.robot)
@@ -198,6 +210,7 @@ class RunSpec:
             "waypoints_file": self.waypoints_file,
             "segment_duration": self.segment_duration,
             "enforce_limits": self.enforce_limits,
+            **({} if self.model is None else {"model": self.model}),
         }
 
     @classmethod
@@ -221,6 +234,7 @@ class RunSpec:
             segment_duration=float(data.get("segment_duration", DEFAULT["segment_duration"])),
             bound=float(data.get("contour_bound_m", robot_settings(robot).contour_bound)),
             enforce_limits=bool(data.get("enforce_limits", True)),
+            model=data.get("model"),
         )
 
 
@@ -375,6 +389,7 @@ def make_run(
     sample_rate: float | None = None,
     payload_reading: str = DEFAULT["payload_reading"],
     duration_factor: float = DEFAULT["duration_factor"],
+    model: str | None = None,
 ) -> RunSpec:
     """The one run builder (the CLI, the nodes, tune, sweep, Monte Carlo and reproduce use it).
 
@@ -385,6 +400,7 @@ def make_run(
     multiplies. Rates not given are the robot's settings. The defaults are the parameter table's
     (:data:`DEFAULT`); :func:`run_from_settings` builds the run a node's parameters or the
     command line's options name.
+    ``model``: the robot whose model the law knows (:attr:`RunSpec.model`).
     """
     choice(contour, contour_names(robot), f"contour for {robot}")
     settings = robot_settings(robot)
@@ -393,8 +409,8 @@ def make_run(
     resolved = resolve_gains(robot, contour, controller, scenario=scenario, gains=gains,
                              layers=[x for x in (params, overrides) if x], joint_order=joint_order,
                              needs_gains=needs_gains)
-    model = smc_model_default()
-    model.update(smc_model or {})
+    estimate = smc_model_default()
+    estimate.update(smc_model or {})
     return RunSpec(
         robot=robot,
         contour=contour,
@@ -406,22 +422,23 @@ def make_run(
         payload=float(sc.get("payload", 0.0)),
         payload_reading=payload_reading,
         duration_factor=float(sc.get("duration_factor", 1.0)) * float(duration_factor),
-        smc_model=model,
+        smc_model=estimate,
         ellipse_error=ellipse_error,
         waypoints_file=waypoints_file,
         segment_duration=segment_duration,
         bound=settings.contour_bound,
+        model=model,
     )
 
 
 def run_from_settings(settings: Mapping[str, Any], *, params: Mapping[str, Any] | None = None,
                       overrides: Mapping[str, Any] | None = None, needs_gains: bool = True,
-                      joint_order: Sequence[int] | None = None) -> RunSpec:
+                      joint_order: Sequence[int] | None = None, model: str | None = None) -> RunSpec:
     """The run that the run table's settings name (:data:`pdsmc_ros.parameters.tables.RUN`, by
     parameter name: a node's declared values, the command line's options): :func:`make_run` with
     each setting not given (absent or None) at its default, a rate of 0 the robot's, an empty
     ``waypoints_file`` none, and the SMC reading's model estimate for a model-based law. ``params``,
-    ``overrides``, ``needs_gains`` and ``joint_order``: as :func:`make_run` takes them.
+    ``overrides``, ``needs_gains``, ``joint_order`` and ``model``: as :func:`make_run` takes them.
 
     Raises
     ------
@@ -435,7 +452,7 @@ def run_from_settings(settings: Mapping[str, Any], *, params: Mapping[str, Any] 
                     ellipse_error=v["ellipse_error"], waypoints_file=v["waypoints_file"] or None,
                     segment_duration=v["segment_duration"], payload_reading=v["payload_reading"],
                     duration_factor=v["duration_factor"], params=params, overrides=overrides,
-                    needs_gains=needs_gains, joint_order=joint_order)
+                    needs_gains=needs_gains, joint_order=joint_order, model=model)
 
 
 def scenario_gain_factors(scenario: str, controller: str) -> dict[str, float]:

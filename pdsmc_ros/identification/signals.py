@@ -1,0 +1,260 @@
+"""From recorded positions and efforts to the equations the identification fits.
+
+A bag holds each joint's measured position and the effort the driver reports, at the driver's
+rate and with its jitter. The identification needs velocities and accelerations too, and
+differentiating a quantised position twice amplifies its noise by ``(2 pi f)^2``: the positions
+are low-pass filtered first. The efforts must then be filtered alike, and so must the model they
+are compared with -- Gautier's *parallel filtering*: the torque ``tau = Y(q, qd, qdd) pi`` is
+linear in the parameters, so filtering ``tau`` and every column of ``Y`` with the same linear
+filter keeps the equation exact. Filtering only the efforts would not: Coulomb friction's
+``sign(qd)`` steps at each velocity reversal, the filtered efforts smear that step over the
+filter's response, and a model with a sharp step is then wrong around every reversal (on a
+UR5 excitation with 0.6-7 N m of Coulomb friction and a 2 kg payload, exact data at 1 kHz: that
+bias was 5-40 % on the frictions and 5-30 % on the payload with a dead zone of 0.15-1 cut-off
+periods; with the regressor filtered too, 0.1 % on the payload and the Coulomb frictions, 0.5 %
+on the viscous ones: test/identification/test_identify.py). So:
+
+1. resample onto a uniform grid at the median rate (:func:`uniform`);
+2. choose the cut-off from the motion: the frequency below which :data:`BANDWIDTH_ENERGY` of
+   the velocities' energy lies (:func:`motion_bandwidth`; an excitation of :mod:`.excitation` has
+   nothing above its highest harmonic), times :data:`CUTOFF_FACTOR`;
+3. positions: a zero-phase Butterworth low-pass at the cut-off (order :data:`FILTER_ORDER`,
+   forwards and backwards: no delay), central differences for velocities and accelerations;
+4. the model's columns are evaluated on a grid at :data:`MODEL_PER_CUTOFF` times the cut-off
+   (they are smooth: products of the motion's harmonics), except the ``sign(qd)`` of Coulomb
+   friction, which steps: that one is formed at the recording's rate and, like the efforts,
+   low-passed at :data:`ANTI_ALIAS_PER_CUTOFF` times the cut-off before it is sampled on that
+   grid (:meth:`Prepared.stepped`); on that grid the efforts and every column get the same
+   zero-phase low-pass at the cut-off (:meth:`Prepared.smooth`);
+5. drop the ends the filter cannot see past (:data:`EDGE_PERIODS` periods of the cut-off) and
+   keep every ``k``-th sample, the kept rate :data:`KEPT_PER_CUTOFF` times the cut-off: what is
+   left of the noise above the cut-off is gone, and the kept samples' errors are nearly
+   independent, which the standard errors assume;
+6. mark, per joint, the samples within :data:`REVERSAL_PERIODS` periods of the cut-off of a
+   reversal of its velocity (:attr:`Prepared.moving`): a real joint sticks there (static
+   friction, backlash) in ways ``sign(qd)`` does not model; its equation is left out there
+   (a dead zone, as Swevers et al.).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.signal
+from numpy.typing import ArrayLike
+
+from ..errors import InvalidInputError
+from ..robots.base import FloatArray
+
+__all__ = ["BANDWIDTH_ENERGY", "CUTOFF_FACTOR", "Prepared", "motion_bandwidth", "prepare", "uniform"]
+
+BANDWIDTH_ENERGY = 0.999
+"""Share of the velocities' energy below the motion's bandwidth."""
+CUTOFF_FACTOR = 5.0
+"""Cut-off / bandwidth: a 4th-order Butterworth run both ways passes the bandwidth with a gain
+of ``1 / (1 + 5^-8)``, 3e-6 short of one."""
+FILTER_ORDER = 4
+MODEL_PER_CUTOFF = 20.0
+"""The rate the model's columns are evaluated and filtered at, in multiples of the cut-off."""
+ANTI_ALIAS_PER_CUTOFF = 8.0
+"""The low-pass (in multiples of the cut-off) before what steps or is noisy is sampled on that grid."""
+EDGE_PERIODS = 3.0
+"""Seconds dropped at each end, in periods of the cut-off."""
+KEPT_PER_CUTOFF = 2.5
+"""The identification rate, in multiples of the cut-off."""
+REVERSAL_PERIODS = 0.1
+"""Half-width of the dead zone around a velocity reversal, in periods of the cut-off."""
+
+
+def uniform(t: ArrayLike, *signals: ArrayLike) -> tuple[FloatArray, float, list[FloatArray]]:
+    """``(t, rate, signals)`` on a uniform grid at the median rate of ``t`` (linear interpolation).
+
+    Raises
+    ------
+    InvalidInputError
+        Fewer than 3 samples, or times that do not increase.
+    """
+    t = np.asarray(t, dtype=float)
+    if t.size < 3:
+        raise InvalidInputError(f"too few samples ({t.size})")
+    step = np.diff(t)
+    if np.any(step <= 0.0):
+        raise InvalidInputError("sample times do not increase")
+    dt = float(np.median(step))
+    grid = t[0] + dt * np.arange(int(np.floor((t[-1] - t[0]) / dt + 1e-9)) + 1)
+    out = []
+    for s in signals:
+        s = np.asarray(s, dtype=float)
+        out.append(np.stack([np.interp(grid, t, s[:, j]) for j in range(s.shape[1])], axis=-1))
+    return grid, 1.0 / dt, out
+
+
+def motion_bandwidth(q: FloatArray, rate: float) -> float:
+    """The frequency (Hz) below which :data:`BANDWIDTH_ENERGY` of the joint velocities' energy lies
+    (all joints together), from the positions' spectrum (a velocity's is ``2 pi f`` times its
+    position's). The positions are windowed (Hann) first: a run cut anywhere but at rest would
+    otherwise leak its ends' kinks over the whole spectrum."""
+    detrended = q - np.linspace(0.0, 1.0, len(q))[:, None] * (q[-1] - q[0]) - q[0]
+    spectrum = np.fft.rfft(detrended * np.hanning(len(q))[:, None], axis=0)
+    f = np.fft.rfftfreq(len(q), 1.0 / rate)
+    energy = np.sum(np.abs(spectrum) ** 2, axis=1) * f**2
+    total = float(energy.sum())
+    if total <= 0.0:
+        return 0.0
+    return float(f[int(np.searchsorted(np.cumsum(energy) / total, BANDWIDTH_ENERGY))])
+
+
+def _lowpass(cutoff: float, rate: float) -> FloatArray:
+    sos: FloatArray = scipy.signal.butter(FILTER_ORDER, cutoff, btype="low", fs=rate, output="sos")
+    return sos
+
+
+@dataclass(frozen=True)
+class Prepared:
+    """A recording made ready for the identification (module docstring).
+
+    Attributes
+    ----------
+    grid : ndarray
+        The uniform times (s) of the recording, at :attr:`rate`.
+    q, qd, qdd : ndarray, shape (len(grid), n)
+        Filtered positions and their derivatives at every time of ``grid``.
+    model_grid : ndarray of int
+        The samples of ``grid`` the model's columns are evaluated at.
+    keep : ndarray of int
+        The kept samples, as indices into ``model_grid``.
+    tau : ndarray, shape (len(keep), n)
+        The efforts, filtered, at the kept samples.
+    moving : ndarray of bool, shape (len(keep), n)
+        Whether each joint is away from its velocity reversals at each kept sample.
+    rate, model_rate : float
+        The recording's rate and the model grid's (Hz).
+    bandwidth, cutoff : float
+        The motion's bandwidth and the filter's cut-off (Hz).
+    cutoff_given : bool
+        The cut-off was given, not chosen from the bandwidth.
+    """
+
+    grid: FloatArray
+    q: FloatArray
+    qd: FloatArray
+    qdd: FloatArray
+    model_grid: np.ndarray
+    keep: np.ndarray
+    tau: FloatArray
+    moving: np.ndarray
+    rate: float
+    model_rate: float
+    bandwidth: float
+    cutoff: float
+    cutoff_given: bool
+
+    @property
+    def kept_rate(self) -> float:
+        """The rate of the kept samples (Hz)."""
+        return self.model_rate / float(self.keep[1] - self.keep[0]) if len(self.keep) > 1 else self.model_rate
+
+    @property
+    def t(self) -> FloatArray:
+        """Times (s) of the kept samples."""
+        out: FloatArray = self.grid[self.model_grid[self.keep]]
+        return out
+
+    def motion(self) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """``(q, qd, qdd)`` on the model grid: where the model's columns are evaluated."""
+        k = self.model_grid
+        return self.q[k], self.qd[k], self.qdd[k]
+
+    def kept_motion(self) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """``(q, qd, qdd)`` at the kept samples."""
+        k = self.model_grid[self.keep]
+        return self.q[k], self.qd[k], self.qdd[k]
+
+    def smooth(self, columns: FloatArray) -> FloatArray:
+        """Signals on the model grid (``(len(model_grid), m)``), low-passed at the cut-off like the
+        efforts, at the kept samples."""
+        out: FloatArray = scipy.signal.sosfiltfilt(_lowpass(self.cutoff, self.model_rate), columns, axis=0)[self.keep]
+        return out
+
+    def stepped(self, signal: FloatArray) -> FloatArray:
+        """A signal at every time of :attr:`grid` that steps (``sign(qd)``), processed as the efforts:
+        anti-aliased, sampled on the model grid, low-passed at the cut-off, at the kept samples."""
+        return self.smooth(_to_model_grid(signal, self.rate, self.model_rate, self.cutoff, self.model_grid))
+
+    def describe(self) -> str:
+        how = "given" if self.cutoff_given else (f"{CUTOFF_FACTOR:g} x the motion's bandwidth {self.bandwidth:.3g} Hz "
+                                                  f"({BANDWIDTH_ENERGY:.1%} of the velocities' energy)")
+        return (f"zero-phase Butterworth low-pass (order {FILTER_ORDER}, both ways) at {self.cutoff:.3g} Hz ({how}) on "
+                f"the positions, and on the efforts and the model's columns alike (parallel filtering); central "
+                f"differences; {len(self.keep)} samples kept at {self.kept_rate:.3g} Hz of {self.rate:.4g} Hz")
+
+
+def _to_model_grid(signal: FloatArray, rate: float, model_rate: float, cutoff: float, model_grid: np.ndarray
+                   ) -> FloatArray:
+    if model_rate >= rate:
+        same: FloatArray = signal[model_grid]
+        return same
+    guard = min(ANTI_ALIAS_PER_CUTOFF * cutoff, 0.45 * model_rate)
+    out: FloatArray = scipy.signal.sosfiltfilt(_lowpass(guard, rate), signal, axis=0)[model_grid]
+    return out
+
+
+def prepare(t: ArrayLike, q: ArrayLike, tau: ArrayLike, *, cutoff: float | None = None) -> Prepared:
+    """Positions and efforts recorded at times ``t`` made ready for the identification (module
+    docstring); ``cutoff`` (Hz) replaces the one chosen from the motion.
+
+    Raises
+    ------
+    InvalidInputError
+        Too few samples, a motion without bandwidth (nothing moved), a cut-off at or above a
+        fifth of the recording's rate, or a run too short to keep anything after the filter's edges.
+    """
+    grid, rate, (q_u, tau_u) = uniform(t, q, tau)
+    bandwidth = motion_bandwidth(q_u, rate)
+    if cutoff is None:
+        if bandwidth <= 0.0:
+            raise InvalidInputError("no joint moved: nothing to identify")
+        chosen = CUTOFF_FACTOR * bandwidth
+    else:
+        chosen = float(cutoff)
+    if not (0.0 < chosen <= 0.2 * rate):
+        raise InvalidInputError(f"the filter's cut-off {chosen:.4g} Hz must be in (0, {0.2 * rate:.4g}] Hz (a fifth of "
+                                f"the {rate:.4g} Hz recording rate)" + ("" if cutoff is not None else
+                                                                        ": record faster, or give --cutoff"))
+    sos = _lowpass(chosen, rate)
+    if len(grid) <= 3 * 2 * len(sos):
+        raise InvalidInputError(f"too few samples ({len(grid)}) to filter")
+    q_f = scipy.signal.sosfiltfilt(sos, q_u, axis=0)
+    dt = 1.0 / rate
+    qd = np.gradient(q_f, dt, axis=0)
+    qdd = np.gradient(qd, dt, axis=0)
+    step = max(1, int(np.floor(rate / (MODEL_PER_CUTOFF * chosen))))
+    model_grid = np.arange(0, len(grid), step)
+    model_rate = rate / step
+    tau_m = _to_model_grid(tau_u, rate, model_rate, chosen, model_grid)
+    edge = int(np.ceil(EDGE_PERIODS / chosen * model_rate))
+    every = max(1, int(np.floor(model_rate / (KEPT_PER_CUTOFF * chosen))))
+    keep = np.arange(edge, len(model_grid) - edge, every)
+    if keep.size == 0:
+        raise InvalidInputError(f"the run ({grid[-1] - grid[0]:.3g} s) is shorter than the filter's edges "
+                                f"({2 * edge / model_rate:.3g} s at a {chosen:.3g} Hz cut-off)")
+    tau_f = scipy.signal.sosfiltfilt(_lowpass(chosen, model_rate), tau_m, axis=0)[keep]
+    moving = _away_from_reversals(qd, int(np.ceil(REVERSAL_PERIODS / chosen * rate)))[model_grid[keep]]
+    return Prepared(grid, q_f, qd, qdd, model_grid, keep, tau_f, moving, rate, model_rate, bandwidth, chosen,
+                    cutoff is not None)
+
+
+def _away_from_reversals(qd: FloatArray, half_width: int) -> np.ndarray:
+    """Per sample and joint: no sign change of the velocity within ``half_width`` samples."""
+    sign = np.sign(qd)
+    flips = np.zeros(qd.shape, dtype=bool)
+    flips[1:] = sign[1:] != sign[:-1]
+    flips |= sign == 0.0
+    # a flip anywhere in [i - w, i + w]: a running count over a window of 2 w + 1
+    counts = np.cumsum(np.vstack([np.zeros((1, qd.shape[1]), dtype=int), flips.astype(int)]), axis=0)
+    index = np.arange(len(qd))
+    upper = np.minimum(index + half_width + 1, len(qd))
+    lower = np.maximum(index - half_width, 0)
+    away: np.ndarray = (counts[upper] - counts[lower]) == 0
+    return away
