@@ -72,9 +72,9 @@ V_REST_PRESET = 0.05
 """``v0`` (rad/s) of the presets: a twentieth of the slowest thesis contour's peak joint speed (the
 serial arm's circle, about 1 rad/s), so the law is in the position domain wherever the
 master moves and in the time domain at rest (a goal's start and end, a hold)."""
-SIGMA_DOT_MIN = 0.5
-"""The guard of the measured master rate: ``sigma_dot`` held in ``[0.5, 2]``, so a slave's
-position-domain derivative ``qd / sigma_dot`` is at most twice its time-domain value (a master
+SIGMA_DOT_MIN = 0.8
+"""The guard of the measured master rate: ``sigma_dot`` held in ``[0.8, 1.25]``, so a slave's
+position-domain derivative ``qd / sigma_dot`` is at most 1.25 times its time-domain value (a master
 stalled, reversing against its reference, or measured with noise near rest)."""
 SWITCH_RATIO = 1.25
 """A joint becomes the master when its reference speed exceeds the master's by this factor."""
@@ -111,9 +111,11 @@ def _pdsmc_joint(g, e, ed, i):  # noqa: ANN001, ANN202
 def position_domain(g, q, qd, q_ref, qd_ref, qdd_ref, tau, n, state, virtual):  # noqa: ANN001, ANN201, PLR0913
     """Position domain PD-SMC into ``tau`` (PD when the ``ks`` row is 0); module docstring.
 
-    ``virtual``: the master is the reference's own time parameter estimated from every joint
+    ``virtual``: the master is the reference's own time parameter ``sigma`` estimated from every joint
     (``delta`` the least-squares shift of the reference onto the measured joints,
-    ``sum qd_d (q - q_d) / (|qd_d|^2 + v0^2)``), every joint a slave; else the master of
+    ``sum qd_d (q - q_d) / (|qd_d|^2 + v0^2)``), every joint a slave in its position domain, and the
+    virtual master's own error in time, ``t - sigma = -delta`` (rate ``1 - sigma_dot``), fed back
+    along the path's tangent ``dq_d/dsigma`` through each joint's gains; else the master of
     :func:`master_joint`, in time.
     """
     v0 = g[V_REST, 0]
@@ -141,10 +143,15 @@ def position_domain(g, q, qd, q_ref, qd_ref, qdd_ref, tau, n, state, virtual):  
     for i in range(n):
         if i == m:  # the master, in time
             tau[i] = _pdsmc_joint(g, q_ref[i] - q[i], qd_ref[i] - qd[i], i)
-        else:  # a slave, in the master's position domain
-            e = q_ref[i] + qd_ref[i] * delta + 0.5 * qdd_ref[i] * delta * delta - q[i]
-            ed = qd_ref[i] + qdd_ref[i] * delta - qd[i] / rate
-            tau[i] = _pdsmc_joint(g, e, ed, i)
+            continue
+        # a slave, in the master's position domain
+        vs = qd_ref[i] + qdd_ref[i] * delta
+        e = q_ref[i] + qd_ref[i] * delta + 0.5 * qdd_ref[i] * delta * delta - q[i]
+        ed = vs - qd[i] / rate
+        if virtual:  # the virtual master's own error in time, t - sigma = -delta, along the path's tangent
+            e -= vs * delta
+            ed += vs * (1.0 - rate)
+        tau[i] = _pdsmc_joint(g, e, ed, i)
 
 
 def error_map(qd_ref: FloatArray, v0: float) -> FloatArray:
