@@ -154,29 +154,37 @@ def position_domain(g, q, qd, q_ref, qd_ref, qdd_ref, tau, n, state, virtual):  
         tau[i] = _pdsmc_joint(g, e, ed, i)
 
 
-def error_map(qd_ref: FloatArray, v0: float) -> FloatArray:
-    """The linearised map ``E`` from the time-domain error ``e = q_d - q`` to the errors the law
-    feeds back, at a reference velocity ``qd_ref``: ``tau = Kp E e + Kd E edot + ...``.
+def error_map(qd_ref: FloatArray, qdd_ref: FloatArray, v0: float) -> tuple[FloatArray, FloatArray]:
+    """The law linearised at the reference: the errors it feeds back are ``E e`` and ``E edot + G e``
+    in place of the time-domain ``e = q_d - q`` and ``edot``, so ``tau = Kp E e + Kd (E edot + G e) + ...``.
 
-    To first order the slaves' errors are ``e_s - qd_s,d delta`` with
-    ``delta = -w e_m / v`` (``w = v^2 / (v^2 + v0^2)``, ``v = qd_m,d``), the master's is ``e_m``:
-    ``E`` is the identity with its master column's slave entries ``-w qd_s,d / v``. Linearised at the
-    reference (``sigma_dot = 1``), the derivative maps alike. The master is the fastest joint of
-    ``qd_ref`` (the hysteresis of :data:`SWITCH_RATIO` left out).
+    With ``a = v / (v^2 + v0^2)`` (``v = qd_m,d``; ``1 / v`` for ``|v| >> v0``), ``delta = -a e_m`` to
+    first order: a slave's error is ``e_s - qd_s,d a e_m`` (``E``: the identity with its master column's
+    slave entries ``-a qd_s,d``; the master's row is its own). A slave's position-domain derivative
+    ``dq_s,d/dsigma - qd_s / sigma_dot`` moves with ``delta`` through the reference's acceleration and
+    with ``sigma_dot`` through the master's: ``G`` has the master column's slave entries
+    ``-a (qdd_s,d - a qd_s,d qdd_m,d)``, for ``|v| >> v0`` ``-v q_s,d''`` (the slave's reference curvature
+    in the master's position domain, ``q_s,d'' = (qdd_s,d - q_s,d' qdd_m,d) / v^2``). ``sigma_dot`` is 1 at
+    the reference, inside its guard. The master is the fastest joint of ``qd_ref`` (the hysteresis of
+    :data:`SWITCH_RATIO` left out).
     """
     qd_ref = np.asarray(qd_ref, dtype=float)
+    qdd_ref = np.asarray(qdd_ref, dtype=float)
     n = qd_ref.shape[0]
-    out = np.eye(n)
     m = int(np.argmax(np.abs(qd_ref)))
     v = float(qd_ref[m])
-    column = -v * qd_ref / (v * v + v0 * v0)
-    column[m] = 1.0
-    out[:, m] = column
-    return out
+    a = v / (v * v + v0 * v0)
+    e_map, g_map = np.eye(n), np.zeros((n, n))
+    e_map[:, m] = -a * qd_ref
+    e_map[m, m] = 1.0
+    g_map[:, m] = -a * (qdd_ref - a * qd_ref * qdd_ref[m])
+    g_map[m, m] = 0.0
+    return e_map, g_map
 
 
 def pd_pos_linear_gains(g: FloatArray, smc_model: FloatArray, mass: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """The PD's gains (Eq. 3.4) on the position-domain errors (:func:`error_map` maps them)."""
+    """The PD's gains (Eq. 3.4) on the position-domain errors (:func:`error_map` maps them to the
+    time-domain errors')."""
     return pd_linear_gains(g, smc_model, mass)
 
 
@@ -185,9 +193,9 @@ def pdsmc_pos_linear_gains(g: FloatArray, smc_model: FloatArray, mass: FloatArra
     return pdsmc_linear_gains(g, smc_model, mass)
 
 
-def law_error_map(g: FloatArray, qd_ref: FloatArray) -> FloatArray:
+def law_error_map(g: FloatArray, qd_ref: FloatArray, qdd_ref: FloatArray) -> tuple[FloatArray, FloatArray]:
     """:func:`error_map` with the law's ``v0`` (its gain matrix's :data:`V_REST` row)."""
-    return error_map(qd_ref, float(g[V_REST, 0]))
+    return error_map(qd_ref, qdd_ref, float(g[V_REST, 0]))
 
 
 def v_rest_preset(source: Mapping[str, FloatArray], model: Manipulator,  # noqa: ARG001
