@@ -223,7 +223,8 @@ def transformed_dynamics(model: Manipulator, q: FloatArray, dq: FloatArray, ddq:
 
         ``tau = Mbar (q'' p_dot^2 + q' p_ddot) + p_dot^2 C(q, q') q' + p_dot B q' + G(q)``
 
-    (Ouyang et al. 2015, Eq. 5, for the master ``p = q_m``, whose ``q_m' = 1``, ``q_m'' = 0``).
+    (for the master itself, ``p = q_m``: ``q_m' = 1``, ``q_m'' = 0``: the position domain dynamics of
+    Ouyang et al.'s PDC, derived here, not copied).
     """
     q, dq, ddq = (np.asarray(x, dtype=float) for x in (q, dq, ddq))
     mass = model.mass_matrix(q)
