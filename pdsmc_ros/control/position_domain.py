@@ -52,8 +52,8 @@ from numba import njit
 
 from ..kernels.options import ALLOCATION_FREE
 from ..robots.base import FloatArray, Manipulator
-from .laws import GAIN_KD, GAIN_KP, KD, KP, KS, LAM, PHI, THESIS_ROWS, pd_linear_gains, pdsmc_linear_gains
-from .registry import GainSpec, LawEntry
+from .laws import GAIN_KD, GAIN_KP, THESIS_ROWS, pd_linear_gains, pdsmc_linear_gains
+from .registry import KD, KP, KS, LAM, PHI, GainSpec, LawEntry
 
 PD_POS = 7
 PDSMC_POS = 8

@@ -95,8 +95,9 @@ def test_goals_that_turn_back_and_leave_the_master_at_rest_end_calm(ros_env: dic
                               stdout=(tmp_path / "driver.log").open("w"), stderr=subprocess.STDOUT,
                               start_new_session=True),
              subprocess.Popen(["ros2", "run", "pdsmc_ros", "controller", *COMMON, "-p", "robot:=ur5",
-                               "-p", "contour:=circle", "-p", "type:=pdsmc_pos", "-p", "v_rest:=0.5", "-p", "mode:=realtime",
-                               "-p", "rate:=1000.0", "-p", "sample_rate:=500.0", "-p", "stale_periods:=200"],
+                               "-p", "contour:=circle", "-p", "type:=pdsmc_pos", "-p", "v_rest:=0.5",
+                               "-p", "mode:=realtime", "-p", "rate:=1000.0", "-p", "sample_rate:=500.0",
+                               "-p", "stale_periods:=200"],
                               env=env, stdout=(tmp_path / "controller.log").open("w"), stderr=subprocess.STDOUT,
                               start_new_session=True)]
     client = Client(domain)
