@@ -29,7 +29,7 @@ pytest.importorskip("control_msgs")
 from action_msgs.msg import GoalStatus  # noqa: E402
 from builtin_interfaces.msg import Duration  # noqa: E402
 from control_msgs.action import FollowJointTrajectory  # noqa: E402
-from control_msgs.msg import JointTolerance  # noqa: E402
+from control_msgs.msg import JointTolerance, JointTrajectoryControllerState  # noqa: E402
 from rclpy.action import ActionClient  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint  # noqa: E402
@@ -58,6 +58,9 @@ class Client(SpunNode):
         self.lock = threading.Lock()
         self.states: list[tuple[float, np.ndarray, np.ndarray]] = []
         self.node.create_subscription(JointState, "/joint_states", self.on_state, 1)
+        self.controller_states = 0  # the controller publishes its state once it commands
+        self.node.create_subscription(JointTrajectoryControllerState, "/controller/controller_state",
+                                      self.on_controller_state, 1)
         self.action = ActionClient(self.node, FollowJointTrajectory, "/controller/follow_joint_trajectory")
 
     def on_state(self, msg: JointState) -> None:
@@ -65,6 +68,9 @@ class Client(SpunNode):
         with self.lock:
             self.states.append((time.monotonic(), np.asarray(msg.position)[index], np.asarray(msg.velocity)[index]))
             del self.states[:-20000]
+
+    def on_controller_state(self, _msg: JointTrajectoryControllerState) -> None:
+        self.controller_states += 1
 
     def q(self) -> np.ndarray:
         with self.lock:
@@ -108,13 +114,14 @@ def test_goals_that_turn_back_and_leave_the_master_at_rest_end_calm(ros_env: dic
     try:
         assert client.wait(lambda: len(client.states) > 100, 90), logs()
         assert client.action.wait_for_server(timeout_sec=120), logs()
-        time.sleep(2.0)  # active and settled in the hold of activation
+        assert client.wait(lambda: client.controller_states > 5, 180), logs()  # active, commanding
+        time.sleep(2.0)  # settled in the hold of activation
         q0 = client.q()
         lift = q0 + [0.3, 0.05, -0.05, 0.0, 0.0, 0.0]  # the pan leads: the master
         # the pan at rest for this segment, the lift and the elbow move: the master goes to the one that moves
         rest = lift + [0.0, 0.25, -0.2, 0.0, 0.0, 0.0]
         goals = {"the master at rest for a segment": goal([(q0, 0.0), (lift, 1.5), (rest, 3.0)]),
-                 "every joint turning back": goal([(rest, 0.0), (q0, 2.0)])}
+                 "every joint turning back": goal([(rest, 0.0), (q0, 4.0)])}
         for name, g in goals.items():
             handle = client.call(lambda g=g: client.action.send_goal_async(g), 30, logs)
             assert handle.accepted, (name, logs())  # type: ignore[attr-defined]
