@@ -197,14 +197,15 @@ def figure(rows: list[dict[str, Any]], path: Path) -> None:
 
     nominal = [(r, c) for r in ARMS for c in ARMS[r]
                if any((x["robot"], x["contour"], x["scenario"]) == (r, c, "nominal") for x in rows)]
-    fig, ax = plt.subplots(figsize=(9, 3.6))
+    fig, ax = plt.subplots(figsize=(9, 4.2))
     x = np.arange(len(nominal))
     for k, (num, den) in enumerate(PAIRS):
         ax.bar(x + (k - 1) * 0.27, [ratio(rows, r, c, "nominal", num, den) for r, c in nominal], 0.27,
                label=f"{num} / {den}")
     ax.axhline(1.0, color="k", lw=0.8)
     ax.axhline(0.5, color="k", lw=0.8, ls="--")
-    ax.set_xticks(x, [f"{r}\n{c}" for r, c in nominal], fontsize=7)
+    ax.set_xticks(x, [f"{r}\n{c.replace('ellipse_', 'ellipse ')}" for r, c in nominal], fontsize=7, rotation=30,
+                  ha="right")
     ax.set_ylabel("mean contour error ratio")
     ax.set_title("position / time domain, nominal (dashed: the goal, 0.5)")
     ax.legend(fontsize=7)
@@ -219,7 +220,13 @@ def main() -> int:
     parser.add_argument("--quick", action="store_true", help="nominal only, no Monte Carlo")
     parser.add_argument("--runs", type=int, default=20, help="Monte Carlo plants per close case")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--replot", action="store_true",
+                        help="only draw the figure again from the runs of figures/position_domain.json under --out")
     args = parser.parse_args()
+    if args.replot:
+        saved = json.loads((Path(args.out) / "figures" / "position_domain.json").read_text())
+        figure(saved["runs"], Path(args.out) / "figures" / "position_domain_ratios.png")
+        return 0
     register_law(VIRTUAL)
     start = time.time()
     rows = []
