@@ -46,6 +46,8 @@ BUILTIN_ENTRY_POINTS = {
         "ctc = pdsmc_ros.control.baselines:CTC_LAW",
         "sta = pdsmc_ros.control.sliding:STA_LAW",
         "ismc = pdsmc_ros.control.sliding:ISMC_LAW",
+        "pd_pos = pdsmc_ros.control.position_domain:PD_POS_LAW",
+        "pdsmc_pos = pdsmc_ros.control.position_domain:PDSMC_POS_LAW",
     ],
     "pdsmc_ros.robots": [
         "serial_3r = pdsmc_ros.robots.serial_3r:Serial3R",

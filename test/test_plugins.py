@@ -196,7 +196,8 @@ def test_the_installed_law_and_robot_are_registered_after_the_built_ins(installe
     proc = subprocess.run([sys.executable, "-c", script], cwd=ROOT, capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr
     laws, gains, robots, pid_gains, state_size = json.loads(proc.stdout)
-    assert laws == ["pd", "smc", "pdsmc", "pdg", "ctc", "sta", "ismc", "pid"]  # the broken one left out
+    # the broken one left out
+    assert laws == ["pd", "smc", "pdsmc", "pdg", "ctc", "sta", "ismc", "pd_pos", "pdsmc_pos", "pid"]
     assert list(gains)[-1] == "ki" and gains["ki"].startswith("integral gains Ki (N m/(rad s), one per joint")
     assert robots == ["serial_3r", "parallel_5r", "toy_2r"]
     assert pid_gains == ["kp", "kd", "ki"] and state_size == 1

@@ -28,6 +28,7 @@ from ..robots.base import FloatArray, Manipulator
 from . import python_form
 from .baselines import CTC, PDG, ctc, pdg
 from .laws import PD, PDSMC, SMC, errors, joint_errors, pd, pdsmc, smc
+from .position_domain import PD_POS, PDSMC_VIRTUAL, position_domain
 from .python_form import PYTHON_LAW
 from .python_form import torque as python_torque
 from .registry import LawSetup, law
@@ -78,6 +79,8 @@ def _beside_the_thesis(code, gains, smc_model, kind, p, q, qd, q_ref, qd_ref, qd
         sta(gains, smc_model, kind, p, q, qd, q_ref, qd_ref, qdd_ref, tau, work, state, h)
     elif code == ISMC:
         ismc(gains, smc_model, kind, p, q, qd, q_ref, qd_ref, qdd_ref, tau, work, state, h)
+    elif PD_POS <= code <= PDSMC_VIRTUAL:  # the position domain laws (codes 7-9)
+        position_domain(gains, q, qd, q_ref, qd_ref, qdd_ref, tau, n, state, code == PDSMC_VIRTUAL)
     elif code >= PYTHON_LAW:
         python_torque(code, q, qd, q_ref, qd_ref, qdd_ref, tau)
     else:

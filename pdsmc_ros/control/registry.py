@@ -142,6 +142,11 @@ presets derived from another law's (:attr:`LawEntry.presets_from`)."""
 LinearGains = Callable[[FloatArray, FloatArray, FloatArray], tuple[FloatArray, FloatArray]]
 """``(gains, smc_model, mass) -> (Kp_eff, Kd_eff)``: the law's linear part inside its boundary layer."""
 
+ErrorMap = Callable[[FloatArray, FloatArray, FloatArray], tuple[FloatArray, FloatArray]]
+"""``(gains, qd_ref, qdd_ref) -> (E, G)``, each of shape ``(n, n)``: a law feeding back, linearised at the
+reference, the errors ``E e`` and ``E edot + G e`` in place of the time-domain ``e`` and ``edot`` (a
+position domain law's), so its linear part is ``(Kp_eff E + Kd_eff G, Kd_eff E)``."""
+
 _GAINS: dict[str, GainSpec] = {}
 _LAWS: dict[str, LawEntry] = {}
 
@@ -199,6 +204,10 @@ class LawEntry:
     derive_presets : callable or None
         :data:`PresetDerivation`: its gains from ``presets_from``'s (and from the nominal model
         at the reference's start), for its presets and ``pdsmc tune``'s starting point.
+    error_map : callable or None
+        :data:`ErrorMap`: the errors it feeds back are ``E e`` and ``E edot + G e``, not the time-domain
+        ``e`` and ``edot`` (the stability check maps its linear gains at each sampled reference velocity
+        and acceleration); None: ``E = I``, ``G = 0``.
     """
 
     name: str
@@ -213,6 +222,7 @@ class LawEntry:
     state_size: int = 0
     presets_from: str | None = None
     derive_presets: PresetDerivation | None = None
+    error_map: ErrorMap | None = None
 
     def __post_init__(self) -> None:
         if self.state_size < 0:

@@ -45,12 +45,26 @@ from .lyapunov import Condition, theorem_conditions
 from .registry import law
 
 
-def effective_gains(spec: LawRun, mass: FloatArray) -> tuple[FloatArray, FloatArray] | None:
-    """Linear gains ``(Kp_eff, Kd_eff)`` of the law inside its boundary layer (None: the law has none)."""
-    linear_gains = law(spec.controller).linear_gains
-    if linear_gains is None:
+def effective_gains(spec: LawRun, mass: FloatArray, qd_ref: FloatArray | None = None,
+                    qdd_ref: FloatArray | None = None) -> tuple[FloatArray, FloatArray] | None:
+    """Linear gains ``(Kp_eff, Kd_eff)`` of the law inside its boundary layer (None: the law has none).
+
+    A law feeding back ``E e`` and ``E edot + G e`` (:attr:`~pdsmc_ros.control.registry.LawEntry.error_map`,
+    a position domain law) has ``(Kp_eff E + Kd_eff G, Kd_eff E)`` at the reference velocity ``qd_ref``
+    and acceleration ``qdd_ref`` (both required then).
+    """
+    entry = law(spec.controller)
+    if entry.linear_gains is None:
         return None
-    return linear_gains(spec.gains.matrix(), spec.smc_model_vector(), mass)
+    matrix = spec.gains.matrix()
+    kp, kd = entry.linear_gains(matrix, spec.smc_model_vector(), mass)
+    if entry.error_map is None:
+        return kp, kd
+    if qd_ref is None or qdd_ref is None:
+        raise InvalidInputError(f"control law {spec.controller!r} feeds back a position domain error: its linear "
+                                "gains need the reference velocity qd_ref and acceleration qdd_ref")
+    e_map, g_map = entry.error_map(matrix, np.asarray(qd_ref, dtype=float), np.asarray(qdd_ref, dtype=float))
+    return kp @ e_map + kd @ g_map, kd @ e_map
 
 
 def loop_matrix(mass: FloatArray, kp: FloatArray, kd: FloatArray, h: float | FloatArray,
@@ -260,10 +274,11 @@ def tolerated_delay(spec: LawRun, reference: JointReference, *, points: int = 13
     one of ``points`` configurations: None for a law without linear gains, -1 if unstable even
     without delay, ``most`` if stable up to it (the search stops there)."""
     robot = spec.robot_model()
-    q = reference.sample(np.linspace(0.0, reference.duration, points)).q
-    masses = robot._mass_matrix(q)
+    sample = reference.sample(np.linspace(0.0, reference.duration, points))
+    masses = robot._mass_matrix(sample.q)
     with np.errstate(over="ignore", invalid="ignore"):  # overflows: refused by analysable_gains
-        linear = [effective_gains(spec, mass) for mass in masses]
+        linear = [effective_gains(spec, mass, qd, qdd) for mass, qd, qdd in zip(masses, sample.qd, sample.qdd,
+                                                                                  strict=True)]
     if any(pair is None for pair in linear):
         return None
     kp = np.stack([p[0] for p in linear])  # type: ignore[index]
@@ -381,12 +396,14 @@ def rate_margin(spec: LawRun, reference: JointReference, *, points: int = 13, mo
         raise InvalidInputError(f"margin must be a positive number, got {margin!r}")
     robot = spec.robot_model()
     t = np.linspace(0.0, reference.duration, points)
-    q = reference.sample(t).q
+    sample = reference.sample(t)
+    q = sample.q
     masses = robot._mass_matrix(q)
     plant = plant_step(robot, q, spec.rate)
     names = tuple(robot.joint_names)
     with np.errstate(over="ignore", invalid="ignore"):  # overflows: refused by analysable_gains
-        linear = [effective_gains(spec, mass) for mass in masses]
+        linear = [effective_gains(spec, mass, qd, qdd) for mass, qd, qdd in zip(masses, sample.qd, sample.qdd,
+                                                                                  strict=True)]
     pairs = [pair for pair in linear if pair is not None]
     if len(pairs) < len(linear):  # a law without linear gains: not checked
         return RateCheck(spec.rate, float("nan"), float("nan"), 0, True, mode, delay, required, plant, names)

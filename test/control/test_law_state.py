@@ -73,7 +73,7 @@ def test_the_compiled_loop_carries_the_state_as_the_calls_do(controller: str, ro
         np.testing.assert_allclose(x, np.array(y), rtol=1e-12, atol=1e-12)
 
 
-@pytest.mark.parametrize("controller", ["pd", "pdsmc", "ctc", "sta", "ismc"])
+@pytest.mark.parametrize("controller", ["pd", "pdsmc", "ctc", "sta", "ismc", "pdsmc_pos"])
 def test_other_gains_at_run_time_give_the_law_a_fresh_build_gives_and_carry_its_state(controller: str) -> None:
     """:meth:`ControlLaw.with_gains` (a gain change at run time, without rebuilding the model): the
     torque of :meth:`ControlLaw.from_spec` with those gains, bit for bit, from the state reached so far."""

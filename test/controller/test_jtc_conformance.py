@@ -146,6 +146,9 @@ CONFIGS = {
     # JTC's defaults (and the project's rejections beyond the limits)
     "default": (),
     # JTC's options on; per-joint default tolerances of a vendor's tests; rejection off, as JTC
+    # the position domain PD (pd_pos, docs/explanation/position-domain.md) with the same kp, kd: the cases at the
+    # end of this module
+    "position_domain": ("-p", "type:=pd_pos"),
     "options": ("-p", "allow_partial_joints_goal:=true", "-p", "allow_nonzero_velocity_at_trajectory_end:=true",
                 "-p", "constraints.stopped_velocity_tolerance:=0.0",
                 "-p", "reject_beyond_limits:=false", "-p", "cmd_timeout:=0.5",
@@ -216,7 +219,10 @@ def settled_goal(q1: np.ndarray) -> dict:
 @pytest.mark.timeout(180)
 def test_success_multi_point_with_feedback_then_the_last_point_is_held(arms) -> None:  # noqa: ANN001
     """JTC test_success_multi_point_sendgoal: SUCCEEDED, SUCCESSFUL, feedback received, last point held."""
-    arm = arms("default")
+    success_multi_point(arms("default"))
+
+
+def success_multi_point(arm: Arm) -> None:
     feedback: list = []
     q1, g = move(arm, [0.2, -0.1, 0.1], at_goal=dict.fromkeys(JOINTS, GOAL_TOL), goal_time=2.0)
     handle = arm.send(g, feedback)
@@ -323,7 +329,10 @@ def test_vendor_goal_stamp_zero_joints_reordered_path_and_goal_tolerance(arms) -
 @pytest.mark.timeout(120)
 def test_preempted_goal_receives_aborted_result(arms) -> None:  # noqa: ANN001
     """JTC preempted_goal_receives_aborted_result: A ABORTED INVALID_GOAL with JTC's string, B SUCCEEDED."""
-    arm = arms("default")
+    preempted(arms("default"))
+
+
+def preempted(arm: Arm) -> None:
     _, first = move(arm, [0.3, 0.0, 0.0], span=3.0)
     a = arm.send(first)
     time.sleep(0.5)
@@ -338,7 +347,10 @@ def test_preempted_goal_receives_aborted_result(arms) -> None:  # noqa: ANN001
 @pytest.mark.timeout(120)
 def test_cancel_holds_the_position_with_an_empty_error_string(arms) -> None:  # noqa: ANN001
     """JTC test_cancel_hold_position: CANCELED, SUCCESSFUL, empty error string; the position at the cancel held."""
-    arm = arms("default")
+    cancel_holds(arms("default"))
+
+
+def cancel_holds(arm: Arm) -> None:
     q1, g = move(arm, [0.4, 0.0, 0.0], span=3.0)
     handle = arm.send(g)
     time.sleep(0.7)
@@ -480,3 +492,22 @@ def test_cmd_timeout_holds_after_a_topic_trajectory_ends(arms) -> None:  # noqa:
     arm.topic.publish(JointTrajectory(joint_names=JOINTS, points=[point(q1, 0.5, [0.0] * 3)]))
     assert arm.wait(lambda: "command timeout" in (arm.log_dir / "controller.log").read_text(), 10), arm.logs()
     assert arm.held_near(q1) < HOLD
+
+
+# ----------------------------------------------------------------------------- the position domain PD
+
+
+@pytest.mark.timeout(240)
+def test_position_domain_success_multi_point_then_the_last_point_is_held(arms) -> None:  # noqa: ANN001
+    """The multi-point case with ``type:=pd_pos``: JTC's outcome, the last point held."""
+    success_multi_point(arms("position_domain"))
+
+
+@pytest.mark.timeout(120)
+def test_position_domain_preempted_goal_receives_aborted_result(arms) -> None:  # noqa: ANN001
+    preempted(arms("position_domain"))
+
+
+@pytest.mark.timeout(120)
+def test_position_domain_cancel_holds_the_position(arms) -> None:  # noqa: ANN001
+    cancel_holds(arms("position_domain"))
