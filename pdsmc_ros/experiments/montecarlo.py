@@ -124,6 +124,9 @@ def sample_plant(robot: str, spreads: Mapping[str, Spread], rng: np.random.Gener
     ConfigError
         A URDF arm with a spread of its links, motors or payload (:data:`LINK_PARAMETERS`).
     """
+    from ..robots.catalog import resolve_robot
+
+    robot = resolve_robot(robot)  # an arm of example-robot-data: registered in this process (a Dask worker's too)
     arm = make_robot(robot)
     if not arm.has_link_params:
         varied = [name for name in LINK_PARAMETERS if name in spreads
