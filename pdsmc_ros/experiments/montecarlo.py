@@ -129,11 +129,11 @@ def sample_plant(robot: str, spreads: Mapping[str, Spread], rng: np.random.Gener
     robot = resolve_robot(robot)  # an arm of example-robot-data: registered in this process (a Dask worker's too)
     arm = make_robot(robot)
     if not arm.has_link_params:
-        varied = [name for name in LINK_PARAMETERS if name in spreads
-                  and (spreads[name].relative or spreads[name].low or spreads[name].high)]
-        if varied:
+        spread_out = [name for name in LINK_PARAMETERS if name in spreads
+                      and (spreads[name].relative or spreads[name].low or spreads[name].high)]
+        if spread_out:
             raise ConfigError(f"{robot!r} is a URDF arm: only initial_error can be drawn on it (its link and motor "
-                              f"parameters are not varied yet); the spreads vary {varied[0]}")
+                              f"parameters are not varied yet); the spreads vary {spread_out[0]}")
         spread = spreads.get("initial_error")
         initial = rng.normal(0.0, spread.sd, arm.n) if spread is not None and spread.sd else np.zeros(arm.n)
         return None, 0.0, initial, {f"initial_error_{j + 1}": float(initial[j]) for j in range(arm.n)}
