@@ -217,6 +217,8 @@ def verdict(claim: Claim, rung: str, summary: Mapping[str, Mapping[str, Any]],
     if claim.kind == "robust":
         if rung == "ideal":
             return Verdict(claim.name, rung, NOT_APPLICABLE, None, None, "the reference rung")
+        if "ideal" not in summary:
+            return Verdict(claim.name, rung, NOT_APPLICABLE, None, None, "the ideal rung (the reference) was not run")
         mine = degradation(rows, rung, claim.law, claim.column)
         theirs = degradation(rows, rung, claim.other, claim.column)
     else:

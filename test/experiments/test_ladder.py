@@ -107,6 +107,10 @@ def test_the_verdicts_of_each_claim_from_draws() -> None:
     # the degradation pairs each draw with the same draw at the ideal rung
     ratio = degradation(rows, "friction", "smc", "contour_mean")
     assert ratio is not None and ratio.n == 30 and abs(ratio.mean - 3.0) < 1e-9
+    # without the ideal rung there is nothing to measure the growth against
+    alone = [r for r in rows if r["rung"] == "friction"]
+    v = verdict(by_name["robust"], "friction", summary_of(alone, ["friction"], ["pd", "smc", "pdsmc"]), alone)
+    assert v.verdict == NOT_APPLICABLE and "ideal rung" in v.why
     # a law that lost more draws does not win a claim on the draws it kept
     values[("friction", "pd")] = [5.0] * 30
     values[("friction", "pdsmc")] = [1.1] * 20 + [np.nan] * 10
