@@ -48,6 +48,25 @@ def test_draws_depend_on_the_seed_and_the_run_alone_and_every_controller_shares_
     assert all(r["status"] == "ok" and r["contour_mean"] > 0 for r in rows)
 
 
+def test_a_drawn_thesis_arm_runs_against_the_stand_in_and_a_urdf_arm_draws_its_start_alone() -> None:
+    """The stand-in builds MuJoCo from the drawn plant's URDF: its numbers must read as numbers."""
+    from pdsmc_ros.sim.mujoco_lockstep import StandIn
+
+    spreads = load_uncertainty()
+    specs = [dataclasses.replace(s, duration_factor=0.05) for s in base_specs("parallel_5r", "circle", ["pd"])]
+    rows = run_sample(2, 3, specs, spreads, stand_in=StandIn())
+    assert rows[0]["status"] == "ok" and rows[0]["contour_mean"] > 0
+    from pdsmc_ros.robots.catalog import resolve_robot
+
+    resolve_robot("ur5")  # registers the arm of example-robot-data
+    params, payload, initial, drawn = sample_plant("ur5", {"initial_error": spreads["initial_error"]},
+                                                   np.random.default_rng([3, 11]))
+    assert params is None and payload == 0.0 and initial.shape == (6,) and np.any(initial != 0.0)
+    assert sorted(drawn) == [f"initial_error_{j}" for j in range(1, 7)]
+    with pytest.raises(ConfigError, match="'ur5' is a URDF arm: only initial_error can be drawn"):
+        sample_plant("ur5", spreads, np.random.default_rng(0))
+
+
 def test_every_csv_cell_is_a_plain_number_or_word(tmp_path: Path) -> None:
     """numpy 2's ``repr`` of a numpy scalar (``np.float64(0.75...)``) is not a number to a CSV reader."""
     from pdsmc_ros.experiments.montecarlo import summarize, write_outputs
@@ -55,7 +74,10 @@ def test_every_csv_cell_is_a_plain_number_or_word(tmp_path: Path) -> None:
     spreads = load_uncertainty()
     specs = [dataclasses.replace(s, duration_factor=0.02) for s in base_specs("serial_3r", "circle", ["pd", "smc"])]
     rows = run_sample(0, 5, specs, spreads) + run_sample(1, 5, specs, spreads)
-    assert any(isinstance(v, np.floating) for v in rows[0].values())  # what the table used to repr
+    # the drawn values are plain floats now (the stand-in writes them into a URDF); a numpy scalar in a row is
+    # what the table used to repr
+    rows[0]["link1_mass"] = np.float64(rows[0]["link1_mass"])
+    assert any(isinstance(v, np.floating) for v in rows[0].values())
     meta = {"controllers": ["pd", "smc"]}
     write_outputs(rows, summarize(rows, ["pd", "smc"], specs[0].bound), meta, tmp_path)
     read = table(tmp_path)

@@ -1,5 +1,6 @@
 """The ``pdsmc`` command: simulate, reproduce the thesis, check gains, tune, sweep, Monte Carlo,
-compare laws, analyse bags, excite and identify an arm, send a goal, check the machine for real time.
+compare laws, re-test the thesis's claims on the stand-in (ladder), analyse bags, excite and
+identify an arm, send a goal, check the machine for real time.
 One module per subcommand (``add_parser`` registers it, ``run`` runs it).
 
 Every error is one line on stderr naming the input and what is allowed, with
@@ -16,11 +17,24 @@ from .. import __version__
 from ..arguments import EXIT_FAILURE, EXIT_USAGE, OneLineParser
 from ..errors import InvalidInputError, PdsmcError
 from ..loop import rt_check
-from . import analyze, check_gains, compare, excite, identify, montecarlo, reproduce, send_goal, simulate, sweep, tune
+from . import (
+    analyze,
+    check_gains,
+    compare,
+    excite,
+    identify,
+    ladder,
+    montecarlo,
+    reproduce,
+    send_goal,
+    simulate,
+    sweep,
+    tune,
+)
 from .options import spec_from_args
 
-SUBCOMMANDS = (simulate, reproduce, analyze, sweep, check_gains, montecarlo, compare, tune, excite, send_goal, identify,
-               rt_check)
+SUBCOMMANDS = (simulate, reproduce, analyze, sweep, check_gains, montecarlo, compare, ladder, tune, excite, send_goal,
+               identify, rt_check)
 """The modules of the subcommands, in ``--help``'s order."""
 
 __all__ = ["EXIT_FAILURE", "EXIT_USAGE", "analyze_main", "build_parser", "main", "spec_from_args"]

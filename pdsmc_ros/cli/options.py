@@ -14,6 +14,7 @@ from ..arguments import gain_value, positive_float
 from ..errors import ConfigError
 from ..parameters.declaration import ParameterSpec
 from ..parameters.run_table import RUN
+from ..parameters.tables import REALISM_PRESETS
 
 if TYPE_CHECKING:
     from ..runs.builder import RunSpec
@@ -106,6 +107,10 @@ def add_loop_arguments(p: argparse.ArgumentParser) -> None:
                    help="periods of delay beyond the mode's own (a driver's, a network's; default 0)")
     p.add_argument("--margin", type=positive_float, default=None,
                    help="required rate / lowest stable rate (default 2 in realtime, 1 in lockstep)")
+    p.add_argument("--realism", choices=REALISM_PRESETS, default=None,
+                   help="the arm is the MuJoCo stand-in under this preset of its nuisances (docs/how-to/mujoco.md): "
+                   "the check adds its command delay to the loop's and sees the velocity as its drive estimates it "
+                   "(differenced, low-pass filtered); pdsmc tune also runs each candidate against it")
 
 
 def add_model_argument(p: argparse.ArgumentParser) -> None:

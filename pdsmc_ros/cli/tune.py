@@ -51,7 +51,7 @@ def run(args: argparse.Namespace) -> int:
         out.parent.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise ConfigError(f"--out {str(out)!r}: cannot create {str(out.parent)!r} ({exc.strerror})") from None
-    requirement = Requirement(args.mode, args.delay_periods, args.margin)
+    requirement = Requirement(args.mode, args.delay_periods, args.margin, args.realism)
     result = tune(args.robot, args.contour, args.controller, rate=args.rate, rounds=args.rounds,
                   progress=None if args.quiet else progress, scheduler=args.scheduler, requirement=requirement,
                   model=args.model)

@@ -17,6 +17,13 @@ motion visits. With the serial arm's thesis gains this requires about 10 kHz wit
 (it diverges at 5 kHz); each period of delay raises the lowest stable rate. :func:`check_rate`
 asks for a margin ``rate / lowest stable rate`` on top (:data:`REQUIRED_MARGIN`).
 
+A drive that differences the encoder's positions and low-pass filters the result (the MuJoCo
+stand-in's ``velocity_source: difference`` and ``velocity_filter_hz``; ``pdsmc check-gains
+--realism bench``) gives the law a velocity that lags the true one: the map then carries the
+previous error and the filter's state too (``filter_hz`` of :func:`loop_matrix`), so the filter's
+phase lag counts against the rate as the delay does. The torque's own lag (the drive's current
+loop, ``torque_bandwidth_hz``) is not modelled.
+
 The plant itself is integrated explicitly (RK4 at the control period: the in-process plant
 and the MuJoCo stand-in): a joint whose damping over inertia times the period exceeds RK4's
 real-axis limit diverges whatever the gains. :func:`plant_step` names that joint and the
@@ -41,6 +48,7 @@ from ..contours import JointReference
 from ..errors import InvalidInputError, UnstableRateError
 from ..robots.base import FloatArray, Manipulator
 from .law_run import LawRun
+from .lowpass import lowpass_gain
 from .lyapunov import Condition, theorem_conditions
 from .registry import law
 
@@ -68,7 +76,7 @@ def effective_gains(spec: LawRun, mass: FloatArray, qd_ref: FloatArray | None = 
 
 
 def loop_matrix(mass: FloatArray, kp: FloatArray, kd: FloatArray, h: float | FloatArray,
-                delay: int = 0) -> FloatArray:
+                delay: int = 0, filter_hz: FloatArray | None = None) -> FloatArray:
     """The error map of a held input applied ``delay`` periods after the state it was computed from.
 
     With ``a_k = -Mbar^{-1} (Kp e_k + Kd ed_k)`` the acceleration commanded from the state of
@@ -78,6 +86,14 @@ def loop_matrix(mass: FloatArray, kp: FloatArray, kd: FloatArray, h: float | Flo
     applied, ``X_k = (x_k, a_{k-1}, ..., a_{k-d})``, of dimension ``(2 + d) n``; ``d = 0`` is the
     plain held-input map of the module docstring. Works on one configuration or on a stack
     (leading axis ``m``, ``h`` scalar or of shape ``(m,)``).
+
+    ``filter_hz`` (shape ``(n,)``): the law sees the velocity as a drive estimates it, the backward
+    difference of the positions over the period low-pass filtered at ``filter_hz`` per joint (0: the
+    difference unfiltered; the stand-in's ``velocity_source: difference``, :mod:`pdsmc_ros.sim.drive`):
+    ``v_k = (1 - A) v_{k-1} + (A / h) (e_k - e_{k-1})`` with ``A`` the filter's gain a sample
+    (:func:`~pdsmc_ros.control.lowpass.lowpass_gain`) and ``a_k = -Mbar^{-1} (Kp e_k + Kd v_k)``. The
+    state then also holds ``e_{k-1}`` and ``v_{k-1}``: ``X_k = (x_k, e_{k-1}, v_{k-1}, a_{k-1}, ...,
+    a_{k-d})``, of dimension ``(4 + d) n``. None: the exact velocity.
     """
     if not is_whole(delay) or delay < 0:
         raise InvalidInputError(f"delay must be a whole number of periods >= 0, got {delay!r}")
@@ -87,25 +103,45 @@ def loop_matrix(mass: FloatArray, kp: FloatArray, kd: FloatArray, h: float | Flo
     gain = -np.concatenate([np.linalg.solve(mass, kp), np.linalg.solve(mass, kd)], axis=-1)  # a = gain x
     eye = np.broadcast_to(np.eye(n), gain.shape[:-2] + (n, n))
     bd = np.concatenate([0.5 * h * h * eye, h * eye], axis=-2)  # (.., 2n, n)
-    size = (2 + delay) * n
+    extra = 0 if filter_hz is None else 2  # e_{k-1} and v_{k-1}
+    size = (2 + extra + delay) * n
     a = np.zeros((*gain.shape[:-2], size, size))
     a[..., :n, :n] = eye
     a[..., :n, n:2 * n] = h * eye
     a[..., n:2 * n, n:2 * n] = eye
+    if filter_hz is None:
+        command = gain  # a_k from (e_k, ed_k)
+    else:
+        f = np.broadcast_to(np.asarray(filter_hz, dtype=float), (n,))
+        alpha = lowpass_gain(h[..., 0, :], f)[..., None, :]  # (.., 1, n): the gain of each joint's filter
+        kp_part, kd_part = gain[..., :, :n], gain[..., :, n:]
+        # v_k = (A/h) e_k - (A/h) e_{k-1} + (I - A) v_{k-1}: its rows in X_k's blocks
+        v_rows = np.zeros((*gain.shape[:-2], n, 4 * n))
+        v_rows[..., :, :n] = eye * alpha / h
+        v_rows[..., :, 2 * n:3 * n] = -eye * alpha / h
+        v_rows[..., :, 3 * n:4 * n] = eye * (1.0 - alpha)
+        command = np.zeros((*gain.shape[:-2], n, 4 * n))
+        command[..., :, :n] = kp_part
+        command += kd_part @ v_rows
+        a[..., 2 * n:3 * n, :n] = eye  # e_{k-1} of the next instant is e_k
+        a[..., 3 * n:4 * n, :4 * n] = v_rows  # and v_{k-1} is v_k
+    lead = (2 + extra) * n  # the state's part before the commands on their way
     if delay == 0:
-        a[..., :2 * n, :2 * n] += bd @ gain
+        a[..., :2 * n, :lead] += bd @ command
         return a
     a[..., :2 * n, size - n:] = bd  # the oldest command is the one applied
-    a[..., 2 * n:3 * n, :2 * n] = gain  # the command computed now waits
+    a[..., lead:lead + n, :lead] = command  # the command computed now waits
     for j in range(1, delay):  # and moves one slot older each period
-        a[..., (2 + j) * n:(3 + j) * n, (1 + j) * n:(2 + j) * n] = eye
+        a[..., lead + j * n:lead + (j + 1) * n, lead + (j - 1) * n:lead + j * n] = eye
     return a
 
 
 def spectral_radius(
-    mass: FloatArray, kp: FloatArray, kd: FloatArray, h: float | FloatArray, delay: int = 0
+    mass: FloatArray, kp: FloatArray, kd: FloatArray, h: float | FloatArray, delay: int = 0,
+    filter_hz: FloatArray | None = None,
 ) -> tuple[FloatArray, FloatArray]:
-    """Spectral radius of :func:`loop_matrix` and the joint dominating its mode.
+    """Spectral radius of :func:`loop_matrix` (``filter_hz``: its velocity filter) and the joint
+    dominating its mode.
 
     Works on one configuration (``mass``, ``kp``, ``kd`` of shape ``(n, n)``,
     scalar ``h``) or on a stack of them (leading axis ``m``, ``h`` scalar or of
@@ -119,7 +155,7 @@ def spectral_radius(
     """
     n = np.shape(mass)[-1]
     with np.errstate(over="ignore", invalid="ignore"):
-        a = loop_matrix(mass, kp, kd, h, delay)
+        a = loop_matrix(mass, kp, kd, h, delay, filter_hz)
     if not np.all(np.isfinite(a)):
         raise InvalidInputError("the loop matrix is not finite (gains, inertia or period infinite, NaN or so large "
                                 "that it overflows): no stability to analyse")
@@ -170,16 +206,17 @@ def analysable_gains(spec: LawRun, masses: FloatArray, kp: FloatArray, kd: Float
         f"needs gains near it); give finite, realistic gains")
 
 
-def _lowest_rates(mass: FloatArray, kp: FloatArray, kd: FloatArray, delay: int) -> FloatArray:
+def _lowest_rates(mass: FloatArray, kp: FloatArray, kd: FloatArray, delay: int,
+                  filter_hz: FloatArray | None = None) -> FloatArray:
     """Lowest stable rate (Hz) of each configuration of a stack, by bisection (the loop is
     stable above it: a faster loop is closer to the continuous one, stable for positive gains)."""
     m = mass.shape[0]
     lo = np.full(m, 1.0)  # Hz
     hi = np.full(m, 1e8)  # stable at 1e8 Hz for any positive gains
-    stable_at_lo = spectral_radius(mass, kp, kd, 1.0 / lo, delay)[0] < 1.0
+    stable_at_lo = spectral_radius(mass, kp, kd, 1.0 / lo, delay, filter_hz)[0] < 1.0
     for _ in range(24):  # bracket ratio 1e8 -> about 0.1 % resolution
         mid = np.sqrt(lo * hi)
-        stable = spectral_radius(mass, kp, kd, 1.0 / mid, delay)[0] < 1.0
+        stable = spectral_radius(mass, kp, kd, 1.0 / mid, delay, filter_hz)[0] < 1.0
         hi = np.where(stable, mid, hi)
         lo = np.where(stable, lo, mid)
     return np.where(stable_at_lo, 1.0, hi)
@@ -269,10 +306,12 @@ def _round_up(value: float) -> float:
     return float(np.ceil(value / step * (1.0 - 1e-12)) * step)
 
 
-def tolerated_delay(spec: LawRun, reference: JointReference, *, points: int = 13, most: int = 1000) -> int | None:
+def tolerated_delay(spec: LawRun, reference: JointReference, *, points: int = 13, most: int = 1000,
+                    filter_hz: FloatArray | None = None) -> int | None:
     """The largest whole delay (periods) at ``spec.rate`` with which the loop stays stable at every
-    one of ``points`` configurations: None for a law without linear gains, -1 if unstable even
-    without delay, ``most`` if stable up to it (the search stops there)."""
+    one of ``points`` configurations (``filter_hz``: with the velocity differenced and filtered,
+    :func:`loop_matrix`): None for a law without linear gains, -1 if unstable even without delay,
+    ``most`` if stable up to it (the search stops there)."""
     robot = spec.robot_model()
     sample = reference.sample(np.linspace(0.0, reference.duration, points))
     masses = robot._mass_matrix(sample.q)
@@ -286,7 +325,7 @@ def tolerated_delay(spec: LawRun, reference: JointReference, *, points: int = 13
     analysable_gains(spec, masses, kp, kd)
 
     def stable(d: int) -> bool:
-        return bool(np.all(spectral_radius(masses, kp, kd, 1.0 / spec.rate, d)[0] < 1.0))
+        return bool(np.all(spectral_radius(masses, kp, kd, 1.0 / spec.rate, d, filter_hz)[0] < 1.0))
 
     if not stable(0):
         return -1
@@ -364,6 +403,7 @@ class RateCheck:
     required_margin: float = 1.0
     plant: PlantStep | None = None  # the plant's integration of its damping (None: not checked)
     joint_names: tuple[str, ...] = ()
+    filter_hz: tuple[float, ...] | None = None  # the velocity's filter modelled (None: the exact velocity)
 
     @property
     def worst_joint_label(self) -> str:
@@ -386,15 +426,26 @@ class RateCheck:
 
 
 def rate_margin(spec: LawRun, reference: JointReference, *, points: int = 13, mode: str = "lockstep",
-                delay_periods: int = 0, margin: float | None = None) -> RateCheck:
+                delay_periods: int = 0, margin: float | None = None,
+                filter_hz: FloatArray | None = None) -> RateCheck:
     """Lowest stable rate over the motion and the radius at ``spec.rate``, for the loop of ``mode``
     with ``delay_periods`` more periods of delay (:func:`loop_delay`); ``margin`` is the required
-    margin (default :data:`REQUIRED_MARGIN` of the mode)."""
+    margin (default :data:`REQUIRED_MARGIN` of the mode); ``filter_hz``: the law sees the velocity
+    differenced and low-pass filtered at these cut-offs (Hz per joint, 0: unfiltered), as a drive
+    estimates it (:func:`loop_matrix`), instead of the exact one.
+
+    Raises
+    ------
+    InvalidInputError
+        An unknown mode, a negative delay or margin, a cut-off that is negative, not finite or not one
+        per joint.
+    """
     delay = loop_delay(mode, delay_periods)
     required = REQUIRED_MARGIN[mode] if margin is None else float(margin)
     if not np.isfinite(required) or required <= 0.0:
         raise InvalidInputError(f"margin must be a positive number, got {margin!r}")
     robot = spec.robot_model()
+    cutoffs = velocity_filter(filter_hz, robot.n)
     t = np.linspace(0.0, reference.duration, points)
     sample = reference.sample(t)
     q = sample.q
@@ -406,15 +457,34 @@ def rate_margin(spec: LawRun, reference: JointReference, *, points: int = 13, mo
                                                                                   strict=True)]
     pairs = [pair for pair in linear if pair is not None]
     if len(pairs) < len(linear):  # a law without linear gains: not checked
-        return RateCheck(spec.rate, float("nan"), float("nan"), 0, True, mode, delay, required, plant, names)
+        return RateCheck(spec.rate, float("nan"), float("nan"), 0, True, mode, delay, required, plant, names,
+                         None if cutoffs is None else tuple(cutoffs.tolist()))
     kp = np.stack([p[0] for p in pairs])
     kd = np.stack([p[1] for p in pairs])
     analysable_gains(spec, masses, kp, kd)
-    lowest = float(np.max(_lowest_rates(masses, kp, kd, delay)))
-    radii, joints = spectral_radius(masses, kp, kd, 1.0 / spec.rate, delay)
+    lowest = float(np.max(_lowest_rates(masses, kp, kd, delay, cutoffs)))
+    radii, joints = spectral_radius(masses, kp, kd, 1.0 / spec.rate, delay, cutoffs)
     worst = int(np.argmax(radii))
     radius = float(radii[worst])
-    return RateCheck(spec.rate, lowest, radius, int(joints[worst]), radius < 1.0, mode, delay, required, plant, names)
+    return RateCheck(spec.rate, lowest, radius, int(joints[worst]), radius < 1.0, mode, delay, required, plant, names,
+                     None if cutoffs is None else tuple(cutoffs.tolist()))
+
+
+def velocity_filter(filter_hz: FloatArray | None, n: int) -> FloatArray | None:
+    """The velocity filter's cut-offs, one per joint (one value stands for all), checked; None: none.
+
+    Raises
+    ------
+    InvalidInputError
+        A cut-off that is negative or not finite, or a count other than 1 or ``n``.
+    """
+    if filter_hz is None:
+        return None
+    f = np.atleast_1d(np.asarray(filter_hz, dtype=float))
+    if f.ndim != 1 or f.size not in (1, n) or not np.all(np.isfinite(f)) or np.any(f < 0):
+        raise InvalidInputError(f"velocity filter cut-offs must be 1 or {n} finite numbers >= 0 (Hz; 0: the "
+                                f"difference unfiltered), got {np.asarray(filter_hz).tolist()!r}")
+    return np.broadcast_to(f, (n,)).copy()
 
 
 ENTRY_POINTS = ("cli", "node")
@@ -422,14 +492,20 @@ ENTRY_POINTS = ("cli", "node")
 
 
 def describe_loop(check: RateCheck) -> str:
-    """``lockstep (zero-order hold)`` / ``realtime (zero-order hold + 2 periods of delay)``."""
-    if check.delay == 0:
-        return f"{check.mode} (zero-order hold)"
-    return f"{check.mode} (zero-order hold + {check.delay} period{'s' if check.delay > 1 else ''} of delay)"
+    """``lockstep (zero-order hold)`` / ``realtime (zero-order hold + 2 periods of delay)``, and the
+    velocity filter when one is modelled (``+ velocity differenced, filtered at 100 Hz``)."""
+    parts = ["zero-order hold"]
+    if check.delay:
+        parts.append(f"{check.delay} period{'s' if check.delay > 1 else ''} of delay")
+    if check.filter_hz is not None:
+        f = check.filter_hz
+        shown = f"{f[0]:g}" if all(x == f[0] for x in f) else ", ".join(f"{x:g}" for x in f)
+        parts.append("velocity differenced" + (f", filtered at {shown} Hz" if any(f) else ""))
+    return f"{check.mode} ({' + '.join(parts)})"
 
 
 def check_rate(spec: LawRun, reference: JointReference, *, mode: str = "lockstep", delay_periods: int = 0,
-               margin: float | None = None, entry: str = "cli") -> RateCheck:
+               margin: float | None = None, entry: str = "cli", filter_hz: FloatArray | None = None) -> RateCheck:
     """Refuse gains that are not stable, with the required margin, at ``spec.rate`` in ``mode``.
 
     Parameters
@@ -442,6 +518,8 @@ def check_rate(spec: LawRun, reference: JointReference, *, mode: str = "lockstep
         Required ``rate / lowest stable rate``; :data:`REQUIRED_MARGIN` of the mode by default.
     entry : str
         ``cli`` or ``node``: the error advises ``--rate 1500`` or ``-p rate:=1500.0``.
+    filter_hz : array_like, optional
+        The velocity filter's cut-offs (:func:`rate_margin`); None: the exact velocity.
 
     Raises
     ------
@@ -451,7 +529,7 @@ def check_rate(spec: LawRun, reference: JointReference, *, mode: str = "lockstep
     """
     if entry not in ENTRY_POINTS:
         raise InvalidInputError(f"entry must be one of {ENTRY_POINTS}, got {entry!r}")
-    result = rate_margin(spec, reference, mode=mode, delay_periods=delay_periods, margin=margin)
+    result = rate_margin(spec, reference, mode=mode, delay_periods=delay_periods, margin=margin, filter_hz=filter_hz)
     if result.passes:
         return result
     if result.plant is not None and not result.plant.holds:
@@ -508,12 +586,15 @@ class GainCheck:
 
 
 def check_gains(spec: LawRun, reference: JointReference | None = None, *, mode: str = "realtime",
-                delay_periods: int = 0, margin: float | None = None, points: int = 401) -> GainCheck:
-    """Eq. (3.19) where the law has it (:data:`THEOREM_LAWS`) and :func:`rate_margin` in ``mode``.
+                delay_periods: int = 0, margin: float | None = None, points: int = 401,
+                filter_hz: FloatArray | None = None) -> GainCheck:
+    """Eq. (3.19) where the law has it (:data:`THEOREM_LAWS`) and :func:`rate_margin` in ``mode``
+    (``filter_hz``: with the velocity a drive differences and filters, :func:`loop_matrix`).
 
     The default mode is the real-time loop's (:data:`REALTIME_DELAY_PERIODS`): gains that pass it
     run on a robot, and pass in lockstep too (no delay, a lower required margin).
     """
-    rate = rate_margin(spec, reference or spec.reference(), mode=mode, delay_periods=delay_periods, margin=margin)
+    rate = rate_margin(spec, reference or spec.reference(), mode=mode, delay_periods=delay_periods, margin=margin,
+                       filter_hz=filter_hz)
     conditions = tuple(theorem_conditions(spec, points=points)) if spec.controller in THEOREM_LAWS else ()
     return GainCheck(conditions, rate)

@@ -51,8 +51,9 @@ class Spread:
     sd: float = 0.0
 
 
-def load_uncertainty(path: str | Path | None = None) -> dict[str, Spread]:
-    """The spreads of ``path`` (YAML), or the defaults of ``config/uncertainty.yaml``.
+def load_uncertainty(path: str | Path | None = None, default: str = "uncertainty") -> dict[str, Spread]:
+    """The spreads of ``path`` (YAML), or the defaults of ``config/<default>.yaml``
+    (``config/uncertainty.yaml``; the ladder's: ``config/ladder_uncertainty.yaml``).
 
     Raises
     ------
@@ -60,9 +61,9 @@ def load_uncertainty(path: str | Path | None = None) -> dict[str, Spread]:
         One line naming the file and entry: an unknown parameter or key, an unknown distribution,
         a negative or non-finite spread, ``low > high``.
     """
-    where = "config/uncertainty.yaml"
+    where = f"config/{default}.yaml"
     if path is None:
-        data = load_config("uncertainty")
+        data = load_config(default)
     else:
         where = str(path)
         data = read_yaml(path, f"--uncertainty {where!r}")
@@ -106,10 +107,36 @@ def _factor(rng: np.random.Generator, spread: Spread | None, size: int) -> np.nd
     return np.maximum(rng.normal(1.0, spread.relative, size), 1e-3)
 
 
+LINK_PARAMETERS = tuple(name for name in PARAMETERS if name != "initial_error")
+"""The spreads that need the arm's link and motor parameters (the thesis arms')."""
+
+
 def sample_plant(robot: str, spreads: Mapping[str, Spread], rng: np.random.Generator
-                 ) -> tuple[RobotParams, float, np.ndarray, dict[str, float]]:
+                 ) -> tuple[RobotParams | None, float, np.ndarray, dict[str, float]]:
     """One plant drawn around ``robot``'s nominal parameters: ``(params, payload, initial_error,
-    drawn values by column name)``. The draws come in a fixed order, so a seed fixes them all."""
+    drawn values by column name)``. The draws come in a fixed order, so a seed fixes them all.
+
+    An arm without link parameters of its own (a URDF arm) draws its initial error only: ``params``
+    is None (the arm's own).
+
+    Raises
+    ------
+    ConfigError
+        A URDF arm with a spread of its links, motors or payload (:data:`LINK_PARAMETERS`).
+    """
+    from ..robots.catalog import resolve_robot
+
+    robot = resolve_robot(robot)  # an arm of example-robot-data: registered in this process (a Dask worker's too)
+    arm = make_robot(robot)
+    if not arm.has_link_params:
+        spread_out = [name for name in LINK_PARAMETERS if name in spreads
+                      and (spreads[name].relative or spreads[name].low or spreads[name].high)]
+        if spread_out:
+            raise ConfigError(f"{robot!r} is a URDF arm: only initial_error can be drawn on it (its link and motor "
+                              f"parameters are not varied yet); the spreads vary {spread_out[0]}")
+        spread = spreads.get("initial_error")
+        initial = rng.normal(0.0, spread.sd, arm.n) if spread is not None and spread.sd else np.zeros(arm.n)
+        return None, 0.0, initial, {f"initial_error_{j + 1}": float(initial[j]) for j in range(arm.n)}
     nominal = robot_params(robot)
     links = nominal.links
     k = len(links)
@@ -120,13 +147,15 @@ def sample_plant(robot: str, spreads: Mapping[str, Spread], rng: np.random.Gener
     motor_b = float(_factor(rng, spreads.get("motor_damping"), 1)[0])
     payload_spread = spreads.get("payload")
     payload = float(rng.uniform(payload_spread.low, payload_spread.high)) if payload_spread is not None else 0.0
-    n = make_robot(robot).n
+    n = arm.n
     error_spread = spreads.get("initial_error")
     initial = rng.normal(0.0, error_spread.sd, n) if error_spread is not None and error_spread.sd else np.zeros(n)
-    varied = tuple(dataclasses.replace(link, mass=link.mass * mass[i], com=min(link.com * com[i], link.length),
-                                       inertia=link.inertia * inertia[i]) for i, link in enumerate(links))
-    params = dataclasses.replace(nominal, links=varied, motor_inertia=nominal.motor_inertia * motor_j,
-                                 motor_damping=nominal.motor_damping * motor_b)
+    # plain floats: a description written from them (the stand-in's URDF) must read "0.1", not "np.float64(0.1)"
+    varied = tuple(dataclasses.replace(link, mass=float(link.mass * mass[i]),
+                                       com=float(min(link.com * com[i], link.length)),
+                                       inertia=float(link.inertia * inertia[i])) for i, link in enumerate(links))
+    params = dataclasses.replace(nominal, links=varied, motor_inertia=float(nominal.motor_inertia * motor_j),
+                                 motor_damping=float(nominal.motor_damping * motor_b))
     drawn = {f"link{i + 1}_mass": varied[i].mass for i in range(k)}
     drawn.update({f"link{i + 1}_com": varied[i].com for i in range(k)})
     drawn.update({f"link{i + 1}_inertia": varied[i].inertia for i in range(k)})

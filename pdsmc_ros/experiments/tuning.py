@@ -8,7 +8,10 @@ law's Eq. 3.19 conditions and the discrete rate condition with its margin, by de
 for the real-time loop with its delay, the loop a robot runs) and that
 do not exceed the arm's torque limits (URDF ``<limit effort>``); phi keeps its starting
 value (the thesis's 0.25 rad/s, wider for a PD-SMC whose Ks must exceed gravity's torque).
-Each candidate is one in-process run. ROS-free.
+Each candidate is one in-process run; with ``realism`` (``pdsmc tune --realism bench``) the check
+also models the stand-in's command delay and velocity filter, and the run is against the MuJoCo
+stand-in under those nuisances (:class:`Requirement`): only gains that hold on that arm are kept.
+ROS-free.
 """
 
 from __future__ import annotations
@@ -17,6 +20,7 @@ import contextlib
 import dataclasses
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -25,8 +29,12 @@ from ..control.registry import law
 from ..control.stability import THEOREM_LAWS, check_gains, loop_delay, plant_step
 from ..errors import ConfigError, PdsmcError
 from ..robots import make_robot
+from ..robots.base import FloatArray
 from ..robots.catalog import resolve_robot
 from ..runs.builder import RunSpec, make_run
+
+if TYPE_CHECKING:
+    from ..sim.mujoco_lockstep import StandIn
 
 SWEPT = ("kp", "kd", "ks", "lam", "omega_n", "k1", "k2")
 """The gains the recipe sweeps, in its order; then any other gain the law needs but :data:`KEPT`
@@ -43,21 +51,49 @@ SLOWER_STARTS = 6
 
 @dataclass(frozen=True)
 class Requirement:
-    """What every kept candidate passes: ``pdsmc check-gains --mode --delay-periods --margin``."""
+    """What every kept candidate passes: ``pdsmc check-gains --mode --delay-periods --margin
+    [--realism]``; with ``realism`` (a preset of the stand-in) also a run against the MuJoCo stand-in
+    under it that does not diverge, its torque within the limits."""
 
     mode: str = "realtime"
     delay_periods: int = 0
     margin: float | None = None  # None: the mode's (stability.REQUIRED_MARGIN)
+    realism: str | None = None  # None: the in-process plant, no nuisance
 
     def __post_init__(self) -> None:
         loop_delay(self.mode, self.delay_periods)  # one line if either is wrong
         if self.margin is not None and (not np.isfinite(self.margin) or self.margin <= 0.0):
             raise ConfigError(f"margin must be a positive number, got {self.margin!r}")
+        if self.realism is not None:
+            from ..sim.realism import PRESETS
+
+            if self.realism not in PRESETS:
+                raise ConfigError(f"realism must be one of {', '.join(PRESETS)}, got {self.realism!r}")
+
+    def stand_in(self) -> StandIn | None:
+        """The stand-in every candidate runs against (None: the in-process plant)."""
+        if self.realism is None:
+            return None
+        from ..sim.mujoco_lockstep import StandIn
+
+        return StandIn(preset=self.realism)
+
+    def loop_terms(self, robot: str, rate: float) -> tuple[int, FloatArray | None]:
+        """The delay (periods, beyond the mode's) and the velocity filter (Hz per joint, or None) the
+        check models for ``robot`` at ``rate``: ``delay_periods`` plus, with ``realism``, the stand-in's
+        command delay and its velocity filter (:meth:`pdsmc_ros.sim.realism.Realism.loop_terms`)."""
+        stand_in = self.stand_in()
+        if stand_in is None:
+            return self.delay_periods, None
+        _, realism, _ = stand_in.resolve(robot, rate)
+        delay, filter_hz = realism.loop_terms()
+        return self.delay_periods + delay, filter_hz
 
     def command(self) -> str:
         """The ``pdsmc check-gains`` that accepts the gains kept (a tuned params file's header)."""
         margin = "the mode's default margin" if self.margin is None else f"margin x{self.margin:g}"
-        return f"pdsmc check-gains --mode {self.mode} --delay-periods {self.delay_periods} ({margin})"
+        realism = "" if self.realism is None else f" --realism {self.realism}"
+        return f"pdsmc check-gains --mode {self.mode} --delay-periods {self.delay_periods}{realism} ({margin})"
 
 
 @dataclass(frozen=True)
@@ -169,13 +205,14 @@ def evaluate(spec: RunSpec, gains: Gains, torque_limit: np.ndarray,
     trial = dataclasses.replace(spec, gains=gains, enforce_limits=False)
     requirement = requirement or Requirement()
     try:
+        delay, filter_hz = requirement.loop_terms(spec.robot, spec.rate)
         for run in (trial, *(dataclasses.replace(other, gains=gains) for other in also)):
-            check = check_gains(run, mode=requirement.mode, delay_periods=requirement.delay_periods,
-                                margin=requirement.margin)
+            check = check_gains(run, mode=requirement.mode, delay_periods=delay, margin=requirement.margin,
+                                filter_hz=filter_hz)
             if not check.passes:
                 where = "" if run is trial else f" on {run.contour}"
                 return Candidate(gains, None, (), f"refused{where}: {check.failure()}")
-        result = simulate(trial)
+        result = simulate(trial, stand_in=requirement.stand_in())
     except PdsmcError as exc:
         return Candidate(gains, None, (), f"refused: {exc}")
     metrics = result.metrics

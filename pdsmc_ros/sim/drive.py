@@ -41,6 +41,7 @@ import numpy as np
 from numba import njit, types
 from numba.core.types import WrapperAddressProtocol
 
+from ..control.lowpass import lowpass_gain
 from ..errors import InvalidInputError
 from ..kernels.options import ALLOCATION_FREE
 from ..parameters.tables import MAX_COMMAND_DELAY
@@ -74,14 +75,6 @@ C_DELAY = 4  # the command delay (ticks)
 C_SUBSTEPS = 5  # MuJoCo steps a tick
 COUNTERS = 6
 VELOCITY_CODES = {"exact": 0, "difference": 1}
-
-
-def lowpass_gain(dt: float, cutoff_hz: FloatArray | float) -> FloatArray:
-    """libfranka's first-order low-pass gain ``dt / (dt + 1 / (2 pi f))`` per sample (1 where
-    ``f`` is 0: no filter)."""
-    f = np.asarray(cutoff_hz, dtype=float)
-    with np.errstate(divide="ignore"):
-        return np.where(f > 0, dt / (dt + 1.0 / (2.0 * math.pi * np.where(f > 0, f, 1.0))), 1.0)
 
 
 # --------------------------------------------------------------------------- #

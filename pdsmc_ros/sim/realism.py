@@ -140,6 +140,13 @@ class Realism:
         """Every nuisance off: the stand-in as a perfect arm (the same steps as before there were any)."""
         return not (self.has_physics or self.has_drive)
 
+    def loop_terms(self) -> tuple[int, FloatArray | None]:
+        """What the stability check models of these nuisances (:func:`pdsmc_ros.control.stability.check_gains`):
+        the command's delay (ticks) and the velocity filter's cut-offs (Hz per joint) when the velocity
+        is differenced, else None (the exact velocity). The torque's lag and the others are not modelled."""
+        filtered = self.velocity_filter_hz if self.velocity_source == "difference" else None
+        return int(self.command_delay), filtered
+
     def value(self, name: str) -> Any:
         """A nuisance's value as plain data (lists for arrays)."""
         value = getattr(self, name)
