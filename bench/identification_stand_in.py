@@ -20,9 +20,10 @@
    law's preset gains) with the URDF's model, the identified one and the true one (``--model``:
    the URDF with the payload and the frictions MuJoCo's model holds, written beside the bags):
    the contour error, the RMS joint error and the largest torque;
-5. with ``--realtime BAG --realtime-held-out BAG`` the same check on bags recorded in real time
-   (``scripts/run_experiment.sh --stand-in ARM --realism bench --payload-mass KG`` and
-   ``pdsmc send-goal``: docs/how-to/identify.md), against the same truth.
+5. with ``--realtime BAG [--realtime-window START:END] [--realtime-held-out BAG]`` the same check
+   on bags recorded in real time (``scripts/run_experiment.sh --stand-in ARM --realism bench
+   --driver-param payload_mass:=KG`` and ``pdsmc send-goal``: docs/tutorials/identify-ur5.md),
+   against the same truth.
 
 The last line: ``verdict=PASS|FAIL payload_error=E worst_coulomb_error=E worst_viscous_error=E
 worst_heldout_nrmse=E worst_heldout_nrmse_outside_dead_zone=E consistent=yes|no condition=C``
@@ -171,7 +172,13 @@ def main() -> int:
                         help="computed torque's natural frequency in the excitation runs (rad/s, default 60)")
     parser.add_argument("--feedback", action="store_true", help="also the table of the model-based laws")
     parser.add_argument("--realtime", default=None, help="a bag recorded in real time to check as well")
-    parser.add_argument("--realtime-held-out", default=None, help="its held-out bag")
+    parser.add_argument("--realtime-held-out", default=None,
+                        help="its held-out bag (default: the in-process held-out bag, the same arm)")
+    parser.add_argument("--realtime-window", default=None, metavar="START:END",
+                        help="identify's --window for the real-time bag (the goal's excitation: pdsmc analyze "
+                        "gives the goal's start)")
+    parser.add_argument("--realtime-held-out-window", default=None, metavar="START:END",
+                        help="identify's --validate-window for the real-time held-out bag")
     options = parser.parse_args()
     robot = options.robot
     payload = PAYLOADS[robot] if options.payload is None else options.payload
@@ -222,9 +229,12 @@ def main() -> int:
                   "true": str(write_truth(where, robot, truth))}
         feedback_table(robot, payload, options.seed, models)
     if options.realtime:
-        args = ["identify", options.realtime, "--robot", robot, "--out", str(where / "identified_realtime")]
-        if options.realtime_held_out:
-            args += ["--validate", options.realtime_held_out]
+        args = ["identify", options.realtime, "--robot", robot, "--out", str(where / "identified_realtime"),
+                "--validate", options.realtime_held_out or str(where / "held_out")]
+        if options.realtime_window:
+            args += ["--window", options.realtime_window]
+        if options.realtime_held_out and options.realtime_held_out_window:
+            args += ["--validate-window", options.realtime_held_out_window]
         if options.cutoff:
             args += ["--cutoff", options.cutoff]
         code, printed, identify_s = run(args)
