@@ -8,7 +8,7 @@
 #                          [--respawn controller] [--nice N] [--intra-process] [--from-description]
 #                          [--viewer [--viewer-port PORT]]
 #        run_experiment.sh --stand-in ROBOT --controller K --out bags/NAME [--seconds S] [--rate HZ (1000)]
-#                          [--realism ideal|bench]
+#                          [--realism ideal|bench] [--driver-param NAME:=VALUE ...]
 #                          [--param NAME:=VALUE ...] [--params-file FILE] [--timeout SECONDS]
 #
 # Starts the four nodes (each with `ros2 run pdsmc_ros ...`; with --composed, all four in one
@@ -35,7 +35,8 @@
 # /controller/controller_state, the /controller/follow_joint_trajectory action's status, feedback
 # and results, /diagnostics, /robot_description: docs/recording.md). It runs for --seconds (default:
 # until Ctrl-C or --timeout) while any FollowJointTrajectory client sends goals, then stops the
-# nodes, recorder last; `pdsmc analyze OUT` gives the figures of each goal.
+# nodes, recorder last; `pdsmc analyze OUT` gives the figures of each goal. --driver-param gives the
+# stand-in one of its parameters (a nuisance replacing the preset's: payload_mass:=2.0, seed:=3).
 set -uo pipefail
 
 usage() { awk 'NR > 1 && /^#/ { sub(/^# ?/, ""); print; next } NR > 1 { exit }' "$0"; }
@@ -43,7 +44,7 @@ die() { echo "run_experiment.sh: error: $*" >&2; exit 2; }
 
 ROBOT="" CONTOUR="" CONTROLLER="" OUT="" SCENARIO="nominal" MODE="lockstep" RATE=""
 FACTOR="" SMC_READING="" TIMEOUT="600" COMPOSE="" KEEP_GOING=0 NICE="" INTRA=0 FROM_DESCRIPTION=0
-VIEWER=0 VIEWER_PORT=8765 STAND_IN="" RUN_SECONDS="" REALISM=""
+VIEWER=0 VIEWER_PORT=8765 STAND_IN="" RUN_SECONDS="" REALISM="" DRIVER_EXTRA=()
 EXTRA=()
 FILES=()  # ROS 2 params files: each node reads its own section (e.g. `pdsmc tune`'s controller gains)
 declare -A RESPAWN=()
@@ -62,6 +63,7 @@ while [[ $# -gt 0 ]]; do
     --smc-reading) SMC_READING="${2:-}"; shift 2 ;;
     --timeout) TIMEOUT="${2:-}"; shift 2 ;;
     --param) EXTRA+=(-p "${2:-}"); shift 2 ;;
+    --driver-param) DRIVER_EXTRA+=(-p "${2:-}"); shift 2 ;;
     --params-file)
       [[ -f "${2:-}" ]] || die "--params-file: no such file '${2:-}'"
       FILES+=(--params-file "$2"); shift 2 ;;
@@ -95,6 +97,7 @@ if [[ -z "$STAND_IN" ]]; then
   [[ -n "$CONTOUR" ]] || die "--contour is required"
   [[ -z "$RUN_SECONDS" ]] || die "--seconds goes with --stand-in (a pipeline run ends with its trajectory)"
   [[ -z "$REALISM" ]] || die "--realism goes with --stand-in (the pipeline's plant is the arm's own model)"
+  [[ ${#DRIVER_EXTRA[@]} -eq 0 ]] || die "--driver-param goes with --stand-in (the stand-in's parameters)"
 else
   [[ -z "$ROBOT" && -z "$CONTOUR" && -z "$COMPOSE" && "$FROM_DESCRIPTION" == 0 && "$VIEWER" == 0 ]] \
     || die "--stand-in runs the driver, the controller and the recorder apart; it takes no --robot, --contour, --composed, --compose, --from-description or --viewer"
@@ -251,7 +254,8 @@ if [[ -n "$STAND_IN" ]]; then
   start_own recorder -p "output:=$OUT" \
     -p "topics:=[/joint_states,/mujoco_driver/true_joint_states,/effort_controller/commands,/controller/controller_state,/diagnostics,/robot_description]" \
     -p "actions:=[/controller/follow_joint_trajectory]"
-  start_own mujoco_driver -p "robot:=$STAND_IN" "${RATE_PARAM[@]}" ${REALISM:+-p "realism:=$REALISM"}
+  start_own mujoco_driver -p "robot:=$STAND_IN" "${RATE_PARAM[@]}" ${REALISM:+-p "realism:=$REALISM"} \
+    "${DRIVER_EXTRA[@]}"
   start_own controller "${FILES[@]}" -p "robot:=$STAND_IN" -p "type:=$CONTROLLER" -p mode:=realtime \
     "${RATE_PARAM[@]}" "${EXTRA[@]}"
   START=$SECONDS

@@ -25,6 +25,11 @@ def add_parser(sub: argparse._SubParsersAction, commands: dict) -> None:  # type
                    help="a second, held-out run: the identified model's effort error on it (NRMSE per joint)")
     p.add_argument("--cutoff", type=positive_float, default=None, metavar="HZ",
                    help="the filter's cut-off (default: 5 x the motion's bandwidth, from its spectrum)")
+    p.add_argument("--window", default=None, metavar="START:END",
+                   help="fit only the states from START to END s after the bag's first state (a recording holds "
+                   "more than the excitation: the arm at rest, braked, the goal's lead)")
+    p.add_argument("--validate-window", default=None, metavar="START:END",
+                   help="the same for the held-out bag")
     p.add_argument("--topic", default="/joint_states", help="the JointState topic (default /joint_states)")
     commands["identify"] = run
 
@@ -41,22 +46,28 @@ def run(args: argparse.Namespace) -> int:
     )
     from ..identification.identify import identify, validate
     from ..identification.model import ArmDynamics, arm_of
-    from ..identification.recording import read_joint_states
+    from ..identification.recording import parse_window, read_joint_states
     from ..identification.report import report_data, report_lines, torque_figure
 
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise ConfigError(f"--out {str(out)!r} is a file: give a directory")
+    window = parse_window(args.window, "--window") if args.window else None
+    held_out_window = parse_window(args.validate_window, "--validate-window") if args.validate_window else None
     dynamics = ArmDynamics(arm_of(args.robot))
     recording = read_joint_states(args.bag, dynamics.layout.joint_names, topic=args.topic)
+    if window:
+        recording = recording.window(*window, f"bag {args.bag!r}")
     held_out = None
     if args.validate:
         held_out = read_joint_states(args.validate, dynamics.layout.joint_names, topic=args.topic)
+        if held_out_window:
+            held_out = held_out.window(*held_out_window, f"bag {args.validate!r}")
     result = identify(dynamics, recording.t, recording.q, recording.tau, cutoff=args.cutoff)
     validation = None
     if held_out is not None:
-        fitted, nominal = validate(result, held_out.t, held_out.q, held_out.tau)
-        validation = (str(args.validate), fitted, nominal)
+        fitted, nominal, moving = validate(result, held_out.t, held_out.q, held_out.tau)
+        validation = (str(args.validate), fitted, nominal, moving)
     data = report_data(result, robot=args.robot, bag=str(args.bag), validation=validation)
     source = f"Identified from {args.bag} (pdsmc identify), starting from {args.robot}."
     urdf = corrected_urdf(dynamics, result.fit.values, note=source)

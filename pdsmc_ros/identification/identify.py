@@ -82,12 +82,23 @@ def filtered_regressor(dynamics: ArmDynamics, prepared: Prepared) -> FloatArray:
     return out
 
 
-def prediction_nrmse(regressor: FloatArray, parameters: FloatArray, prepared: Prepared) -> FloatArray:
+def prediction_nrmse(regressor: FloatArray, parameters: FloatArray, prepared: Prepared, *,
+                     moving_only: bool = False) -> FloatArray:
     """Per joint, the NRMSE (:func:`~.estimate.nrmse`: RMS error over the measured range) of the
     efforts ``parameters`` predict against the run's, both filtered alike (``regressor``:
-    :func:`filtered_regressor`), at every kept sample (velocity reversals included)."""
+    :func:`filtered_regressor`), at every kept sample (velocity reversals and slow stretches
+    included); ``moving_only``: at the samples each joint's equations were fitted on (outside its
+    dead zone, :attr:`~.signals.Prepared.moving`), the range still the whole run's."""
     predicted = (regressor @ parameters).reshape(prepared.tau.shape)
-    return nrmse(prepared.tau, predicted)
+    if not moving_only:
+        return nrmse(prepared.tau, predicted)
+    spread = prepared.tau.max(axis=0) - prepared.tau.min(axis=0)
+    out = np.full(prepared.tau.shape[1], np.inf)
+    for j in range(len(out)):
+        mine = prepared.moving[:, j]
+        if np.any(mine) and spread[j] > 0.0:
+            out[j] = float(np.sqrt(np.mean((prepared.tau[mine, j] - predicted[mine, j]) ** 2)) / spread[j])
+    return out
 
 
 def identify(dynamics: ArmDynamics, t: ArrayLike, q: ArrayLike, tau: ArrayLike, *, cutoff: float | None = None,
@@ -130,11 +141,13 @@ def identify(dynamics: ArmDynamics, t: ArrayLike, q: ArrayLike, tau: ArrayLike, 
 
 
 def validate(identification: Identification, t: ArrayLike, q: ArrayLike, tau: ArrayLike
-             ) -> tuple[FloatArray, FloatArray]:
+             ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """The fitted and the nominal model's NRMSE per joint on another run (held out), filtered
-    with the identification's cut-off."""
+    with the identification's cut-off; and the fitted model's outside each joint's dead zone
+    (:func:`prediction_nrmse`'s ``moving_only``)."""
     prepared = prepare(t, q, tau, cutoff=identification.prepared.cutoff)
     dynamics = identification.dynamics
     regressor = filtered_regressor(dynamics, prepared)
     return (prediction_nrmse(regressor, identification.fit.values, prepared),
-            prediction_nrmse(regressor, dynamics.nominal, prepared))
+            prediction_nrmse(regressor, dynamics.nominal, prepared),
+            prediction_nrmse(regressor, identification.fit.values, prepared, moving_only=True))

@@ -19,7 +19,7 @@ from ..bag.mcapscan import scan
 from ..errors import CdrError, InvalidInputError
 from ..robots.base import FloatArray
 
-__all__ = ["JointRecording", "RecordingError", "read_joint_states"]
+__all__ = ["JointRecording", "RecordingError", "parse_window", "read_joint_states"]
 
 TOPIC = "/joint_states"
 
@@ -51,6 +51,40 @@ class JointRecording:
     @property
     def duration(self) -> float:
         return float(self.t[-1] - self.t[0]) if len(self.t) else 0.0
+
+    def window(self, start: float, end: float, label: str) -> JointRecording:
+        """The states from ``start`` to ``end`` s (from the first state), times from ``start``.
+
+        Raises
+        ------
+        RecordingError
+            One line naming ``label``: fewer than 3 states in the window.
+        """
+        inside = (self.t >= start) & (self.t <= end)
+        if int(inside.sum()) < 3:
+            raise RecordingError(f"{label}: the window {start:g}-{end:g} s holds {int(inside.sum())} joint states "
+                                 f"(the bag's run is {self.duration:.3g} s long)")
+        return JointRecording(self.t[inside] - start, self.q[inside], self.qd[inside], self.tau[inside],
+                              self.bag_joints)
+
+
+def parse_window(text: str, flag: str) -> tuple[float, float]:
+    """``START:END`` (seconds from a bag's first state) as two floats.
+
+    Raises
+    ------
+    InvalidInputError
+        One line naming ``flag``: not two finite numbers, or ``END <= START``.
+    """
+    parts = text.split(":")
+    try:
+        start, end = (float(p) for p in parts) if len(parts) == 2 else (float("nan"), float("nan"))
+    except ValueError:
+        start, end = float("nan"), float("nan")
+    if not (np.isfinite(start) and np.isfinite(end) and end > start >= 0.0):
+        raise InvalidInputError(f"{flag} must be START:END in seconds from the bag's first state, 0 <= START < END; "
+                                f"got {text!r}")
+    return start, end
 
 
 def read_joint_states(path: str | Path, joint_names: tuple[str, ...], *, topic: str = TOPIC) -> JointRecording:

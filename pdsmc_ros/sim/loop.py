@@ -107,6 +107,10 @@ class LoopOutcome:
     step_error, step_tau : ndarray, shape (N + 1, n)
         ``q_d - q`` and the applied torque at every control instant (``run_loop(...,
         every_step=True)``; NaN from a diverged step on), else empty.
+    step_drive : ndarray, shape (N + 1, 3, n)
+        The MuJoCo stand-in's drive at every control instant: the position and velocity it published
+        and the motors' torque over the next tick (:class:`~.mujoco_lockstep.MujocoLoop`'s
+        ``drive_record``), else empty.
     """
 
     saturated: list[int]
@@ -117,6 +121,7 @@ class LoopOutcome:
     end_qd: FloatArray = field(default_factory=lambda: np.zeros(0))
     step_error: FloatArray = field(default_factory=lambda: np.zeros((0, 0)))
     step_tau: FloatArray = field(default_factory=lambda: np.zeros((0, 0)))
+    step_drive: FloatArray = field(default_factory=lambda: np.zeros((0, 3, 0)))
 
 
 def closed_loop(

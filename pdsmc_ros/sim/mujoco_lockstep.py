@@ -87,13 +87,16 @@ class StandIn:
 @njit(**ALLOCATION_FREE)
 def _lockstep(step, model, data, qpos, qvel, qadr, vadr, ctrl, params, dstate, ring, ring_valid, dcount,  # noqa: ANN001, ANN202, PLR0913
               noise, code, gains, smc_model, model_kind, model_p, law_state, q, qd, tau, refs, h, sample_every,
-              limit, bounds, first, at, counts, out_q, out_qd, out_tau, step_error, step_tau, work, start_step,
-              advance_last):
+              limit, bounds, first, at, counts, out_q, out_qd, out_tau, step_error, step_tau, step_drive, work,
+              start_step, advance_last):
     # :func:`pdsmc_ros.sim.loop._loop`'s steps with MuJoCo for the plant and the drive between them;
-    # ``q``, ``qd`` end with the true state the loop ended in (the diverged one if it stopped)
+    # ``q``, ``qd`` end with the true state the loop ended in (the diverged one if it stopped);
+    # ``step_drive[k]`` (if not empty): the position and velocity the drive published at step k and
+    # the motors' torque over the tick that follows it (0 while braked)
     n = q.shape[0]
     steps = refs.shape[0] - 1
     every_step = step_error.shape[0] > 0
+    drive_record = step_drive.shape[0] > 0
     applied = steps + advance_last
     for k in range(steps + 1):
         for i in range(n):
@@ -122,8 +125,14 @@ def _lockstep(step, model, data, qpos, qvel, qadr, vadr, ctrl, params, dstate, r
             for i in range(n):
                 step_error[k, i] = refs[k, 0, i] - q[i]
                 step_tau[k, i] = tau[i]
+        stepped = False
         if k < applied:
-            apply_tick(step, model, data, qvel, vadr, ctrl, params, dstate, ring, ring_valid, dcount, tau, 1)
+            stepped = apply_tick(step, model, data, qvel, vadr, ctrl, params, dstate, ring, ring_valid, dcount, tau, 1)
+        if drive_record:
+            for i in range(n):
+                step_drive[k, 0, i] = dstate[S_Q, i]
+                step_drive[k, 1, i] = dstate[S_QD, i]
+                step_drive[k, 2, i] = ctrl[i] if stepped else 0.0
     for i in range(n):
         q[i] = qpos[qadr[i]]
         qd[i] = qvel[vadr[i]]
@@ -174,9 +183,14 @@ class MujocoLoop:
     def __call__(self, plant: Manipulator, law: ControlLaw, q0: FloatArray, refs: FloatArray, h: float,
                  sample_every: int, torque_limit: FloatArray | None = None, check: DivergenceCheck | None = None, *,
                  qd0: FloatArray | None = None, start_step: int = 0, advance_last: bool = False,
-                 every_step: bool = False) -> tuple[FloatArray, FloatArray, FloatArray, LoopOutcome]:
+                 every_step: bool = False, drive_record: bool = False
+                 ) -> tuple[FloatArray, FloatArray, FloatArray, LoopOutcome]:
         """:func:`~pdsmc_ros.sim.loop.run_loop`'s call and results; ``q0``, ``qd0`` start the run
-        (``start_step`` 0), a later stretch goes on from MuJoCo's state."""
+        (``start_step`` 0), a later stretch goes on from MuJoCo's state. ``drive_record``: the
+        outcome's ``step_drive`` holds, at every control instant, what the drive published (position,
+        velocity) and the motors' torque over the tick after it (what the ``mujoco_driver`` node
+        publishes as the effort of the next state: the torque MuJoCo applied, after the delay, the
+        lag and the torque-speed line)."""
         n = plant.n
         if n != self.arm.n:
             raise InvalidInputError(f"the stand-in has {self.arm.n} actuated joints; the plant {n}")
@@ -193,6 +207,7 @@ class MujocoLoop:
         counts[n] = -1
         step_error = np.empty((rows if every_step else 0, n))
         step_tau = np.empty((rows if every_step else 0, n))
+        step_drive = np.empty((rows if drive_record else 0, 3, n))
         end_q, end_qd = np.zeros(n), np.zeros(n)
         drive, d = self.drive, self.data
         _lockstep(mj_step_function(), self.arm.model._address, d._address, d.qpos, d.qvel, self.qadr, self.vadr,
@@ -200,16 +215,16 @@ class MujocoLoop:
                   law.code, law.gains, law.smc_model, law.model_kind, law.model_params, law.state, end_q, end_qd,
                   np.empty(n), np.ascontiguousarray(refs, dtype=float), float(h), int(sample_every), limit,
                   check.bounds, check.first, check.at, counts, out_q, out_qd, out_tau, step_error, step_tau,
-                  robot_compiled.workspace(n), int(start_step), int(advance_last))
+                  step_drive, robot_compiled.workspace(n), int(start_step), int(advance_last))
         self.steps_run += rows
         outcome = LoopOutcome(counts[:n].tolist(), warnings=check.new_warnings(1.0 / h), end_q=end_q, end_qd=end_qd,
-                              step_error=step_error, step_tau=step_tau)
+                              step_error=step_error, step_tau=step_tau, step_drive=step_drive)
         if counts[n] >= 0:
             stop = int(counts[n])
             first_missing = -(-(stop - start_step) // sample_every)
             for out in (out_q, out_qd, out_tau):
                 out[first_missing:] = np.nan
-            for out in (step_error, step_tau):
+            for out in (step_error, step_tau, step_drive):
                 out[stop - start_step:] = np.nan
             outcome.diverged_step = stop
             joint = int(counts[n + 1])

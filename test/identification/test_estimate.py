@@ -184,3 +184,39 @@ def test_too_few_samples_is_too_short(ur5: ArmDynamics) -> None:
     q, qd, qdd = motion(ur5, seconds=1.0, rate=20.0)
     with pytest.raises(NotIdentifiableError, match="run too short"):
         fit(ur5, q, qd, qdd, ur5.torque(truth_of(ur5), q, qd, qdd))
+
+
+def test_the_motion_bandwidth_is_read_above_an_encoders_white_floor() -> None:
+    """A 0.5 Hz motion read by an 18-bit encoder with half a count of noise at 1 kHz: the quantised
+    positions' white floor, weighed by f^2, holds 0.4 % of the velocities' energy near the Nyquist
+    frequency; the bandwidth is still the motion's (its highest harmonic, to a line of the spectrum)."""
+    from pdsmc_ros.identification.signals import motion_bandwidth
+
+    rate, seconds = 1000.0, 40.0
+    t = np.arange(0.0, seconds, 1.0 / rate)
+    rng = np.random.default_rng(3)
+    q = np.zeros((len(t), 3))
+    for j in range(3):
+        for h in range(1, 6):
+            q[:, j] += rng.uniform(0.02, 0.1) * np.sin(2.0 * np.pi * 0.1 * h * t + rng.uniform(0, 2 * np.pi))
+    exact = motion_bandwidth(q, rate)
+    grid = 2.0 * np.pi / 2**18
+    read = np.round((q + 0.5 * grid * rng.standard_normal(q.shape)) / grid) * grid
+    assert exact == pytest.approx(0.5, abs=0.05)
+    assert motion_bandwidth(read, rate) == pytest.approx(exact, abs=0.05)
+
+
+def test_a_slow_joint_is_in_the_dead_zone() -> None:
+    """Where a joint is slower than SLOW_SHARE of its peak speed its equations are left out (it may
+    stick there); elsewhere, away from reversals, they are kept."""
+    from pdsmc_ros.identification.signals import SLOW_SHARE, prepare
+
+    rate = 500.0
+    t = np.arange(0.0, 30.0, 1.0 / rate)
+    q = np.stack([0.3 * np.sin(2.0 * np.pi * 0.2 * t), 0.2 * np.sin(2.0 * np.pi * 0.3 * t + 0.5)], axis=1)
+    prepared = prepare(t, q, np.zeros_like(q), cutoff=2.0)
+    _, qd, _ = prepared.kept_motion()
+    slow = np.abs(qd) < SLOW_SHARE * np.max(np.abs(qd), axis=0)
+    assert np.any(slow)
+    assert not np.any(prepared.moving[slow])
+    assert np.mean(prepared.moving[~slow]) > 0.9

@@ -116,6 +116,18 @@ def test_identify_a_simulated_run(simulated: dict[str, Path], capsys: pytest.Cap
                                ArmDynamics(arm_of("ur5")).torque(fitted, q, qd, qdd), atol=1e-5)
 
 
+def test_a_window_of_the_bag(simulated: dict[str, Path], capsys: pytest.CaptureFixture[str]) -> None:
+    """``--window`` fits only the states in it (a recording holds the arm at rest, braked, the
+    goal's lead besides the excitation): two of the three periods, the payload still found."""
+    out = simulated["dir"] / "windowed"
+    code = main(["identify", str(simulated["train"]), "--robot", "ur5", "--out", str(out), "--window", "0:16",
+                 "--validate", str(simulated["held_out"]), "--validate-window", "2:14"])
+    printed = capsys.readouterr()
+    assert code == 0, printed.err
+    assert re.search(r"joint states over 16 s", printed.out), printed.out
+    assert yaml.safe_load((out / "identified.yaml").read_text())["payload_mass"] == pytest.approx(1.5, rel=0.02)
+
+
 def test_the_identified_model_fed_back_to_computed_torque(simulated: dict[str, Path],
                                                           capsys: pytest.CaptureFixture[str]) -> None:
     """Computed torque on the true arm: with the URDF's model the tool pulls it millimetres off the
@@ -182,13 +194,15 @@ def bad_bags(tmp_path_factory: pytest.TempPathFactory, ur5: ArmDynamics) -> dict
     ("another_arm", "ur5", r"the arm does not match the bag's joints"),
     ("missing", "panda", r"the arm does not match the bag's joints"),
     ("nowhere", "ur5", r"no such file or directory"),
+    ("still_joint", "ur5 --window 30:40", r"the window 30-40 s holds 0 joint states"),
+    ("still_joint", "ur5 --window 5", r"--window must be START:END"),
 ])
 def test_bad_input_is_one_line_exit_2_and_nothing_written(bad_bags: dict[str, Path], tmp_path: Path,
                                                           capsys: pytest.CaptureFixture[str], bag: str, robot: str,
                                                           message: str) -> None:
     out = tmp_path / "out"
     path = bad_bags.get(bag, tmp_path / "nowhere")
-    code = main(["identify", str(path), "--robot", robot, "--out", str(out)])
+    code = main(["identify", str(path), "--robot", *robot.split(), "--out", str(out)])
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2
     assert len(err) == 1 and err[0].startswith("pdsmc identify: error: "), err

@@ -108,3 +108,45 @@ def test_a_bad_nuisance_is_one_line_and_exit_2(flags: list[str], message: str,
     assert main(args) == 2
     err = capsys.readouterr().err.strip()
     assert err == message
+
+
+def _drive_record(given: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A short computed-torque run of the serial 3R on the stand-in with ``given`` nuisances: the
+    true positions, the law's torques and the drive's record at every step."""
+    from pdsmc_ros.control.gains import Gains
+    from pdsmc_ros.control.law import ControlLaw
+    from pdsmc_ros.control.registry import smc_model_vector
+    from pdsmc_ros.identification.simulated import EXACT_MODEL
+    from pdsmc_ros.robots.registry import make_robot
+
+    plant = make_robot("serial_3r")
+    rate = 1000.0
+    law = ControlLaw("ctc", Gains.from_mapping({"omega_n": [30.0] * 3, "zeta": [1.0] * 3}, 3, "ctc").matrix(),
+                     smc_model_vector(EXACT_MODEL), plant, 1.0 / rate)
+    t = np.arange(301) / rate
+    q0 = np.array([0.3, 0.5, -0.4])
+    q = q0 + 0.1 * np.sin(2.0 * np.pi * t)[:, None]
+    qd = 0.2 * np.pi * np.cos(2.0 * np.pi * t)[:, None] * np.ones(3)
+    qdd = -0.4 * np.pi**2 * np.sin(2.0 * np.pi * t)[:, None] * np.ones(3)
+    refs = np.ascontiguousarray(np.stack([q, qd, qdd], axis=1))
+    loop = StandIn("ideal", given=given).loop("serial_3r", rate, plant)
+    out_q, _, _, outcome = loop(plant, law, q0.copy(), refs, 1.0 / rate, 1, every_step=True, drive_record=True)
+    return out_q, outcome.step_tau, outcome.step_drive
+
+
+def test_the_drive_record_is_what_the_driver_publishes_and_the_torque_mujoco_applied() -> None:
+    """Every nuisance off: the published state is the true one and the motors take the law's
+    torque in its own tick; with a delay of 3 ticks they take the one 3 ticks older (none before:
+    braked); with an encoder the published positions are on its grid. The last instant's torque
+    is applied over no tick (the run ends there): 0."""
+    true_q, tau, drive = _drive_record({})
+    np.testing.assert_array_equal(drive[:, 0], true_q)
+    np.testing.assert_array_equal(drive[:-1, 2], tau[:-1])
+    np.testing.assert_array_equal(drive[-1, 2], 0.0)
+    _, tau, drive = _drive_record({"command_delay": 3})
+    np.testing.assert_array_equal(drive[:3, 2], 0.0)
+    np.testing.assert_array_equal(drive[3:-1, 2], tau[:-4])
+    true_q, _, drive = _drive_record({"encoder_counts": 4096})
+    grid = 2.0 * np.pi / 4096
+    np.testing.assert_allclose(drive[:, 0] / grid, np.round(drive[:, 0] / grid), atol=1e-9)
+    assert np.max(np.abs(drive[:, 0] - true_q)) <= 0.5 * grid + 1e-12
