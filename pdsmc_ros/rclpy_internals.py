@@ -12,10 +12,12 @@ Written against rclpy :data:`WRITTEN_AGAINST` (ROS 2 Jazzy). Where the public AP
 it is used (:func:`declared_value`) or taken as the fallback (:func:`rcutils_log` is None without
 the private writer: the caller logs through rclpy's logger).
 
-Not here yet: the controller's sidecar processes (``controller/goal_process.py``: a stand-in
-overriding rclpy's private ``_parameter_event_publisher``, reading ``node._parameters``;
-``controller/gain_check.py``) and the command writer's ``rcl_publish_serialized_message``
-through ctypes (``ros/publishers.py``'s ``WriterThread``): whether they stay is being measured.
+The goal process's parameter stand-in needs two more: every parameter a node declared, unset
+typed ones included (:func:`declared_parameters`), and a node whose ``/parameter_events`` name
+another node, silent until told (:func:`node_announcing_as`, :func:`announce`).
+
+Not here yet: the command writer's ``rcl_publish_serialized_message`` through ctypes
+(``ros/publishers.py``'s ``WriterThread``).
 """
 
 from __future__ import annotations
@@ -45,12 +47,12 @@ USED = {
     "rclpy_implementation.WaitSet": ("clear_entities", "add_subscription", "add_guard_condition", "wait"),
     "rclpy_implementation.Subscription": ("take_message",),
     "rclpy_implementation.Publisher": ("publish_raw",),
-    "rclpy.node.Node (an instance)": ("_parameter_overrides",),
+    "rclpy.node.Node (an instance)": ("_parameter_overrides", "_parameters", "_parameter_event_publisher"),
 }
 """Every private name used, by what holds it: the C extension's classes and functions, the methods
 called on a subscription's or publisher's ``handle`` (``take_message(msg_type, raw)``: the
 recorder and the serve loop take serialized messages; ``publish_raw``: the guarded publishers),
-and a node's parameter overrides."""
+a node's parameter overrides, its declared parameters and its ``/parameter_events`` writer."""
 
 
 def missing(node: Node | None = None) -> list[str]:
@@ -112,3 +114,57 @@ def declared_value(node: Node, name: str) -> Any:
         return node.get_parameter(name).value
     except (ParameterUninitializedException, ParameterNotDeclaredException):
         return None
+
+
+def declared_parameters(node: Node) -> dict[str, Parameter]:
+    """Every parameter ``node`` declared, by name, unset statically typed ones included (rclpy's
+    public ``get_parameters_by_prefix`` leaves those out).
+
+    Raises
+    ------
+    AttributeError
+        Naming this module, if this rclpy keeps them elsewhere.
+    """
+    try:
+        declared: dict[str, Parameter] = node._parameters  # noqa: SLF001 - no public accessor with unset ones
+    except AttributeError:
+        raise AttributeError(f"{__name__}: this rclpy ({installed_version()}) keeps no Node._parameters "
+                             f"(written against {WRITTEN_AGAINST})") from None
+    return declared
+
+
+class _EventsAs:
+    """rclpy's ``/parameter_events`` writer of a node: its events name ``node`` (from :attr:`on`)."""
+
+    def __init__(self, publisher: Any, node: str) -> None:
+        self.publisher = publisher
+        self.node = node
+        self.on = False
+
+    def publish(self, event: Any) -> None:
+        if self.on:
+            event.node = self.node
+            self.publisher.publish(event)
+
+
+def node_announcing_as(base: str, *args: Any, **kwargs: Any) -> Node:
+    """An rclpy Node (``Node(*args, **kwargs)``) whose ``/parameter_events`` name the node ``base``,
+    silent until :func:`announce`: rclpy's own declarations in ``Node.__init__`` (``use_sim_time``)
+    and a stand-in's are ``base``'s, which announced them itself. rclpy has no public way to
+    publish a node's parameter events under another name: its private writer is wrapped."""
+
+    class AnnouncingNode(Node):
+        @property
+        def _parameter_event_publisher(self) -> Any:
+            return self._events_as
+
+        @_parameter_event_publisher.setter
+        def _parameter_event_publisher(self, publisher: Any) -> None:  # rclpy's writer, then None at destruction
+            self._events_as = None if publisher is None else _EventsAs(publisher, base)
+
+    return AnnouncingNode(*args, **kwargs)
+
+
+def announce(node: Node) -> None:
+    """A :func:`node_announcing_as` node's parameter events are published from now on."""
+    node._parameter_event_publisher.on = True  # type: ignore[attr-defined]  # noqa: SLF001 - ours, wrapped above

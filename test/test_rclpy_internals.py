@@ -16,8 +16,6 @@ PRIVATE = re.compile(r"implementation_singleton|\._parameter_overrides\b|\bnode\
                      r"_parameter_event_publisher|rcl_publish_serialized_message")
 """How a private rclpy, rcl or rmw name reads in the package's source."""
 NOT_YET = {
-    "controller/goal_process.py": "the sidecar's stand-ins (being measured: they may go)",
-    "controller/gain_check.py": "the sidecar's gain check (being measured)",
     "ros/publishers.py": "WriterThread's rcl_publish_serialized_message through ctypes (being measured)",
 }
 """Modules whose private uses are not behind the adapter yet, and why."""
