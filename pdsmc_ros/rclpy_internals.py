@@ -16,13 +16,16 @@ The goal process's parameter stand-in needs two more: every parameter a node dec
 typed ones included (:func:`declared_parameters`), and a node whose ``/parameter_events`` name
 another node, silent until told (:func:`node_announcing_as`, :func:`announce`).
 
-Not here yet: the command writer's ``rcl_publish_serialized_message`` through ctypes
-(``ros/publishers.py``'s ``WriterThread``).
+The command's writer thread publishes serialized bytes with the interpreter lock released, which
+rclpy's ``publish`` never does: :class:`SerializedPublish` calls rcl's
+``rcl_publish_serialized_message`` through ctypes on the publisher's private handle pointer.
 """
 
 from __future__ import annotations
 
+import ctypes
 import importlib.metadata
+import os
 from typing import Any
 
 from rclpy.exceptions import ParameterNotDeclaredException, ParameterUninitializedException
@@ -46,7 +49,7 @@ USED = {
         "WaitSet", "GuardCondition", "RCLError", "rclpy_logging_rcutils_log"),
     "rclpy_implementation.WaitSet": ("clear_entities", "add_subscription", "add_guard_condition", "wait"),
     "rclpy_implementation.Subscription": ("take_message",),
-    "rclpy_implementation.Publisher": ("publish_raw",),
+    "rclpy_implementation.Publisher": ("publish_raw", "pointer"),
     "rclpy.node.Node (an instance)": ("_parameter_overrides", "_parameters", "_parameter_event_publisher"),
 }
 """Every private name used, by what holds it: the C extension's classes and functions, the methods
@@ -168,3 +171,55 @@ def node_announcing_as(base: str, *args: Any, **kwargs: Any) -> Node:
 def announce(node: Node) -> None:
     """A :func:`node_announcing_as` node's parameter events are published from now on."""
     node._parameter_event_publisher.on = True  # type: ignore[attr-defined]  # noqa: SLF001 - ours, wrapped above
+
+
+class _SerializedMessage(ctypes.Structure):
+    """``rcl_serialized_message_t`` (``rcutils_uint8_array_t``): the bytes, their length, the
+    buffer's capacity and an allocator (five pointers; unused by a publish)."""
+
+    _fields_ = [("buffer", ctypes.c_void_p), ("buffer_length", ctypes.c_size_t),
+                ("buffer_capacity", ctypes.c_size_t), ("allocator", ctypes.c_void_p * 5)]
+
+
+class SerializedPublish:
+    """``publish(data)``: ``publisher``'s serialized message ``data`` written into the middleware with
+    the interpreter lock released -- ``rcl_publish_serialized_message`` and ``rcutils_reset_error``
+    from the libraries rclpy loaded (by their sonames, ``RTLD_NOLOAD``: never a second copy), called
+    through ctypes on the publisher's handle pointer (rclpy's private ``Publisher.handle.pointer``).
+    Returns ``(failed, why)``: 0 and "" when written.
+
+    Raises
+    ------
+    OSError
+        Naming this module, where rcl cannot be called so (the libraries not loaded, or this rclpy's
+        handle has no pointer).
+    """
+
+    def __init__(self, publisher: Any) -> None:
+        try:
+            publish = ctypes.CDLL("librcl.so", mode=os.RTLD_NOLOAD).rcl_publish_serialized_message
+            reset = ctypes.CDLL("librcutils.so", mode=os.RTLD_NOLOAD).rcutils_reset_error
+            self._handle = publisher.handle
+            self._pointer = self._handle.pointer
+        except (OSError, AttributeError) as exc:
+            raise OSError(f"{__name__}: rcl_publish_serialized_message cannot be called through ctypes with this "
+                          f"rclpy ({installed_version()}; written against {WRITTEN_AGAINST}): {exc}") from None
+        publish.argtypes = [ctypes.c_void_p, ctypes.POINTER(_SerializedMessage), ctypes.c_void_p]
+        publish.restype = ctypes.c_int32  # rcl_ret_t
+        reset.argtypes, reset.restype = [], None
+        self._publish, self._reset_error = publish, reset
+        self._message = _SerializedMessage()
+
+    def __call__(self, data: bytes) -> tuple[int, str]:
+        message = self._message
+        message.buffer = ctypes.cast(ctypes.c_char_p(data), ctypes.c_void_p)
+        message.buffer_length = message.buffer_capacity = len(data)
+        try:
+            with self._handle:  # the publisher is not destroyed while it is written to
+                failed = int(self._publish(self._pointer, ctypes.byref(message), None))
+        except Exception as exc:  # noqa: BLE001 - the publisher destroyed: never fatal
+            return 1, str(exc)
+        if failed:
+            self._reset_error()
+            return failed, f"rcl_publish_serialized_message returned {failed}"
+        return 0, ""

@@ -25,7 +25,8 @@ pytest.importorskip("mujoco")
 pytest.importorskip("control_msgs")
 from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue  # noqa: E402
 from rcl_interfaces.srv import GetParameters, SetParameters  # noqa: E402
-from test_controller_mujoco import Client, goal_to, logs, start, stop  # noqa: E402
+from test_controller_mujoco import Client, goal_to, logs, quintic, start, stop  # noqa: E402
+from trajectory_msgs.msg import JointTrajectory  # noqa: E402
 
 from pdsmc_ros.ros.spun_node import wait_until  # noqa: E402
 
@@ -166,3 +167,27 @@ def test_a_stopped_gain_check_is_a_refusal_and_the_next_change_is_checked(arm) -
     successful, reason, _ = set_kp(client, [1100.0, 1100.0, 240.0])
     assert successful, reason
     assert wait_until(lambda: "gains changed" in log.read_text(), 10), logs(tmp_path)
+
+
+@pytest.mark.timeout(240)
+@pytest.mark.parametrize("goal_process", ["never", "always"])
+def test_goals_from_the_first_moment(arm, goal_process: str) -> None:  # noqa: ANN001
+    """A client that sees the action server sends at once and is taken; one that sees the controller's
+    ~/joint_trajectory subscription publishes one trajectory at once and the arm follows it (issue 54:
+    both were refused, "the controller is not active", for about two seconds)."""
+    make, tmp_path = arm
+    client, log = make("-p", f"goal_process:={goal_process}")
+    assert client.action.wait_for_server(timeout_sec=60), logs(tmp_path)
+    here = client.q()
+    handle = client.call(lambda: client.action.send_goal_async(goal_to(here, here, 0.2)))
+    assert handle.accepted, logs(tmp_path)  # type: ignore[attr-defined]
+    client.call(handle.get_result_async)  # type: ignore[attr-defined]
+    # the topic: its subscription counted, one message, stamped 0 (start on receipt)
+    assert client.wait(lambda: client.trajectory.get_subscription_count() > 0, 30), logs(tmp_path)
+    q0 = client.q()
+    q1 = q0 + [0.3, 0.0, 0.0]
+    client.trajectory.publish(JointTrajectory(joint_names=["joint1", "joint2", "joint3"],
+                                              points=quintic(q0, q1, 1.0)))
+    time.sleep(2.0)
+    assert abs(client.q()[0] - q1[0]) < 0.05, (client.q(), q1, logs(tmp_path))
+    assert "refused" not in log.read_text() and "rejected" not in log.read_text(), logs(tmp_path)
