@@ -74,10 +74,11 @@ PUBLISHED_HERE = ("goal_event", "controller_state")
 own participant lost a recorder's first ones)."""
 
 
-GOAL_PROCESS_CORES = 3
+GOAL_PROCESS_CORES = 2
 """``goal_process:=auto`` runs the goal process when the controller's process may run on this many
-cores or more: on 2 cores the child and the loop share them with the arm's driver, and the ordinary
-run pays (docs/explanation/realtime.md: the figures)."""
+cores or more. On 2 cores it costs the ordinary run nothing measurable and keeps a storm of clients
+off the loop (``bench/ordinary_run.py``, ``bench/storm/``: docs/PERFORMANCE.md); on one core the
+child could only take the loop's own core."""
 
 
 def uses_goal_process(choice: str, cores: int | None = None) -> bool:

@@ -144,7 +144,7 @@ CONTROLLER = (
       "real time: the action server, ~/joint_trajectory's validation and the parameter services in a process of "
       "their own (always: the loop's interpreter lock free of a storm of clients, at the cost of a core's share), "
       "in a thread of the controller's process (never), or auto: a process of their own when the controller may "
-      "run on 3 or more cores "
+      "run on 2 or more cores "
       "(docs/explanation/realtime.md: what each costs and buys on 2 cores)", choices=GOAL_PROCESS_CHOICES),
 )
 """The controller's own (besides the run's, the gains and the stability check's)."""
