@@ -12,15 +12,20 @@ Written against rclpy :data:`WRITTEN_AGAINST` (ROS 2 Jazzy). Where the public AP
 it is used (:func:`declared_value`) or taken as the fallback (:func:`rcutils_log` is None without
 the private writer: the caller logs through rclpy's logger).
 
-Not here yet: the controller's sidecar processes (``controller/goal_process.py``: a stand-in
-overriding rclpy's private ``_parameter_event_publisher``, reading ``node._parameters``;
-``controller/gain_check.py``) and the command writer's ``rcl_publish_serialized_message``
-through ctypes (``ros/publishers.py``'s ``WriterThread``): whether they stay is being measured.
+The goal process's parameter stand-in needs two more: every parameter a node declared, unset
+typed ones included (:func:`declared_parameters`), and a node whose ``/parameter_events`` name
+another node, silent until told (:func:`node_announcing_as`, :func:`announce`).
+
+The command's writer thread publishes serialized bytes with the interpreter lock released, which
+rclpy's ``publish`` never does: :class:`SerializedPublish` calls rcl's
+``rcl_publish_serialized_message`` through ctypes on the publisher's private handle pointer.
 """
 
 from __future__ import annotations
 
+import ctypes
 import importlib.metadata
+import os
 from typing import Any
 
 from rclpy.exceptions import ParameterNotDeclaredException, ParameterUninitializedException
@@ -44,13 +49,13 @@ USED = {
         "WaitSet", "GuardCondition", "RCLError", "rclpy_logging_rcutils_log"),
     "rclpy_implementation.WaitSet": ("clear_entities", "add_subscription", "add_guard_condition", "wait"),
     "rclpy_implementation.Subscription": ("take_message",),
-    "rclpy_implementation.Publisher": ("publish_raw",),
-    "rclpy.node.Node (an instance)": ("_parameter_overrides",),
+    "rclpy_implementation.Publisher": ("publish_raw", "pointer"),
+    "rclpy.node.Node (an instance)": ("_parameter_overrides", "_parameters", "_parameter_event_publisher"),
 }
 """Every private name used, by what holds it: the C extension's classes and functions, the methods
 called on a subscription's or publisher's ``handle`` (``take_message(msg_type, raw)``: the
 recorder and the serve loop take serialized messages; ``publish_raw``: the guarded publishers),
-and a node's parameter overrides."""
+a node's parameter overrides, its declared parameters and its ``/parameter_events`` writer."""
 
 
 def missing(node: Node | None = None) -> list[str]:
@@ -112,3 +117,109 @@ def declared_value(node: Node, name: str) -> Any:
         return node.get_parameter(name).value
     except (ParameterUninitializedException, ParameterNotDeclaredException):
         return None
+
+
+def declared_parameters(node: Node) -> dict[str, Parameter]:
+    """Every parameter ``node`` declared, by name, unset statically typed ones included (rclpy's
+    public ``get_parameters_by_prefix`` leaves those out).
+
+    Raises
+    ------
+    AttributeError
+        Naming this module, if this rclpy keeps them elsewhere.
+    """
+    try:
+        declared: dict[str, Parameter] = node._parameters  # noqa: SLF001 - no public accessor with unset ones
+    except AttributeError:
+        raise AttributeError(f"{__name__}: this rclpy ({installed_version()}) keeps no Node._parameters "
+                             f"(written against {WRITTEN_AGAINST})") from None
+    return declared
+
+
+class _EventsAs:
+    """rclpy's ``/parameter_events`` writer of a node: its events name ``node`` (from :attr:`on`)."""
+
+    def __init__(self, publisher: Any, node: str) -> None:
+        self.publisher = publisher
+        self.node = node
+        self.on = False
+
+    def publish(self, event: Any) -> None:
+        if self.on:
+            event.node = self.node
+            self.publisher.publish(event)
+
+
+def node_announcing_as(base: str, *args: Any, **kwargs: Any) -> Node:
+    """An rclpy Node (``Node(*args, **kwargs)``) whose ``/parameter_events`` name the node ``base``,
+    silent until :func:`announce`: rclpy's own declarations in ``Node.__init__`` (``use_sim_time``)
+    and a stand-in's are ``base``'s, which announced them itself. rclpy has no public way to
+    publish a node's parameter events under another name: its private writer is wrapped."""
+
+    class AnnouncingNode(Node):
+        @property
+        def _parameter_event_publisher(self) -> Any:
+            return self._events_as
+
+        @_parameter_event_publisher.setter
+        def _parameter_event_publisher(self, publisher: Any) -> None:  # rclpy's writer, then None at destruction
+            self._events_as = None if publisher is None else _EventsAs(publisher, base)
+
+    return AnnouncingNode(*args, **kwargs)
+
+
+def announce(node: Node) -> None:
+    """A :func:`node_announcing_as` node's parameter events are published from now on."""
+    node._parameter_event_publisher.on = True  # type: ignore[attr-defined]  # noqa: SLF001 - ours, wrapped above
+
+
+class _SerializedMessage(ctypes.Structure):
+    """``rcl_serialized_message_t`` (``rcutils_uint8_array_t``): the bytes, their length, the
+    buffer's capacity and an allocator (five pointers; unused by a publish)."""
+
+    _fields_ = [("buffer", ctypes.c_void_p), ("buffer_length", ctypes.c_size_t),
+                ("buffer_capacity", ctypes.c_size_t), ("allocator", ctypes.c_void_p * 5)]
+
+
+class SerializedPublish:
+    """``publish(data)``: ``publisher``'s serialized message ``data`` written into the middleware with
+    the interpreter lock released -- ``rcl_publish_serialized_message`` and ``rcutils_reset_error``
+    from the libraries rclpy loaded (by their sonames, ``RTLD_NOLOAD``: never a second copy), called
+    through ctypes on the publisher's handle pointer (rclpy's private ``Publisher.handle.pointer``).
+    Returns ``(failed, why)``: 0 and "" when written.
+
+    Raises
+    ------
+    OSError
+        Naming this module, where rcl cannot be called so (the libraries not loaded, or this rclpy's
+        handle has no pointer).
+    """
+
+    def __init__(self, publisher: Any) -> None:
+        try:
+            publish = ctypes.CDLL("librcl.so", mode=os.RTLD_NOLOAD).rcl_publish_serialized_message
+            reset = ctypes.CDLL("librcutils.so", mode=os.RTLD_NOLOAD).rcutils_reset_error
+            self._handle = publisher.handle
+            self._pointer = self._handle.pointer
+        except (OSError, AttributeError) as exc:
+            raise OSError(f"{__name__}: rcl_publish_serialized_message cannot be called through ctypes with this "
+                          f"rclpy ({installed_version()}; written against {WRITTEN_AGAINST}): {exc}") from None
+        publish.argtypes = [ctypes.c_void_p, ctypes.POINTER(_SerializedMessage), ctypes.c_void_p]
+        publish.restype = ctypes.c_int32  # rcl_ret_t
+        reset.argtypes, reset.restype = [], None
+        self._publish, self._reset_error = publish, reset
+        self._message = _SerializedMessage()
+
+    def __call__(self, data: bytes) -> tuple[int, str]:
+        message = self._message
+        message.buffer = ctypes.cast(ctypes.c_char_p(data), ctypes.c_void_p)
+        message.buffer_length = message.buffer_capacity = len(data)
+        try:
+            with self._handle:  # the publisher is not destroyed while it is written to
+                failed = int(self._publish(self._pointer, ctypes.byref(message), None))
+        except Exception as exc:  # noqa: BLE001 - the publisher destroyed: never fatal
+            return 1, str(exc)
+        if failed:
+            self._reset_error()
+            return failed, f"rcl_publish_serialized_message returned {failed}"
+        return 0, ""

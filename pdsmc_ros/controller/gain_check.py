@@ -24,6 +24,7 @@ import signal
 import subprocess
 import sys
 import threading
+import time
 from collections.abc import Callable
 from typing import Any
 
@@ -32,6 +33,8 @@ from ..errors import ConfigError, PdsmcError
 from ..robots.registry import find_robot, register_robot, robot_config
 from ..runs.builder import RunSpec
 
+WATCH_S = 0.1
+"""How often a check waiting for its answer looks whether the child was stopped."""
 CHECK_TIMEOUT_S = 30.0
 """How long a gain change waits for the check process (a check started with the child includes its
 start and the reference: ~1 s here, 5.6 s under a storm of goals) before the change is refused and
@@ -99,8 +102,10 @@ class CheckProcess:
                 reply = _receive(process, self.timeout_s)
             except (OSError, EOFError, TimeoutError, pickle.UnpicklingError) as exc:
                 self._stop()
+                with contextlib.suppress(OSError):
+                    self._started()  # replaced now: the next change does not wait for a start
                 raise ConfigError(f"gains {spec.gains.as_dict()} refused: the stability check process "
-                                  f"failed ({type(exc).__name__}: {exc})") from None
+                                  f"failed ({type(exc).__name__}: {exc}); a new one is starting") from None
         if reply is not None:
             raise ConfigError(str(reply))
 
@@ -110,6 +115,12 @@ class CheckProcess:
         that first check took 5.6 s, later ones 0.1-0.6 s."""
         with self.lock:
             self._started()
+
+    @property
+    def pid(self) -> int | None:
+        """The child's process id (None before it starts)."""
+        process = self.process
+        return None if process is None else process.pid
 
     def _started(self) -> subprocess.Popen[bytes]:
         if self.process is None or self.process.poll() is not None:
@@ -152,10 +163,27 @@ def _send(process: subprocess.Popen[bytes], obj: object) -> None:
 def _receive(process: subprocess.Popen[bytes], timeout_s: float) -> object:
     if process.stdout is None:  # pragma: no cover - started with a pipe
         raise OSError("no pipe from the check process")
-    ready, _, _ = select.select([process.stdout], [], [], timeout_s)  # waits without the interpreter's lock
-    if not ready:
-        raise TimeoutError(f"no answer in {timeout_s:g} s")
-    return pickle.load(process.stdout)
+    deadline = time.monotonic() + timeout_s
+    while True:
+        left = deadline - time.monotonic()
+        if left <= 0.0:
+            raise TimeoutError(f"no answer in {timeout_s:g} s")
+        # waits without the interpreter's lock, looking now and then whether the child was stopped
+        ready, _, _ = select.select([process.stdout], [], [], min(left, WATCH_S))
+        if ready:
+            return pickle.load(process.stdout)
+        if stopped(process.pid):
+            raise TimeoutError("the process is stopped (SIGSTOP): it would not answer")
+
+
+def stopped(pid: int) -> bool:
+    """Whether process ``pid`` is stopped (``SIGSTOP``, a debugger): state T or t in ``/proc/PID/stat``."""
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as stat:
+            state = stat.read().rsplit(b")", 1)[1].split()[0]
+    except (OSError, IndexError):
+        return False
+    return state in (b"T", b"t")
 
 
 def main() -> None:

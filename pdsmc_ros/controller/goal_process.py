@@ -54,6 +54,7 @@ from typing import Any
 
 from ..parameters.joint_map import JointMap
 from ..robots.registry import find_robot, register_robot, robot_config
+from .gain_check import stopped
 from .goals import INVALID_GOAL, GoalExecution, GoalSettings, Outcome
 from .joint_trajectory import JointTrajectoryReference, RawPoint
 from .limits import JointLimits
@@ -65,10 +66,30 @@ STATE_BACKLOG = 1 << 16  # bytes: the loop drops a state message while this much
 MEASURE_WAIT_S = 1.0  # the child waits this long for the loop's latest state when a goal arrives
 KEPT_TRAJECTORIES = 64  # trajectories remembered for ~/query_state and the driving one
 NOT_ACTIVE = Outcome("aborted", INVALID_GOAL, "the controller is not active")
+WATCH_S = 0.1  # how often the watching thread looks whether the child is stopped
+RESTART_WAIT_S = 30.0  # how long a new child may take to serve (its interpreter, rclpy, the arm)
 PUBLISHED_HERE = ("goal_event", "controller_state")
 """What the child serializes and the controller's process publishes: the action's goal events and
 ``~/controller_state`` (one-shot or first messages a recorder must not miss: a writer in the child's
 own participant lost a recorder's first ones)."""
+
+
+GOAL_PROCESS_CORES = 2
+"""``goal_process:=auto`` runs the goal process when the controller's process may run on this many
+cores or more. On 2 cores it costs the ordinary run nothing measurable and keeps a storm of clients
+off the loop (``bench/ordinary_run.py``, ``bench/storm/``: docs/PERFORMANCE.md); on one core the
+child could only take the loop's own core."""
+
+
+def uses_goal_process(choice: str, cores: int | None = None) -> bool:
+    """Whether a real-time controller serves its action and parameters from a goal process:
+    ``choice`` ``always``, ``never`` or ``auto`` (a goal process with at least :data:`GOAL_PROCESS_CORES` of the
+    ``cores`` this process may run on: by default its CPU affinity's)."""
+    if choice not in ("auto", "always", "never"):
+        raise ValueError(f"goal_process must be auto, always or never, got {choice!r}")
+    if choice != "auto":
+        return choice == "always"
+    return (len(os.sched_getaffinity(0)) if cores is None else cores) >= GOAL_PROCESS_CORES
 
 
 class FrameReader:
@@ -134,6 +155,8 @@ class FrameWriter:
         self.fd = fd
         self.pending = bytearray()
         self.closed = False
+        # the loop's thread, the executor's (an activation, a forwarded trajectory): one frame at a time
+        self.lock = threading.Lock()
 
     def send(self, message: object, *, droppable: bool = False) -> None:
         """Queue ``message`` and write what the pipe takes; a ``droppable`` one is dropped while a
@@ -141,11 +164,16 @@ class FrameWriter:
         if self.closed or (droppable and len(self.pending) > STATE_BACKLOG):
             return
         data = pickle.dumps(message, protocol=pickle.HIGHEST_PROTOCOL)
-        self.pending += FRAME.pack(len(data))
-        self.pending += data
-        self.flush()
+        with self.lock:
+            self.pending += FRAME.pack(len(data))
+            self.pending += data
+            self._flush()
 
     def flush(self) -> None:
+        with self.lock:
+            self._flush()
+
+    def _flush(self) -> None:
         while self.pending and not self.closed:
             try:
                 written = os.write(self.fd, self.pending)
@@ -166,6 +194,12 @@ class GoalProcess:
     """The loop's side of the goal process: it starts the child, and in the loop's spare time
     (:meth:`poll`) drives what the child accepted and tells it how goals end.
 
+    A child that ends (killed, crashed) or stops (``SIGSTOP``: it would answer nothing again) is
+    replaced: the goal it served ends aborted in the loop, which holds the arm, and a new child,
+    started by a watching thread of normal scheduling, serves the action, ``~/joint_trajectory``
+    and the parameter services again (the parameters as they are now, gains changed through the
+    old child included).
+
     Parameters
     ----------
     setup : dict
@@ -177,7 +211,9 @@ class GoalProcess:
     active : bool
         Whether the controller commands now (:meth:`set_active` from then on).
     on_lost : callable
-        ``on_lost(why)``: told once if the child ends before :meth:`close` (the action is gone).
+        ``on_lost(why)``: told from the loop's thread when the child ended before :meth:`close`.
+    on_restored : callable
+        ``on_restored(what)``: told from the watching thread when a new child serves again.
     publishers : mapping
         By kind (:data:`PUBLISHED_HERE`), what publishes the child's serialized messages of that
         kind in this process: what a recorder or a client meets as a topic stays in the participant
@@ -185,112 +221,175 @@ class GoalProcess:
     on_gains : callable
         ``on_gains(gains, given)``: gains the child accepted through the controller's parameter
         services (resolved from the gain parameters ``given``), for the loop to apply.
+    parameters_now : callable
+        The parameter table (:func:`parameter_table`) a new child starts from.
     """
 
     def __init__(self, setup: dict[str, Any], core: Any, clamped: Callable[[], int], *, active: bool = False,
                  on_lost: Callable[[str], None] = lambda why: None,
+                 on_restored: Callable[[str], None] = lambda what: None,
                  publishers: Mapping[str, Callable[[bytes], None]] | None = None,
-                 on_gains: Callable[[Any, dict[str, Any]], None] | None = None) -> None:
+                 on_gains: Callable[[Any, dict[str, Any]], None] | None = None,
+                 parameters_now: Callable[[], list[tuple[bytes, bytes]]] | None = None) -> None:
+        self.setup = dict(setup)
         self.first_message = pickle.dumps(setup, protocol=pickle.HIGHEST_PROTOCOL)
         self.core = core
         self.clamped = clamped
         self.active = active
+        self.runaway = ""
         self.on_lost = on_lost
+        self.on_restored = on_restored
         self.publishers = dict(publishers or {})
         self.on_gains = on_gains
+        self.parameters_now = parameters_now
         self.lost = False
         self.process: subprocess.Popen[bytes] | None = None
         self.reader: FrameReader | None = None
         self.writer: FrameWriter | None = None
-        self.notices: collections.deque[object] = collections.deque()  # from other threads, sent by poll
         self.goals: dict[bytes, GoalExecution] = {}  # started here, their end not yet told
         self.ids: collections.OrderedDict[int, tuple[JointTrajectoryReference, object]] = collections.OrderedDict()
         self.told_driving: object = None
         self.ready = False
+        self.serving = False  # to serve the action (:meth:`serve`), once there is a state
+        self.told_serve = False  # the child was told to serve (a new child is told at once)
         self.next_state = 0.0
         self.period_s = 1.0 / _feedback_hz()
+        # the child's pipes change hands under this lock (a new child); the loop never waits for it
+        self.swap = threading.Lock()
+        self.replace = threading.Event()
+        self.closing = False
+        self.watcher: threading.Thread | None = None
+        self.restarts = 0
+        # a child started ahead, its imports done, waiting for a setup: a replacement serves in a fraction
+        # of an interpreter's start (0.9-2.8 s here under load)
+        self.spare: subprocess.Popen[bytes] | None = None
+        self.stop_seen = False  # the watching thread found the child stopped (SIGSTOP) and killed it
 
     @classmethod
-    def for_controller(cls, setup: dict[str, Any], core: Any, clamped: Callable[[], int],
-                       on_lost: Callable[[str], None], publishers: Mapping[str, Callable[[bytes], None]],
-                       on_gains: Callable[[Any, dict[str, Any]], None]) -> GoalProcess | None:
+    def for_controller(cls, setup: dict[str, Any], core: Any, clamped: Callable[[], int], *,
+                       on_lost: Callable[[str], None], on_restored: Callable[[str], None],
+                       publishers: Mapping[str, Callable[[bytes], None]],
+                       on_gains: Callable[[Any, dict[str, Any]], None],
+                       parameters_now: Callable[[], list[tuple[bytes, bytes]]]) -> GoalProcess | None:
         """A goal process, or None when the arm cannot be sent to one (a robot class defined where a
         child cannot import it): the caller then serves the action and the parameters in its own process."""
         try:
-            return cls(setup, core, clamped, on_lost=on_lost, publishers=publishers, on_gains=on_gains)
+            return cls(setup, core, clamped, on_lost=on_lost, on_restored=on_restored, publishers=publishers,
+                       on_gains=on_gains, parameters_now=parameters_now)
         except (pickle.PicklingError, AttributeError, TypeError):
             return None
 
     def start(self) -> None:
-        """Start the child (from the node's thread, at normal scheduling, before the loop runs)."""
+        """Start the child and the thread that watches it (from the node's thread, at normal
+        scheduling, before the loop runs: both inherit it)."""
+        self.process, self.reader, self.writer = self._launch(self.first_message)
+        self.watcher = threading.Thread(target=self._watch, name="goal_process_watch", daemon=True)
+        self.watcher.start()
+        self.replace.set()  # the watching thread starts the spare
+
+    @staticmethod
+    def _spawn() -> subprocess.Popen[bytes]:
+        """A child that imports what it needs and waits for its setup (no DDS participant until then)."""
         # stdout is the child's messages; its stderr is the node's (its log lines)
-        self.process = subprocess.Popen([sys.executable, "-m", __name__], stdin=subprocess.PIPE,
-                                        stdout=subprocess.PIPE)
-        if self.process.stdin is None or self.process.stdout is None:  # pragma: no cover - started with pipes
+        process = subprocess.Popen([sys.executable, "-m", __name__], stdin=subprocess.PIPE, stdout=subprocess.PIPE)
+        if process.stdin is None or process.stdout is None:  # pragma: no cover - started with pipes
             raise OSError("no pipes to the goal process")
-        to_child, from_child = self.process.stdin.fileno(), self.process.stdout.fileno()
-        _grow(to_child)
-        _grow(from_child)
-        self.process.stdin.write(FRAME.pack(len(self.first_message)) + self.first_message)
-        self.process.stdin.flush()
+        _grow(process.stdin.fileno())
+        _grow(process.stdout.fileno())
+        return process
+
+    @classmethod
+    def _launch(cls, first_message: bytes, process: subprocess.Popen[bytes] | None = None
+                ) -> tuple[subprocess.Popen[bytes], FrameReader, FrameWriter]:
+        """``process`` (a spare, or a new child) given its setup; its pipes' two ends here."""
+        process = process or cls._spawn()
+        if process.stdin is None or process.stdout is None:  # pragma: no cover - started with pipes
+            raise OSError("no pipes to the goal process")
+        process.stdin.write(FRAME.pack(len(first_message)) + first_message)
+        process.stdin.flush()
+        to_child, from_child = process.stdin.fileno(), process.stdout.fileno()
         os.set_blocking(to_child, False)
         os.set_blocking(from_child, False)
-        self.reader, self.writer = FrameReader(from_child), FrameWriter(to_child)
+        return process, FrameReader(from_child), FrameWriter(to_child)
 
-    def wait_ready(self, timeout_s: float) -> bool:
-        """Wait (the node's thread, before the loop runs) until the child serves the action, its
-        topic and its services -- as joint_trajectory_controller's exist once it is active --
-        for up to ``timeout_s``; whether it does."""
-        reader = self.reader
-        if reader is None:
-            return False
+    def _wait_for(self, reader: FrameReader, kind: str, timeout_s: float, carry_out: bool) -> bool:
+        """Wait until the child sends ``(kind,)``, up to ``timeout_s``; other messages carried out
+        (``carry_out``) or dropped."""
         deadline = time.monotonic() + timeout_s
-        while not self.ready and not reader.closed:
+        while not reader.closed:
+            for message in reader.read():
+                if message == (kind,):
+                    return True
+                if carry_out:  # pragma: no cover - the child sends nothing else before it answers
+                    self._carry_out(message)
             left = deadline - time.monotonic()
             if left <= 0.0:
                 return False
             select.select([reader.fd], [], [], left)
-            for message in reader.read():
-                if message == ("ready",):
-                    self.ready = True
-                else:  # pragma: no cover - the child sends nothing before it is ready
-                    self._carry_out(message)
+        return False
+
+    def wait_ready(self, timeout_s: float) -> bool:
+        """Wait (the node's thread, before the loop runs) until the child serves the parameter
+        services, for up to ``timeout_s``; whether it does."""
+        if self.reader is None:
+            return False
+        self.ready = self._wait_for(self.reader, "ready", timeout_s, carry_out=True)
         return self.ready
+
+    def serve(self) -> None:
+        """Have the child serve the action, ``~/query_state`` and validate ``~/joint_trajectory`` once
+        the controller has a complete measured state (told by :meth:`poll`: a goal starts from it, and a
+        client that sees the server must not be refused for want of one); a new child is told too."""
+        self.serving = True
 
     def forward(self, batch: list[tuple[bytes, tuple[float | None, float | None]]]) -> None:
         """``~/joint_trajectory`` messages taken by the controller's process (serialized, with the
         middleware's sent and received times), for the child to validate: the topic's reader stays
         in the participant a client already discovered (a reader in the child's own participant
         missed one-shot messages a client sent as soon as it counted the subscription)."""
-        if self.writer is not None:
+        writer = self.writer
+        if writer is not None:
             for data, times in batch:
-                self.writer.send(("trajectory", bytes(data), times))
+                writer.send(("trajectory", bytes(data), times))
 
     def set_active(self, active: bool) -> None:
-        """The controller was activated or deactivated (any thread): told to the child by :meth:`poll`."""
-        self.active = active
-        self.notices.append(("active", active))
+        """The controller was activated or deactivated (any thread): told to the child at once, before
+        any goal or trajectory that follows (the loop's spare time may be seconds away at start)."""
+        with self.swap:
+            self.active = active
+            if self.writer is not None:
+                self.writer.send(("active", active))
 
     def tell_runaway(self, reason: str) -> None:
-        """The runaway stop latched (``reason``) or was reset (""): told to the child by :meth:`poll`."""
-        self.notices.append(("runaway", reason))
+        """The runaway stop latched (``reason``) or was reset (""): told to the child at once."""
+        with self.swap:
+            self.runaway = reason
+            if self.writer is not None:
+                self.writer.send(("runaway", reason))
 
     # -- the loop's side -------------------------------------------------------- #
     def poll(self, now: float) -> None:
         """The loop's spare time at ``now`` (``perf_counter``): the child's requests carried out,
         each goal's end, the driving trajectory and (at the feedback rate) the latest period told."""
+        if not self.swap.acquire(blocking=False):  # a new child is being handed over: the next turn
+            return
+        try:
+            self._poll(now)
+        finally:
+            self.swap.release()
+
+    def _poll(self, now: float) -> None:
         reader, writer = self.reader, self.writer
-        if reader is None or writer is None:
+        if reader is None or writer is None or self.lost:
             return
         for message in reader.read():
             self._carry_out(message)
-        if (reader.closed or writer.closed) and not self.lost:
-            self.lost = True
-            code = self.process.poll() if self.process is not None else None
-            self.on_lost(f"the goal process ended (exit status {code}): no FollowJointTrajectory server, "
-                         "~/joint_trajectory or ~/query_state until the controller restarts")
-        while self.notices:
-            writer.send(self.notices.popleft())
+        if reader.closed or writer.closed:
+            self._lose()
+            return
+        if self.serving and not self.told_serve and self.core.measured() is not None:
+            self.told_serve = True
+            writer.send(("serve",))
         for key, execution in list(self.goals.items()):
             if execution.outcome is not None:
                 writer.send(("ended", key, execution.outcome))
@@ -305,6 +404,80 @@ class GoalProcess:
                         if execution.feedback is not None}
             writer.send(("state", self.core.snapshot, self.clamped(), feedback), droppable=True)
         writer.flush()
+
+    def _lose(self) -> None:
+        """The child is gone (the loop's thread): its goal ends aborted and the arm holds; a new
+        child is asked of the watching thread."""
+        self.lost = True
+        code = self.process.poll() if self.process is not None else None
+        how = "stopped (SIGSTOP), so killed" if self.stop_seen else _how_it_ended(code)
+        self.stop_seen = False
+        why = f"the goal process ended ({how})"
+        ended = [execution for execution in self.goals.values() if execution.outcome is None]
+        if ended and self.core.goals.end(f"{why}: the goal was aborted") is not None:
+            self.core.hold(why)
+        self.goals.clear()
+        self.on_lost(f"{why}: {'its goal aborted, the arm holds; ' if ended else ''}a new one is starting")
+        self.replace.set()
+
+    def _watch(self) -> None:
+        """The watching thread: a child stopped (``SIGSTOP``) is killed, which the loop then sees as
+        an ended child; an ended child is replaced."""
+        while not self.closing:
+            if self.replace.wait(WATCH_S):
+                self.replace.clear()
+                if not self.closing and self.lost:
+                    self._replace()
+                if not self.closing and (self.spare is None or self.spare.poll() is not None):
+                    with contextlib.suppress(OSError):
+                        self.spare = self._spawn()
+                continue
+            process = self.process
+            if process is not None and not self.lost and stopped(process.pid):
+                self.stop_seen = True
+                with contextlib.suppress(OSError):
+                    process.kill()  # its pipes close: the loop aborts its goal and asks for a new one
+
+    def _replace(self) -> None:
+        began = time.monotonic()
+        old = self.process
+        if old is not None:
+            with contextlib.suppress(OSError):
+                old.kill()
+            with contextlib.suppress(subprocess.TimeoutExpired):
+                old.wait(timeout=3.0)
+            for pipe in (old.stdin, old.stdout):
+                if pipe is not None:
+                    with contextlib.suppress(OSError):
+                        pipe.close()
+        setup = dict(self.setup)
+        if self.parameters_now is not None:
+            setup["parameters"] = self.parameters_now()
+        spare, self.spare = self.spare, None
+        try:
+            process, reader, writer = self._launch(pickle.dumps(setup, protocol=pickle.HIGHEST_PROTOCOL),
+                                                   spare if spare is not None and spare.poll() is None else None)
+        except OSError as exc:
+            self.on_restored(f"the goal process could not be started again ({exc}): no action server")
+            return
+        ok = self._wait_for(reader, "ready", RESTART_WAIT_S, carry_out=False)
+        if ok and self.told_serve:
+            writer.send(("serve",))
+            ok = self._wait_for(reader, "serving", RESTART_WAIT_S, carry_out=False)
+        if not ok:
+            with contextlib.suppress(OSError):
+                process.kill()
+            self.on_restored(f"the new goal process did not serve within {RESTART_WAIT_S:g} s: no action server")
+            return
+        with self.swap:
+            writer.send(("active", self.active))
+            writer.send(("runaway", self.runaway))
+            self.process, self.reader, self.writer = process, reader, writer
+            self.told_driving = None
+            self.lost = False
+        self.restarts += 1
+        self.on_restored(f"a new goal process (pid {process.pid}) serves the action and the parameters, "
+                         f"{time.monotonic() - began:.2f} s after the last one ended")
 
     def _carry_out(self, message: Any) -> None:
         kind = message[0]
@@ -332,6 +505,9 @@ class GoalProcess:
         elif kind == "measure":
             if self.writer is not None:
                 self.writer.send(("measured", core.measured()))
+        elif kind == "serving":
+            pid = self.process.pid if self.process is not None else None
+            self.on_restored(f"the goal process (pid {pid}) serves the action and the parameters")
         elif kind == "cancel":
             execution = self.goals.get(message[1])
             if execution is not None:
@@ -351,7 +527,17 @@ class GoalProcess:
         return entry[1], trajectory.start_time, trajectory.end_time  # type: ignore[union-attr]
 
     def close(self) -> None:
-        """End the child (it ends its goals: the controller is stopping)."""
+        """End the child (it ends its goals: the controller is stopping) and the watching thread."""
+        self.closing = True
+        self.replace.set()
+        if self.watcher is not None:
+            self.watcher.join(timeout=RESTART_WAIT_S + 5.0)
+        spare, self.spare = self.spare, None
+        if spare is not None:
+            with contextlib.suppress(OSError):
+                spare.kill()
+            with contextlib.suppress(subprocess.TimeoutExpired):
+                spare.wait(timeout=3.0)
         process, self.process = self.process, None
         if process is None:
             return
@@ -365,6 +551,15 @@ class GoalProcess:
             process.kill()
             with contextlib.suppress(subprocess.TimeoutExpired):
                 process.wait(timeout=3.0)
+
+
+def _how_it_ended(code: int | None) -> str:
+    if code is None:
+        return "its pipes closed"
+    if code < 0:
+        with contextlib.suppress(ValueError):
+            return f"killed by {signal.Signals(-code).name}"
+    return f"exit status {code}"
 
 
 def _feedback_hz() -> float:
@@ -389,13 +584,19 @@ def setup_of(*, spec: Any, name: str, namespace: str, base: str, joints: Sequenc
             "parameters": list(parameters), "stability": stability}
 
 
-def parameter_table(node: Any) -> list[tuple[bytes, bytes]]:
+def parameter_table(node: Any, values: Mapping[str, Any] | None = None) -> list[tuple[bytes, bytes]]:
     """Every parameter ``node`` declared, as its value and its descriptor (both serialized), for
-    the child to declare the same (unset ones included: their type is in the descriptor)."""
+    the child to declare the same (unset ones included: their type is in the descriptor);
+    ``values`` replace the node's own (gains a goal process accepted, which the node never set)."""
+    from rclpy.parameter import Parameter
     from rclpy.serialization import serialize_message
 
-    return [(serialize_message(parameter.to_parameter_msg()), serialize_message(node.describe_parameter(name)))
-            for name, parameter in node._parameters.items()]  # noqa: SLF001 - unset typed ones too
+    from ..rclpy_internals import declared_parameters
+
+    values = values or {}
+    return [(serialize_message((Parameter(name, value=values[name]) if name in values else parameter)
+                               .to_parameter_msg()), serialize_message(node.describe_parameter(name)))
+            for name, parameter in declared_parameters(node).items()]
 
 
 # --------------------------------------------------------------------------- #
@@ -571,12 +772,13 @@ class ParameterStandIn:
         from rclpy.serialization import deserialize_message
 
         from ..control.stability import check_rate
+        from ..rclpy_internals import announce, node_announcing_as
         from ..ros.node_run import guard_run_parameters
         from .parameters import GainUpdates
 
         table = [(Parameter.from_parameter_msg(deserialize_message(value, ParameterMsg)),
                   deserialize_message(descriptor, ParameterDescriptor)) for value, descriptor in setup["parameters"]]
-        self.node = node = _stand_in_node(
+        self.node = node = node_announcing_as(
             setup["base"], f"{setup['name']}_parameters", namespace=setup["namespace"], context=context,
             use_global_arguments=False, start_parameter_services=False, enable_rosout=False,
             parameter_overrides=[p for p, _ in table if p.type_ != Parameter.Type.NOT_SET])
@@ -585,7 +787,7 @@ class ParameterStandIn:
                 unset = parameter.type_ == Parameter.Type.NOT_SET and descriptor.type != Parameter.Type.NOT_SET
                 node.declare_parameter(parameter.name, Parameter.Type(descriptor.type) if unset else parameter.value,
                                        descriptor)
-        node._parameter_event_publisher.on = True  # noqa: SLF001 - the controller announced its declarations
+        announce(node)  # from now on: the controller announced its own declarations
         spec = setup["spec"]
         guard_run_parameters(node, spec.controller, gains=True)
         reference, stability = spec.reference(), setup["stability"] or {}
@@ -594,41 +796,23 @@ class ParameterStandIn:
                                  joint_map=setup["joint_map"])
         self.named = _Named(node, setup["name"])  # ParameterService keeps a weak reference to it
         self.service = ParameterService(self.named)
+        self.spinner: Any = None
+
+    def spin(self) -> None:
+        """Serve from now on, in a thread of its own (the action's server, later, has its own)."""
+        from rclpy.executors import SingleThreadedExecutor
+
+        from ..loop.executor_thread import ExecutorThread
+
+        executor = SingleThreadedExecutor(context=self.node.context)
+        executor.add_node(self.node)
+        self.spinner = ExecutorThread(executor, self.node, name="parameters")
 
     def destroy(self) -> None:
+        if self.spinner is not None:
+            self.spinner.stop()
+            self.spinner.executor.shutdown(timeout_sec=1.0)
         self.node.destroy_node()
-
-
-def _stand_in_node(base: str, *args: Any, **kwargs: Any) -> Any:
-    """An rclpy Node whose ``/parameter_events`` name the controller ``base``, silent until its
-    writer's ``on`` is set: rclpy's own declarations in ``Node.__init__`` (``use_sim_time``) and
-    the stand-in's are the controller's, which it announced itself."""
-    from rclpy.node import Node
-
-    class StandInNode(Node):
-        @property
-        def _parameter_event_publisher(self) -> Any:
-            return self._events_as
-
-        @_parameter_event_publisher.setter
-        def _parameter_event_publisher(self, publisher: Any) -> None:  # rclpy's writer, then None at destruction
-            self._events_as = None if publisher is None else _EventsAs(publisher, base)
-
-    return StandInNode(*args, **kwargs)
-
-
-class _EventsAs:
-    """rclpy's ``/parameter_events`` writer of a stand-in node: its events name ``node`` (from :attr:`on`)."""
-
-    def __init__(self, publisher: Any, node: str) -> None:
-        self.publisher = publisher
-        self.node = node
-        self.on = False
-
-    def publish(self, event: Any) -> None:
-        if self.on:
-            event.node = self.node
-            self.publisher.publish(event)
 
 
 class _Named:
@@ -650,6 +834,19 @@ def main() -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # a Ctrl-C to the group is the parent's to handle
     with contextlib.suppress(OSError, AttributeError):  # never a real-time policy inherited from a loop thread
         os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
+    # everything imported before the setup arrives: a spare child waits here, ready in a fraction of a start
+    import rclpy
+    from rclpy.parameter import Parameter
+    from rclpy.serialization import deserialize_message
+    from rclpy.signals import SignalHandlerOptions
+    from trajectory_msgs.msg import JointTrajectory
+
+    from ..control import stability  # noqa: F401 - the parameter stand-in's gain check
+    from ..ros import node_run  # noqa: F401 - the parameter stand-in's guards
+    from ..ros.topics import TOPIC_JOINT_TRAJECTORY
+    from . import parameters as _gain_parameters  # noqa: F401 - the parameter stand-in's gains
+    from .action import FollowJointTrajectoryServer, topic_trajectory
+
     inbox = FrameReader(sys.stdin.fileno())
     first = inbox.read_blocking()
     if not first:
@@ -658,15 +855,6 @@ def main() -> None:
     spec = setup["spec"]
     if setup["arm"] is not None and find_robot(spec.robot) is None:
         register_robot(setup["arm"], config=setup["config"])
-
-    import rclpy
-    from rclpy.parameter import Parameter
-    from rclpy.serialization import deserialize_message
-    from rclpy.signals import SignalHandlerOptions
-    from trajectory_msgs.msg import JointTrajectory
-
-    from ..ros.topics import TOPIC_JOINT_TRAJECTORY
-    from .action import FollowJointTrajectoryServer, topic_trajectory
 
     context = rclpy.Context()
     rclpy.init(args=[], context=context, signal_handler_options=SignalHandlerOptions.NO)
@@ -679,27 +867,39 @@ def main() -> None:
             _write_all(out, FRAME.pack(len(data)) + data)
 
     view = RemoteView(setup, context, send)
-    overrides = [Parameter("use_sim_time", value=bool(setup["use_sim_time"]))]
-    server = FollowJointTrajectoryServer(view, parameter_overrides=overrides, takes_topic=False,
-                                         event_sink=lambda data: send(("publish", "goal_event", data)),
-                                         state_sink=lambda data: send(("publish", "controller_state", data)))
-    view.clock = server.node.get_clock()
     parameters = ParameterStandIn(setup, context, send) if setup["parameters"] else None
     if parameters is not None:
-        server.executor.add_node(parameters.node)
+        parameters.spin()
+    server: FollowJointTrajectoryServer | None = None
+
+    def serve() -> FollowJointTrajectoryServer:
+        """The action, ~/query_state and the state's messages, from the loop's word ("serve": at
+        start once the controller is active, so that a client that sees the server finds it active)."""
+        overrides = [Parameter("use_sim_time", value=bool(setup["use_sim_time"]))]
+        made = FollowJointTrajectoryServer(view, parameter_overrides=overrides, takes_topic=False,
+                                           event_sink=lambda data: send(("publish", "goal_event", data)),
+                                           state_sink=lambda data: send(("publish", "controller_state", data)))
+        view.clock = made.node.get_clock()
+        return made
     # ~/joint_trajectory messages, in order, in a thread of their own: their validation asks the
     # loop's process for its state, which this (reading) thread receives
     trajectories: queue.Queue[Any] = queue.Queue()
 
+    serving = threading.Event()  # what arrived before waits for the server (the loop had no state yet)
+
     def take_trajectories() -> None:
+        serving.wait()
         while (item := trajectories.get()) is not None:
             data, times = item
             try:
                 msg = deserialize_message(data, JointTrajectory)
             except Exception as exc:  # noqa: BLE001 - any malformed message: refused, never fatal
-                server.report.report("error", f"{view.resolve(TOPIC_JOINT_TRAJECTORY)}: malformed message ({exc})")
+                if server is not None:
+                    server.report.report("error", f"{view.resolve(TOPIC_JOINT_TRAJECTORY)}: malformed message "
+                                                  f"({exc})")
                 continue
-            topic_trajectory(view, msg, times, server.report)
+            if server is not None:  # forwarded only once the child serves
+                topic_trajectory(view, msg, times, server.report)
 
     worker = threading.Thread(target=take_trajectories, name="joint_trajectory", daemon=True)
     worker.start()
@@ -716,13 +916,21 @@ def main() -> None:
                 if message[0] == "trajectory":  # type: ignore[index]
                     trajectories.put(message[1:])  # type: ignore[index]
                     continue
+                if message == ("serve",):
+                    if server is None:
+                        server = serve()
+                        serving.set()
+                    send(("serving",))
+                    continue
                 news = view.hear(message) or news
-            if news:
+            if news and server is not None:
                 server.state.send(float("inf"), list(server.goals.values()))
     finally:
         trajectories.put(None)
+        serving.set()
         worker.join(timeout=2.0)
-        server.stop()
+        if server is not None:
+            server.stop()
         if parameters is not None:
             parameters.destroy()
         with contextlib.suppress(Exception):

@@ -59,7 +59,7 @@ from .action import FollowJointTrajectoryServer, controller_state_topic, goal_ev
 from .commanding import Paired, TorqueGuard
 from .core import ControllerCore, GoalStart, Tolerance
 from .gain_check import CheckProcess, checked
-from .goal_process import GoalProcess, parameter_table, setup_of
+from .goal_process import GoalProcess, parameter_table, setup_of, uses_goal_process
 from .goals import GoalExecution
 from .joint_trajectory import JointTrajectoryReference, RawPoint
 from .joints import JointSelector
@@ -69,6 +69,8 @@ from .parameters import GainUpdates, declare_controller_parameters, declare_limi
 GOAL_BATCH_S = 0.002  # ~/joint_trajectory is looked at every 2 ms
 GOAL_PROCESS_START_S = 60.0  # real time: how long the node waits for its goal process to serve the action
 STOP_ACK_S = 0.5  # how long a stopping controller waits for its zero command to be acknowledged
+SERVE_POLL_S = 0.005  # real time: how often the action's server looks for the first complete state
+SERVE_WAIT_NOTE_S = 5.0  # ... and after how long it says it is waiting
 
 
 class EffortOutput:
@@ -149,7 +151,7 @@ class ControllerNode(CommandingEntity):
         in_process = lambda new: check_rate(new, core.reference, **run.stability)  # noqa: E731 - used twice below
         checked(in_process, spec)  # refuse gains unstable here
         # gains: the on-set callback checks a change is stable at the running rate, the post-set one applies
-        # it (real time: the goal process serves the parameters and checks; serve_here otherwise)
+        # it (real time: the goal process serves the parameters and checks; serve_parameters_here otherwise)
         self.stability = run.stability
         self.gain_check: CheckProcess | None = None
         self.gain_updates = GainUpdates(node, spec, in_process, self.apply_gains, joint_map=self.joint_map)
@@ -167,12 +169,14 @@ class ControllerNode(CommandingEntity):
                                           batch=50)
             self.plant_watch = end_when_plant_leaves(self, lambda: core.states_received)
         node.add_managed_entity(self)
-        # the action server: real time, in a process of its own (goal_process); else a node of its own spun by
-        # a thread of its own, never by the loop's executor. Real time, this node publishes the server's state
-        # and goal events (serialized by the server): a recorder already knows this participant
+        # the action server: real time, in a thread of this process, or with goal_process on, in a process of its
+        # own (goal_process); lockstep, a node of its own spun by a thread of its own, never by the loop's
+        # executor. With a goal process, this node publishes the server's state and goal events (serialized
+        # there): a recorder already knows this participant
         self.published_here = {} if self.lockstep else self.raw_publishers()
         declare_realtime_parameters(node, self.mode)  # before the goal process takes every parameter (run_node reads)
-        self.goal_process = None if self.lockstep else GoalProcess.for_controller(
+        in_child = not self.lockstep and uses_goal_process(params.goal_process)
+        self.goal_process = None if not in_child else GoalProcess.for_controller(
             setup_of(spec=spec, name=node.get_name(), namespace=node.get_namespace(),
                      base=node.get_fully_qualified_name(), joints=params.joints, joint_map=self.joint_map,
                      robot_joints=robot.joint_names, limits=core.limits, goal_settings=core.goal_settings,
@@ -180,15 +184,15 @@ class ControllerNode(CommandingEntity):
                      topics={topics.TOPIC_JOINT_TRAJECTORY: node.resolve_topic_name(topics.TOPIC_JOINT_TRAJECTORY)},
                      use_sim_time=bool(node.get_parameter("use_sim_time").value),
                      parameters=parameter_table(node), stability=run.stability),
-            core, lambda: self.guard.clamped, lambda why: self.loop_log.error(why), self.published_here,
-            self.gain_updates.take)
+            core, lambda: self.guard.clamped, on_lost=lambda why: self.loop_log.error(why),
+            on_restored=lambda what: node.get_logger().info(what), publishers=self.published_here,
+            on_gains=self.gain_updates.take,
+            parameters_now=lambda: parameter_table(node, self.gain_updates.given))
         self.action: FollowJointTrajectoryServer | None = None
         # lockstep, the loop takes ~/joint_trajectory: its status, shared with the action server
         self.trajectory_report = Diagnostics(node, "controller: trajectories", spec.robot) if self.lockstep else None
         if self.goal_process is not None:
             self.goal_process.start()  # from this thread, at normal scheduling; it starts while the node configures
-        else:
-            self.serve_here()
         if params.autostart:
             # configured (the law's kernel loaded, the path from a message to a command warmed up) before
             # the robot's topics exist: a plant that starts once it sees them is answered at once, and a
@@ -203,22 +207,20 @@ class ControllerNode(CommandingEntity):
         self.inputs.subscribe(JointTrajectory, topics.TOPIC_REFERENCE, self.on_reference)
         # off the loop's path: a goal is rare, and an input taken at every pass of the loop costs a take per pass;
         # real time: taken and validated by the action server's thread, never the loop's
-        goals = self.observed_inputs = Inputs(node, self.mode, batch_s=GOAL_BATCH_S, suffix="_goals")
-        if self.lockstep:
-            goals.subscribe(JointTrajectory, topics.TOPIC_JOINT_TRAJECTORY, self.on_goals, topics.TRAJECTORY_QOS,
-                            with_receipt=True)
+        self.observed_inputs = Inputs(node, self.mode, batch_s=GOAL_BATCH_S, suffix="_goals")
         if self.goal_process is not None and not self.goal_process.wait_ready(GOAL_PROCESS_START_S):
-            # as joint_trajectory_controller's, the action exists once the controller is active
             node.get_logger().error(f"the goal process did not start within {GOAL_PROCESS_START_S:g} s: "
                                     "the action is served in the controller's process")
             self.goal_process.close()
             self.goal_process = None
-            self.serve_here()  # its server takes ~/joint_trajectory itself
-        if self.goal_process is not None:  # taken here as bytes, validated by the goal process
-            goals.subscribe(JointTrajectory, topics.TOPIC_JOINT_TRAJECTORY, self.goal_process.forward,
-                            topics.TRAJECTORY_QOS, with_receipt=True)
+        if self.goal_process is None:
+            self.serve_parameters_here()
         if params.autostart:
             node.trigger_activate()
+        # the action and ~/joint_trajectory from here on, after the activation at start: a client that sees
+        # the server or the subscription finds the controller active (as joint_trajectory_controller's, they
+        # exist while it is only configured too: autostart:=false)
+        self.serve_goals()
         waiting = "" if params.autostart else "; unconfigured until configure and activate"
         node.get_logger().info(f"{spec.controller} controller for {spec.robot}/{spec.contour}, {self.mode}, "
                                f"{spec.rate:g} Hz, joints {list(params.joints)}{waiting}")
@@ -266,14 +268,52 @@ class ControllerNode(CommandingEntity):
         self.core.apply_gains(self.gain_updates.spec)
         self.loop_log.info(f"gains changed: {gains.as_dict()}")
 
-    def serve_here(self) -> None:
-        """The action and the parameter services in this process: lockstep, or no goal process."""
-        if not self.lockstep:  # the gains' check (50-100 ms of numpy) in a process of its own, never beside the loop
+    def serve_parameters_here(self) -> None:
+        """The parameter services in this process (lockstep, or no goal process); real time, the gains'
+        check in a process of its own (50-100 ms of numpy, never beside the loop)."""
+        if not self.lockstep:
             self.gain_check = CheckProcess.for_run(self.gain_updates.spec, self.stability)
             if self.gain_check is not None:
                 self.gain_check.start()  # from this thread, at normal scheduling, while the node starts
                 self.gain_updates.check = self.gain_check
+                self.node.get_logger().info(f"the gains' check runs in a process of its own "
+                                            f"(pid {self.gain_check.pid})")
         ParameterService(self.node)
+
+    def serve_goals(self) -> None:
+        """The action server, ``~/query_state`` and ``~/joint_trajectory``: lockstep, at once (the loop
+        takes ``~/joint_trajectory``); real time, once the controller has a complete measured state (a
+        goal starts from it: a client that sees the server is not refused for want of one), in the goal
+        process (``~/joint_trajectory`` taken here, validated there) or in a thread of this process."""
+        goals, trajectory = self.observed_inputs, topics.TOPIC_JOINT_TRAJECTORY
+        if self.goal_process is not None:
+            # the loop's inputs are fixed before it runs: the subscription now; what arrives before the child
+            # serves waits there for it
+            goals.subscribe(JointTrajectory, trajectory, self.goal_process.forward, topics.TRAJECTORY_QOS,
+                            with_receipt=True)  # taken here as bytes, validated by the goal process
+            self.goal_process.serve()  # the loop tells it once it has a complete state
+            return
+        if self.lockstep:
+            goals.subscribe(JointTrajectory, trajectory, self.on_goals, topics.TRAJECTORY_QOS, with_receipt=True)
+            self.serve_action()
+            return
+        threading.Thread(target=self.serve_when_measured, name="serve_goals", daemon=True).start()
+
+    def serve_when_measured(self) -> None:
+        """Real time, a thread of normal scheduling: the action server in this process once the
+        controller has a complete measured state (said once if that takes long)."""
+        began, said = time.monotonic(), False
+        while not self.done and self.node.context.ok():
+            if self.core.measured() is not None:
+                self.serve_action()
+                return
+            if not said and time.monotonic() - began > SERVE_WAIT_NOTE_S:
+                said = True
+                self.node.get_logger().info(f"the action waits for a complete joint state on "
+                                            f"{topics.TOPIC_JOINT_STATES} (none in {SERVE_WAIT_NOTE_S:g} s)")
+            time.sleep(SERVE_POLL_S)
+
+    def serve_action(self) -> None:
         self.action = FollowJointTrajectoryServer(LocalView(self), event_sink=self.published_here.get("goal_event"),
                                                   state_sink=self.published_here.get("controller_state"),
                                                   report=self.trajectory_report)

@@ -58,6 +58,7 @@ class ControllerParameters:
     stale_periods: int
     goal_settings: GoalSettings  # trajectories and goals: JTC's parameters, the default tolerances (robot order)
     action_introspection: str  # accepted goals as SendGoal service events: disabled, metadata or contents
+    goal_process: str  # real time: the action and the parameters in a process of their own: auto, on or off
 
     @property
     def joints(self) -> tuple[str, ...]:
@@ -93,7 +94,8 @@ def declare_controller_parameters(node: Node, robot: Manipulator) -> ControllerP
     except ValueError as exc:
         raise ConfigError(f"parameter {exc}") from None
     return ControllerParameters(joint_map, values["autostart"], limit, values["enforce_limits"],
-                                values["stale_periods"], settings, values["action_introspection"])
+                                values["stale_periods"], settings, values["action_introspection"],
+                                values["goal_process"])
 
 
 def declare_limit_parameters(node: Node, robot: Manipulator, params: ControllerParameters, period: float,

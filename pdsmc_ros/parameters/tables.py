@@ -63,6 +63,8 @@ JOINT_STATE_ORDERS = ("alphabetical", "urdf", "reversed")
 """The orders the MuJoCo stand-in can publish ``/joint_states`` in (``joint_state_order``)."""
 
 INTROSPECTION_STATES = ("disabled", "metadata", "contents")
+GOAL_PROCESS_CHOICES = ("auto", "always", "never")
+"""Where a real-time controller serves its action and parameters (``goal_process:=``)."""
 """rcl's service introspection states (``RCL_SERVICE_INTROSPECTION_OFF``, ``_METADATA``, ``_CONTENTS``)."""
 
 NODES = ("controller", "plant", "trajectory", "recorder", "mujoco_driver", "viewer")
@@ -138,6 +140,12 @@ CONTROLLER = (
       "accepted action goals published as SendGoal service events on <action>/_action/send_goal/_service_event "
       "(as ROS 2 service introspection does; a recorder records them): disabled, metadata (no trajectory) or "
       "contents", choices=INTROSPECTION_STATES),
+    P("goal_process", "string", "auto",
+      "real time: the action server, ~/joint_trajectory's validation and the parameter services in a process of "
+      "their own (always: the loop's interpreter lock free of a storm of clients, at the cost of a core's share), "
+      "in a thread of the controller's process (never), or auto: a process of their own when the controller may "
+      "run on 2 or more cores "
+      "(docs/explanation/realtime.md: what each costs and buys on 2 cores)", choices=GOAL_PROCESS_CHOICES),
 )
 """The controller's own (besides the run's, the gains and the stability check's)."""
 

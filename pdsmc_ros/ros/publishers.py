@@ -3,8 +3,6 @@ middleware's writes of a real-time loop's command in a thread of their own, and 
 
 from __future__ import annotations
 
-import ctypes
-import os
 import threading
 import time
 from collections.abc import Sequence
@@ -22,29 +20,6 @@ from .topics import STREAM_QOS
 RCLError = _rclpy_impl.RCLError
 
 
-class _SerializedMessage(ctypes.Structure):
-    """``rcl_serialized_message_t`` (``rcutils_uint8_array_t``): the bytes, their length, the
-    buffer's capacity and an allocator (five pointers; unused by a publish)."""
-
-    _fields_ = [("buffer", ctypes.c_void_p), ("buffer_length", ctypes.c_size_t),
-                ("buffer_capacity", ctypes.c_size_t), ("allocator", ctypes.c_void_p * 5)]
-
-
-def _rcl_calls() -> tuple[Any, Any] | None:
-    """``rcl_publish_serialized_message`` and ``rcutils_reset_error`` from the libraries rclpy has
-    loaded (found by their sonames), through ctypes, which releases the GIL for the call; None
-    where they cannot be found."""
-    try:  # RTLD_NOLOAD: rclpy's own copies, never a second one from the library path
-        publish = ctypes.CDLL("librcl.so", mode=os.RTLD_NOLOAD).rcl_publish_serialized_message
-        reset = ctypes.CDLL("librcutils.so", mode=os.RTLD_NOLOAD).rcutils_reset_error
-    except (OSError, AttributeError):
-        return None
-    publish.argtypes = [ctypes.c_void_p, ctypes.POINTER(_SerializedMessage), ctypes.c_void_p]
-    publish.restype = ctypes.c_int32  # rcl_ret_t
-    reset.argtypes, reset.restype = [], None
-    return publish, reset
-
-
 DELAYS_KEPT = 1 << 16  # the hand-off-to-written delays kept for the summary (the latest 65 s at 1 kHz)
 
 
@@ -57,7 +32,8 @@ class WriterThread:
     ``publish_raw`` keeps it). ros2_control's answer is realtime_tools' ``RealtimePublisher``: the
     loop hands the message over and a thread of its own publishes it. Here the loop's
     :meth:`write` stores the bytes in a one-message slot and wakes the thread, which calls
-    ``rcl_publish_serialized_message`` through ctypes with the interpreter lock released, so
+    rcl's publish with the interpreter lock released
+    (:class:`~pdsmc_ros.rclpy_internals.SerializedPublish`), so
     neither the loop nor the process's other Python waits for the middleware.
 
     Where realtime_tools keeps the older message while its thread is busy, the newer one wins
@@ -68,14 +44,9 @@ class WriterThread:
     """
 
     def __init__(self, publisher: Any, node: Node) -> None:
-        calls = _rcl_calls()
-        if calls is None:
-            raise OSError("librcl.so or librcutils.so is not loaded: rcl cannot be called through ctypes")
-        self._publish, self._reset_error = calls
+        self._publish = _rclpy_impl.SerializedPublish(publisher)  # OSError where rcl cannot be called
         self.node = node
         self.topic = publisher.topic_name
-        self._handle = publisher.handle
-        self._pointer = self._handle.pointer
         self._cond = threading.Condition()
         self._pending: tuple[bytes, float] | None = None
         self._busy = False
@@ -108,7 +79,6 @@ class WriterThread:
             raise
 
     def _write_until_closed(self) -> None:
-        message = _SerializedMessage()
         while True:
             with self._cond:
                 while self._pending is None and not self._closing:
@@ -117,17 +87,7 @@ class WriterThread:
                     return
                 (data, handed), self._pending = self._pending, None
                 self._busy = True
-            message.buffer = ctypes.cast(ctypes.c_char_p(data), ctypes.c_void_p)
-            message.buffer_length = message.buffer_capacity = len(data)
-            try:
-                with self._handle:  # the publisher is not destroyed while it is written to
-                    failed = self._publish(self._pointer, ctypes.byref(message), None)
-            except Exception as exc:  # noqa: BLE001 - the publisher destroyed: never fatal
-                failed, why = 1, str(exc)
-            else:
-                why = f"rcl_publish_serialized_message returned {failed}"
-                if failed:
-                    self._reset_error()
+            failed, why = self._publish(data)
             delay = time.perf_counter() - handed
             with self._cond:
                 self._busy = False

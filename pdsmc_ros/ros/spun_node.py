@@ -37,7 +37,7 @@ class SpunNode:
 
     def __init__(self, domain: int, name: str) -> None:
         self.context = rclpy.Context()
-        rclpy.init(context=self.context, domain_id=domain)
+        rclpy.init(args=[], context=self.context, domain_id=domain)  # not the script's command line
         self.node = rclpy.create_node(name, context=self.context)
         self.executor = rclpy.executors.SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)

@@ -9,6 +9,7 @@ from __future__ import annotations
 import dataclasses
 import os
 import signal
+import time
 
 import pytest
 
@@ -75,18 +76,42 @@ def test_a_dead_child_is_a_refusal_and_is_replaced(spec) -> None:  # noqa: ANN00
 
 @pytest.mark.timeout(120)
 def test_a_child_that_does_not_answer_in_time_is_a_refusal_naming_the_gains(spec) -> None:  # noqa: ANN001
-    process = CheckProcess(spec, STABILITY, timeout_s=5.0)
+    process = CheckProcess(spec, STABILITY)
     try:
         process(spec)
         child = process.process
         assert child is not None
-        os.kill(child.pid, signal.SIGSTOP)  # alive, never answering
-        process.timeout_s = 0.5
+        process.timeout_s = 1e-6  # no check answers within a microsecond
         with pytest.raises(ConfigError, match=r"^gains .* refused: the stability check process failed "
-                                              r"\(TimeoutError: no answer in 0.5 s\)$"):
+                                              r"\(TimeoutError: no answer in 1e-06 s\); a new one is starting$"):
             process(spec)
         assert child.poll() is not None  # killed
         process.timeout_s = 30.0
+        process(spec)
+    finally:
+        process.close()
+
+
+@pytest.mark.timeout(120)
+def test_a_stopped_child_is_a_refusal_at_once_and_is_replaced(spec) -> None:  # noqa: ANN001
+    """SIGSTOP: alive, never answering. The set is refused as soon as the stop is seen (not after the
+    30 s timeout), the child killed and a new one started at once; the next change is checked."""
+    process = CheckProcess(spec, STABILITY)
+    try:
+        process(spec)
+        child = process.process
+        assert child is not None
+        os.kill(child.pid, signal.SIGSTOP)
+        began = time.monotonic()
+        with pytest.raises(ConfigError, match=r"^gains .* refused: the stability check process failed "
+                                              r"\(TimeoutError: the process is stopped \(SIGSTOP\): it would not "
+                                              r"answer\); a new one is starting$"):
+            process(spec)
+        refused_after = time.monotonic() - began
+        assert child.poll() is not None  # killed
+        assert process.process is not None and process.process.pid != child.pid  # replaced before the next set
+        print(f"a stopped gain check refused after {refused_after:.2f} s")
+        assert refused_after < 2.0, refused_after
         process(spec)
     finally:
         process.close()
