@@ -847,17 +847,23 @@ def main() -> None:
     from . import parameters as _gain_parameters  # noqa: F401 - the parameter stand-in's gains
     from .action import FollowJointTrajectoryServer, topic_trajectory
 
+    # ... and its DDS participant made and discovered (a hidden node holds it): a replacement's services
+    # then need only their own endpoints matched by a client, not a new participant found first
+    context = rclpy.Context()
+    rclpy.init(args=[], context=context, signal_handler_options=SignalHandlerOptions.NO)
+    participant = rclpy.create_node("_goal_process", context=context, start_parameter_services=False,
+                                    enable_rosout=False)
     inbox = FrameReader(sys.stdin.fileno())
     first = inbox.read_blocking()
     if not first:
+        participant.destroy_node()
+        rclpy.shutdown(context=context)
         return
     setup: dict[str, Any] = first.pop(0)  # type: ignore[assignment]
     spec = setup["spec"]
     if setup["arm"] is not None and find_robot(spec.robot) is None:
         register_robot(setup["arm"], config=setup["config"])
 
-    context = rclpy.Context()
-    rclpy.init(args=[], context=context, signal_handler_options=SignalHandlerOptions.NO)
     out = sys.stdout.fileno()
     write_lock = threading.Lock()
 
@@ -933,6 +939,7 @@ def main() -> None:
             server.stop()
         if parameters is not None:
             parameters.destroy()
+        participant.destroy_node()
         with contextlib.suppress(Exception):
             rclpy.shutdown(context=context)
 

@@ -50,11 +50,16 @@ CHECKS = r"gains' check runs in a process of its own \(pid (\d+)\)"
 
 
 def accepted_after(client: Client, since: float, seconds: float = 30.0) -> float:
-    """Seconds from ``since`` (monotonic) until a goal that stays where the arm is was accepted."""
+    """Seconds from ``since`` (monotonic) until a goal that stays where the arm is was accepted: sent as a
+    client does once it sees a server, again every 0.2 s while unanswered or refused (a request sent
+    before the client matched the new server's endpoints is lost)."""
     while time.monotonic() - since < seconds:
+        if not client.action.server_is_ready():
+            time.sleep(0.01)
+            continue
         here = client.q()
         try:
-            handle = client.call(lambda here=here: client.action.send_goal_async(goal_to(here, here, 0.3)), 2.0)
+            handle = client.call(lambda here=here: client.action.send_goal_async(goal_to(here, here, 0.3)), 0.2)
         except TimeoutError:
             continue
         if handle is not None and handle.accepted:  # type: ignore[attr-defined]
