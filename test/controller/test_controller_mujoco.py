@@ -442,7 +442,8 @@ def test_a_runaway_aborts_the_goal_stops_the_arm_and_fails_the_run(ros_env: dict
         # N m s/rad here: a few tenths of a rad/s), far below the rates a drive could give it
         assert max(float(np.max(np.abs(s[2]))) for s in settled) < 0.5, logs(tmp_path)
     finally:
-        # the action server ran in the controller's goal process (real time), a child in its session
+        # the action server ran in the controller's goal process (real time, goal_process:=auto on 2 cores or
+        # more), a child in its session, with the spare that would replace it
         goal_processes = in_session(ctl.pid, "pdsmc_ros.controller.goal_process")
         client.close()
         code, _ = stop_process(ctl)
@@ -450,7 +451,7 @@ def test_a_runaway_aborts_the_goal_stops_the_arm_and_fails_the_run(ros_env: dict
     log = (tmp_path / "controller.log").read_text()
     assert "runaway stop" in log
     assert code == 1, (code, log[-2000:])
-    assert len(goal_processes) == 1, goal_processes
+    assert len(goal_processes) == 2, goal_processes  # the goal process and its spare
     # it ends with the controller (its input closes): no process left behind
     deadline = time.monotonic() + 10.0
     while in_session(ctl.pid, "pdsmc_ros.controller.goal_process") and time.monotonic() < deadline:
