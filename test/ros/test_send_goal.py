@@ -90,9 +90,12 @@ class Server:
 
 
 def send_goal(env: dict, domain: int, goal: Path, *extra: str) -> subprocess.Popen:
+    # SIGINT as at a terminal: a suite started in the background by a shell runs with it ignored, which
+    # its children inherit (and Python then raises no KeyboardInterrupt)
     return subprocess.Popen([sys.executable, "-m", "pdsmc_ros.cli", "send-goal", str(goal), *extra], cwd=ROOT,
                             env=dict(env, ROS_DOMAIN_ID=str(domain)), stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True, start_new_session=True)
+                            stderr=subprocess.PIPE, text=True, start_new_session=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
 
 
 def finish(proc: subprocess.Popen, seconds: float = 90.0) -> tuple[int, str, str]:
