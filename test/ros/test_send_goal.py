@@ -151,8 +151,14 @@ def test_ctrl_c_cancels_the_goal(ros_env: dict, plain) -> None:  # noqa: ANN001
     while not server.goals and time.monotonic() < deadline:
         time.sleep(0.1)
     time.sleep(2.0)  # executing, feedback flowing
+    # how the command takes signals, for a failure's message (ignored or blocked SIGINT: bit 2)
+    signals = [line.strip() for line in Path(f"/proc/{proc.pid}/status").read_text().splitlines()
+               if line.startswith(("SigBlk", "SigIgn", "SigCgt"))]
     os.kill(proc.pid, signal.SIGINT)
-    code, out, err = finish(proc)
+    try:
+        code, out, err = finish(proc)
+    except AssertionError as exc:
+        raise AssertionError(f"{exc}\nthe command's signals before the SIGINT: {signals}") from None
     assert server.canceled.is_set()
     assert code == 130, out + err
     assert "result: CANCELED" in out and "canceling the goal" in err
