@@ -33,8 +33,6 @@ worst_heldout_nrmse=E worst_heldout_nrmse_outside_dead_zone=E consistent=yes|no 
 from __future__ import annotations
 
 import argparse
-import contextlib
-import io
 import shutil
 import sys
 import tempfile
@@ -46,8 +44,10 @@ import yaml
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from pdsmc_ros.cli import main as pdsmc  # noqa: E402
+from identification import run  # noqa: E402  (bench/identification.py: a command's exit, output and time)
+
 from pdsmc_ros.identification.arm_files import (  # noqa: E402
     OPTIONS_NAME,
     URDF_NAME,
@@ -108,14 +108,6 @@ def feedback_table(robot: str, payload: float, seed: int, models: dict[str, str]
             rms = metrics.get("run_scores", {}).get("error_rms", float("nan"))
             print(f"{law:6s} {label:16s} {metrics['contour_mean']:22.4e} {rms:23.4e} "
                   f"{max(metrics['max_torque']):24.4g} {seconds:9.1f}")
-
-
-def run(args: list[str]) -> tuple[int, str, float]:
-    out = io.StringIO()
-    began = time.perf_counter()
-    with contextlib.redirect_stdout(out):
-        code = pdsmc(args)
-    return code, out.getvalue(), time.perf_counter() - began
 
 
 def check(identified_dir: Path, robot: str, truth: StandInTruth, label: str) -> bool:
