@@ -53,7 +53,7 @@ from ..loop.statistics import LoopStatistics
 from ..robots.base import FloatArray
 from ..ros import topics
 from ..ros.diagnostics import Diagnostics, InputReport
-from ..ros.node_run import declare_node_run, description_json
+from ..ros.node_run import description_json
 from ..ros.publishers import GuardedPublisher, RowBatches
 from .action import FollowJointTrajectoryServer, controller_state_topic, goal_event_topic, topic_trajectory
 from .commanding import Paired, TorqueGuard
@@ -64,7 +64,7 @@ from .goals import GoalExecution
 from .joint_trajectory import JointTrajectoryReference, RawPoint
 from .joints import JointSelector
 from .limits import JointLimits
-from .parameters import GainUpdates, declare_controller_parameters, declare_limit_parameters
+from .parameters import GainUpdates, declare_controller_parameters, declare_controller_run, declare_limit_parameters
 
 GOAL_BATCH_S = 0.002  # ~/joint_trajectory is looked at every 2 ms
 GOAL_PROCESS_START_S = 60.0  # real time: how long the node waits for its goal process to serve the action
@@ -130,7 +130,7 @@ class ControllerNode(CommandingEntity):
     def __init__(self) -> None:
         # the parameter services: real time, the goal process's (goal_process.ParameterStandIn), else this node's
         self.node = node = LifecycleNode("controller", start_parameter_services=False)
-        run = declare_node_run(node, gains=True)
+        run = declare_controller_run(node)  # its parameters, the gains given resolved into run.spec
         self.mode, self.busy_wait, self.lockstep = run.mode, run.busy_wait, run.mode == "lockstep"
         robot = run.spec.robot_model()
         self.params = params = declare_controller_parameters(node, robot)
