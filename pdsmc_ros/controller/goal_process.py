@@ -54,7 +54,7 @@ from typing import Any
 
 from ..parameters.joint_map import JointMap
 from ..robots.registry import find_robot, register_robot, robot_config
-from .gain_check import stopped
+from .sidecar.process import stopped
 from .goals import INVALID_GOAL, GoalExecution, GoalSettings, Outcome
 from .joint_trajectory import JointTrajectoryReference, RawPoint
 from .limits import JointLimits

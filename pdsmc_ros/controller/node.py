@@ -58,7 +58,7 @@ from ..ros.publishers import GuardedPublisher, RowBatches
 from .action import FollowJointTrajectoryServer, controller_state_topic, goal_event_topic, topic_trajectory
 from .commanding import Paired, TorqueGuard
 from .core import ControllerCore, GoalStart, Tolerance
-from .gain_check import CheckProcess, checked
+from .sidecar.gain_check import CheckProcess, checked
 from .goal_process import GoalProcess, parameter_table, setup_of, uses_goal_process
 from .goals import GoalExecution
 from .joint_trajectory import JointTrajectoryReference, RawPoint

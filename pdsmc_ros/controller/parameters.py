@@ -53,7 +53,7 @@ from ..robots.catalog import resolve_robot
 from ..ros.node_run import declare_run_parameters, take_robot_description
 from ..runs.builder import RunSpec, resolve_gains, run_from_parameters
 from .commanding import RunawayGuard
-from .gain_check import checked
+from .sidecar.gain_check import checked
 from .goals import GoalSettings, Tolerances
 from .joint_trajectory import TrajectoryRules
 
