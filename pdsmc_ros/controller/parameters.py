@@ -53,9 +53,9 @@ from ..robots.catalog import resolve_robot
 from ..ros.node_run import declare_run_parameters, take_robot_description
 from ..runs.builder import RunSpec, resolve_gains, run_from_parameters
 from .commanding import RunawayGuard
-from .sidecar.gain_check import checked
 from .goals import GoalSettings, Tolerances
 from .joint_trajectory import TrajectoryRules
+from .sidecar.gain_check import checked
 
 
 @dataclass(frozen=True)

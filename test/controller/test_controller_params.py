@@ -94,12 +94,13 @@ def test_the_node_exits_2_on_an_unknown_joint(ros_env: dict) -> None:
 
 
 def test_the_goal_process_serves_the_nodes_parameters_as_the_node_would(node_with) -> None:  # noqa: ANN001
-    """The goal process's stand-in (:class:`~pdsmc_ros.controller.goal_process.ParameterStandIn`)
+    """The goal process's stand-in (:class:`~pdsmc_ros.controller.sidecar.parameter_stand_in.ParameterStandIn`)
     declares every parameter of the node as it is (values, unset gains, descriptors), refuses what the
     node refuses with the same reason, and hands accepted gains over (``("gains", gains, given)``)."""
     from pdsmc_ros.control.stability import check_rate
-    from pdsmc_ros.controller.goal_process import ParameterStandIn, parameter_table
     from pdsmc_ros.controller.parameters import declare_limit_parameters
+    from pdsmc_ros.controller.sidecar.goal_process import parameter_table
+    from pdsmc_ros.controller.sidecar.parameter_stand_in import ParameterStandIn
     from pdsmc_ros.loop.realtime_params import declare_realtime_parameters
 
     node = node_with(Parameter("robot", value="serial_3r"), Parameter("type", value="pd"),
