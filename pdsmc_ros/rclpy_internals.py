@@ -19,6 +19,10 @@ another node, silent until told (:func:`node_announcing_as`, :func:`announce`).
 The command's writer thread publishes serialized bytes with the interpreter lock released, which
 rclpy's ``publish`` never does: :class:`SerializedPublish` calls rcl's
 ``rcl_publish_serialized_message`` through ctypes on the publisher's private handle pointer.
+
+The controller's process keeps the result requests of the goal process's goals, taking them from a
+service no executor spins (:func:`take_request`): rclpy takes a service's requests only in its
+executor.
 """
 
 from __future__ import annotations
@@ -50,6 +54,7 @@ USED = {
     "rclpy_implementation.WaitSet": ("clear_entities", "add_subscription", "add_guard_condition", "wait"),
     "rclpy_implementation.Subscription": ("take_message",),
     "rclpy_implementation.Publisher": ("publish_raw", "pointer"),
+    "rclpy_implementation.Service": ("service_take_request",),
     "rclpy.node.Node (an instance)": ("_parameter_overrides", "_parameters", "_parameter_event_publisher"),
 }
 """Every private name used, by what holds it: the C extension's classes and functions, the methods
@@ -65,6 +70,7 @@ def missing(node: Node | None = None) -> list[str]:
         "rclpy_implementation.WaitSet": getattr(_rclpy, "WaitSet", None),
         "rclpy_implementation.Subscription": getattr(_rclpy, "Subscription", None),
         "rclpy_implementation.Publisher": getattr(_rclpy, "Publisher", None),
+        "rclpy_implementation.Service": getattr(_rclpy, "Service", None),
         "rclpy.node.Node (an instance)": node,
     }
     out = []
@@ -134,6 +140,28 @@ def declared_parameters(node: Node) -> dict[str, Parameter]:
         raise AttributeError(f"{__name__}: this rclpy ({installed_version()}) keeps no Node._parameters "
                              f"(written against {WRITTEN_AGAINST})") from None
     return declared
+
+
+def take_request(service: Any) -> tuple[Any, Any] | None:
+    """The next waiting ``(request, header)`` of an rclpy ``Service`` no executor spins, None if none
+    waits (``header`` is what :meth:`rclpy.service.Service.send_response` takes): what rclpy's
+    executor does before it calls a service's callback (``handle.service_take_request``).
+
+    Raises
+    ------
+    AttributeError
+        Naming this module, if this rclpy's service handle takes no request that way.
+    """
+    try:
+        take = service.handle.service_take_request
+    except AttributeError:
+        raise AttributeError(f"{__name__}: this rclpy ({installed_version()}) has no "
+                             f"Service.handle.service_take_request (written against {WRITTEN_AGAINST})") from None
+    with service.handle:
+        taken = take(service.srv_type.Request)
+    if taken is None or taken[1] is None:
+        return None
+    return taken[0], taken[1]
 
 
 class _EventsAs:

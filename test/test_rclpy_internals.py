@@ -13,7 +13,7 @@ from pdsmc_ros import rclpy_internals  # noqa: E402
 
 PACKAGE = Path(__file__).resolve().parent.parent / "pdsmc_ros"
 PRIVATE = re.compile(r"implementation_singleton|\._parameter_overrides\b|\bnode\._parameters\b|"
-                     r"_parameter_event_publisher|rcl_publish_serialized_message")
+                     r"_parameter_event_publisher|rcl_publish_serialized_message|service_take_request")
 """How a private rclpy, rcl or rmw name reads in the package's source."""
 
 

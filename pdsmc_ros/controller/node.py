@@ -65,6 +65,7 @@ from .limits import JointLimits
 from .parameters import GainUpdates, declare_controller_parameters, declare_controller_run, declare_limit_parameters
 from .sidecar.gain_check import CheckProcess, checked
 from .sidecar.goal_process import GoalProcess, parameter_table, setup_of, uses_goal_process
+from .sidecar.lost_results import LostResults
 
 GOAL_BATCH_S = 0.002  # ~/joint_trajectory is looked at every 2 ms
 GOAL_PROCESS_START_S = 60.0  # real time: how long the node waits for its goal process to serve the action
@@ -176,6 +177,8 @@ class ControllerNode(CommandingEntity):
         self.published_here = {} if self.lockstep else self.raw_publishers()
         declare_realtime_parameters(node, self.mode)  # before the goal process takes every parameter (run_node reads)
         in_child = not self.lockstep and uses_goal_process(params.goal_process)
+        # the result of a goal lost with the goal process, for its client (the child held the request)
+        self.lost_results = LostResults(node, node.get_fully_qualified_name()) if in_child else None
         self.goal_process = None if not in_child else GoalProcess.for_controller(
             setup_of(spec=spec, name=node.get_name(), namespace=node.get_namespace(),
                      base=node.get_fully_qualified_name(), joints=params.joints, joint_map=self.joint_map,
@@ -187,7 +190,7 @@ class ControllerNode(CommandingEntity):
             core, lambda: self.guard.clamped, on_lost=lambda why: self.loop_log.error(why),
             on_restored=lambda what: node.get_logger().info(what), publishers=self.published_here,
             on_gains=self.gain_updates.take,
-            parameters_now=lambda: parameter_table(node, self.gain_updates.given))
+            parameters_now=lambda: parameter_table(node, self.gain_updates.given), results=self.lost_results)
         self.action: FollowJointTrajectoryServer | None = None
         # lockstep, the loop takes ~/joint_trajectory: its status, shared with the action server
         self.trajectory_report = Diagnostics(node, "controller: trajectories", spec.robot) if self.lockstep else None
@@ -213,6 +216,9 @@ class ControllerNode(CommandingEntity):
                                     "the action is served in the controller's process")
             self.goal_process.close()
             self.goal_process = None
+        if self.goal_process is None and self.lost_results is not None:
+            self.lost_results.destroy()  # the action's server in this process answers every result
+            self.lost_results = None
         if self.goal_process is None:
             self.serve_parameters_here()
         if params.autostart:
@@ -410,6 +416,8 @@ class ControllerNode(CommandingEntity):
             self.action.stop()
         if self.goal_process is not None:
             self.goal_process.close()
+        if self.lost_results is not None:
+            self.lost_results.destroy()
         if self.gain_check is not None:
             self.gain_check.close()
         if not self.lockstep:

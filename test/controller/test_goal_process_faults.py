@@ -23,6 +23,7 @@ from conftest import next_domain
 pytest.importorskip("rclpy")
 pytest.importorskip("mujoco")
 pytest.importorskip("control_msgs")
+from action_msgs.msg import GoalStatus  # noqa: E402
 from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue  # noqa: E402
 from rcl_interfaces.srv import GetParameters, SetParameters  # noqa: E402
 from test_controller_mujoco import Client, goal_to, logs, quintic, start, stop  # noqa: E402
@@ -133,6 +134,17 @@ def test_the_goal_process_ended_mid_goal_aborts_it_holds_the_arm_and_is_replaced
     time.sleep(0.8)
     os.kill(child, getattr(signal, how))
     ended = time.monotonic()
+    # the client of the goal is told: aborted, with the reason (its result request died with the child
+    # that held it; the controller's process answers it)
+    assert wait_until(result.done, 10.0), logs(tmp_path)
+    answered = time.monotonic() - ended
+    response = result.result()
+    print(f"{how}: the client got its result {answered:.2f} s after the signal: status {response.status}, "
+          f"{response.result.error_code}, {response.result.error_string!r}")
+    assert response.status == GoalStatus.STATUS_ABORTED, response
+    assert "the goal process ended" in response.result.error_string, response
+    if how == "SIGSTOP":  # found stopped, then killed; a killed one may be seen by its closed pipes first
+        assert "stopped (SIGSTOP)" in response.result.error_string, response
     # the loop aborts the goal and holds: the arm stops short of the goal's end
     assert wait_until(lambda: "the goal process ended" in log.read_text(), 10), logs(tmp_path)
     time.sleep(0.3)
@@ -151,10 +163,6 @@ def test_the_goal_process_ended_mid_goal_aborts_it_holds_the_arm_and_is_replaced
     successful, reason, _ = set_kp(client, [1100.0, 1100.0, 240.0])
     assert successful, reason
     assert wait_until(lambda: "gains changed" in log.read_text(), 10), logs(tmp_path)
-    # what the client of the aborted goal saw: its result request died with the child that held it
-    answered = wait_until(result.done, 2.0)
-    saw = "got a result" if answered else "got no result (its result request was held by the ended process)"
-    print(f"{how}: the aborted goal's client {saw}")
     if how == "SIGSTOP":
         assert wait_until(lambda: subprocess.run(["kill", "-0", str(child)], capture_output=True).returncode != 0,
                           10), "the stopped child was not ended"

@@ -128,6 +128,10 @@ class GoalProcess:
         services (resolved from the gain parameters ``given``), for the loop to apply.
     parameters_now : callable
         The parameter table (:func:`parameter_table`) a new child starts from.
+    results : LostResults, optional
+        The action's ``get_result`` service in this process (:class:`~.lost_results.LostResults`):
+        told the outcome of a goal lost with the child, it answers the client that waits for it;
+        its requests are gathered by the watching thread.
     """
 
     def __init__(self, setup: dict[str, Any], core: Any, clamped: Callable[[], int], *, active: bool = False,
@@ -135,7 +139,8 @@ class GoalProcess:
                  on_restored: Callable[[str], None] = lambda what: None,
                  publishers: Mapping[str, Callable[[bytes], None]] | None = None,
                  on_gains: Callable[[Any, dict[str, Any]], None] | None = None,
-                 parameters_now: Callable[[], list[tuple[bytes, bytes]]] | None = None) -> None:
+                 parameters_now: Callable[[], list[tuple[bytes, bytes]]] | None = None,
+                 results: Any = None) -> None:
         self.setup = dict(setup)
         self.first_message = frame(setup)
         self.core = core
@@ -147,6 +152,7 @@ class GoalProcess:
         self.publishers = dict(publishers or {})
         self.on_gains = on_gains
         self.parameters_now = parameters_now
+        self.results = results
         self.lost = False
         self.process: subprocess.Popen[bytes] | None = None
         self.reader: FrameReader | None = None
@@ -175,12 +181,13 @@ class GoalProcess:
                        on_lost: Callable[[str], None], on_restored: Callable[[str], None],
                        publishers: Mapping[str, Callable[[bytes], None]],
                        on_gains: Callable[[Any, dict[str, Any]], None],
-                       parameters_now: Callable[[], list[tuple[bytes, bytes]]]) -> GoalProcess | None:
+                       parameters_now: Callable[[], list[tuple[bytes, bytes]]],
+                       results: Any = None) -> GoalProcess | None:
         """A goal process, or None when the arm cannot be sent to one (a robot class defined where a
         child cannot import it): the caller then serves the action and the parameters in its own process."""
         try:
             return cls(setup, core, clamped, on_lost=on_lost, on_restored=on_restored, publishers=publishers,
-                       on_gains=on_gains, parameters_now=parameters_now)
+                       on_gains=on_gains, parameters_now=parameters_now, results=results)
         except (pickle.PicklingError, AttributeError, TypeError):
             return None
 
@@ -312,9 +319,13 @@ class GoalProcess:
         how = "stopped (SIGSTOP), so killed" if self.stop_seen else how_it_ended(code)
         self.stop_seen = False
         why = f"the goal process ended ({how})"
-        ended = [execution for execution in self.goals.values() if execution.outcome is None]
-        if ended and self.core.goals.end(f"{why}: the goal was aborted") is not None:
+        ended = {key: execution for key, execution in self.goals.items() if execution.outcome is None}
+        aborted = Outcome("aborted", INVALID_GOAL, f"{why}: the goal was aborted")
+        if ended and self.core.goals.end(aborted.error_string) is not None:
             self.core.hold(why)
+        if self.results is not None:  # its client's result request died with the child: answered from here
+            for key, execution in ended.items():
+                self.results.lose(key, execution.outcome or aborted)
         self.goals.clear()
         self.on_lost(f"{why}: {'its goal aborted, the arm holds; ' if ended else ''}a new one is starting")
         self.replace.set()
@@ -326,15 +337,26 @@ class GoalProcess:
             if self.replace.wait(WATCH_S):
                 self.replace.clear()
                 if not self.closing and self.lost:
+                    self._gather()  # the lost goal's client answered before a new child is awaited
                     self._replace()
                 if not self.closing:
                     self.spare.ensure()
                 continue
+            self._gather()
             process = self.process
             if process is not None and not self.lost and stopped(process.pid):
                 self.stop_seen = True
                 with contextlib.suppress(OSError):
                     process.kill()  # its pipes close: the loop aborts its goal and asks for a new one
+
+    def _gather(self) -> None:
+        """The result requests that arrived (the watching thread): a lost goal's answered."""
+        if self.results is None:
+            return
+        try:
+            self.results.gather()
+        except Exception:  # noqa: BLE001 - rcl's errors as the node shuts down: the watching thread lives on
+            return
 
     def _replace(self) -> None:
         began = time.monotonic()
@@ -357,6 +379,9 @@ class GoalProcess:
             kill(process, 3.0)
             self.on_restored(f"the new goal process did not serve within {RESTART_WAIT_S:g} s: no action server")
             return
+        self._gather()  # requests that arrived for the lost goal while no child served
+        if self.results is not None:
+            self.results.served()
         with self.swap:
             writer.send(("active", self.active))
             writer.send(("runaway", self.runaway))
