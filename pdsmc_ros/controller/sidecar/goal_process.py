@@ -59,18 +59,10 @@ from .process import Spare, end, how_it_ended, kill, spawn, stopped
 
 CHILD = "pdsmc_ros.controller.sidecar.goal_child"
 """The child's module (``python -m``)."""
-KEPT_TRAJECTORIES = 64  # trajectories remembered for ~/query_state and the driving one
-
-
+KEPT_TRAJECTORIES = 64  # trajectories remembered for ~/query_state and the driving one (both sides)
 NOT_ACTIVE = Outcome("aborted", INVALID_GOAL, "the controller is not active")
-
-
 WATCH_S = 0.1  # how often the watching thread looks whether the child is stopped
-
-
 RESTART_WAIT_S = 30.0  # how long a new child may take to serve (its interpreter, rclpy, the arm)
-
-
 PUBLISHED_HERE = ("goal_event", "controller_state")
 """What the child serializes and the controller's process publishes: the action's goal events and
 ``~/controller_state`` (one-shot or first messages a recorder must not miss: a writer in the child's
