@@ -25,7 +25,7 @@ import sys
 import threading
 import time
 from collections.abc import Callable
-from typing import Any
+from typing import Any, cast
 
 from ...control.stability import check_rate
 from ...errors import ConfigError, PdsmcError
@@ -183,7 +183,7 @@ def main() -> None:
     waiting = requests.read_blocking()
     if not waiting:
         return
-    spec, stability, arm, config = waiting.pop(0)  # type: ignore[misc]
+    spec, stability, arm, config = cast(tuple[RunSpec, dict[str, Any], Any, dict[str, Any]], waiting.pop(0))
     if arm is not None and find_robot(spec.robot) is None:
         register_robot(arm, config=config)
     reference = spec.reference()
@@ -192,9 +192,9 @@ def main() -> None:
             waiting = requests.read_blocking()
             if not waiting:
                 return  # the parent is gone
-        new = waiting.pop(0)
+        new = cast(RunSpec, waiting.pop(0))
         try:
-            checked(lambda s: check_rate(s, reference, **stability), new)  # type: ignore[arg-type]
+            checked(lambda s: check_rate(s, reference, **stability), new)
             reply = None
         except PdsmcError as exc:
             reply = str(exc)
