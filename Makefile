@@ -22,7 +22,7 @@ export NUMBA_CACHE_DIR := $(abspath $(VENV))/numba-cache
 setup: $(STAMP) $(INTERFACES_STAMP)
 
 SOURCES := setup.py setup.cfg package.xml $(wildcard config/*.yaml config/*.xml config/urdf/*) $(wildcard scripts/*.sh) \
-	$(wildcard pdsmc_ros/*.py pdsmc_ros/*/*.py)
+	$(shell find pdsmc_ros -name '*.py')
 DEPS_STAMP := $(VENV)/.pdsmc-deps
 
 $(DEPS_STAMP): requirements.txt requirements-test.txt requirements-build.txt requirements-docs.txt constraints.txt

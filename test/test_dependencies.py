@@ -68,7 +68,9 @@ that compiles the kernels by running every robot and law through a run."""
 ROS_LAYER = (*COMPONENTS, "loop", "ros", "parameters")
 """The components and the plumbing they share (the loop, topics and publishers, parameters)."""
 ROS_FREE = tuple(f"pdsmc_ros.controller.{m}" for m in ("core", "commanding", "goals", "joint_trajectory", "hold",
-                                                       "joints", "limits", "warm")) + ("pdsmc_ros.parameters.joint_map",
+                                                       "joints", "limits", "warm",
+                                                       "sidecar.framing", "sidecar.process", "sidecar.gain_check")) + (
+    "pdsmc_ros.parameters.joint_map",
     "pdsmc_ros.trajectory.reference_windows", "pdsmc_ros.loop.realtime", "pdsmc_ros.loop.statistics",
     "pdsmc_ros.loop.rt_check", "pdsmc_ros.viewer.live_view")
 """The components' ROS-free decisions, testable without ROS (the nodes beside them wire them)."""

@@ -19,7 +19,7 @@ The server lives on a node of its own (``<controller>_action``, no parameter ser
 rosout) spun by a thread of its own with a small multi-threaded executor: a controller with
 its action server in the control loop's executor answered 142 of 2,000 states at 1 kHz; with
 the server's waiting in another thread it answered every one. Real time: that node, its thread
-and the validation run in a process of their own (:mod:`.goal_process`), which hands the loop's
+and the validation run in a process of their own (:mod:`.sidecar.goal_process`), which hands the loop's
 process the goals and trajectories it accepted; lockstep (no deadlines): in the controller's
 process, where ``~/joint_trajectory`` is taken by the loop, which computes the waiting step at
 once. Validation never runs in the loop's thread: the loop only checks the active goal every
@@ -73,7 +73,7 @@ from .joint_trajectory import JointTrajectoryReference, RawPoint
 class ControllerView(Protocol):
     """What the action server and the state publisher read and call of the controller: the
     controller node itself in its process (:class:`~pdsmc_ros.controller.node.LocalView`), or its
-    stand-in in the goal process (:class:`~pdsmc_ros.controller.goal_process.RemoteView`)."""
+    stand-in in the goal process (:class:`~pdsmc_ros.controller.sidecar.remote_view.RemoteView`)."""
 
     name: str  # the controller node's name, namespace and fully qualified name
     namespace: str

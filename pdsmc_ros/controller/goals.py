@@ -263,7 +263,7 @@ class GoalExecution:
 
     def __getstate__(self) -> dict[str, object]:
         """Pickled without :attr:`done` (an event of this process): a goal validated in the goal
-        process (:mod:`.goal_process`) is sent to the control loop's."""
+        process (:mod:`.sidecar.goal_process`) is sent to the control loop's."""
         state = dict(self.__dict__)
         del state["done"]
         return state

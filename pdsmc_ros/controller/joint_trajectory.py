@@ -228,7 +228,7 @@ class JointTrajectoryReference:
 
     def __getstate__(self) -> dict[str, object]:
         """Pickled with its points as stacked arrays: a goal validated in another process
-        (:mod:`.goal_process`) reaches the control loop as a few arrays, not 5,000 small ones
+        (:mod:`.sidecar.goal_process`) reaches the control loop as a few arrays, not 5,000 small ones
         (unpickled one by one they took milliseconds of the loop's process)."""
         state = dict(self.__dict__)
         for name in ("positions", "velocities", "accelerations"):

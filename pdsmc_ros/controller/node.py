@@ -4,7 +4,7 @@ A managed (lifecycle) node, configured and activated at start unless ``autostart
 In: ``/joint_states`` and three reference sources, ``/reference`` (one point per step),
 ``~/joint_trajectory`` (JointTrajectory, as joint_trajectory_controller) and the action
 ``~/follow_joint_trajectory`` (:mod:`.action`, served by a node of its own: real time, in a
-process of its own, :mod:`.goal_process`; lockstep, in a thread of its own); whichever spoke
+process of its own, :mod:`.sidecar.goal_process`; lockstep, in a thread of its own); whichever spoke
 last drives. Real time: on activation, and after
 a goal is canceled or aborted, the controller holds the position it measures (through the
 chosen law); a trajectory's time is the node clock (``header.stamp``, or the reception
@@ -53,19 +53,19 @@ from ..loop.statistics import LoopStatistics
 from ..robots.base import FloatArray
 from ..ros import topics
 from ..ros.diagnostics import Diagnostics, InputReport
-from ..ros.node_run import declare_node_run, description_json
+from ..ros.node_run import description_json
 from ..ros.publishers import GuardedPublisher, RowBatches
 from .action import FollowJointTrajectoryServer, controller_state_topic, goal_event_topic, topic_trajectory
 from .commanding import Paired, TorqueGuard
 from .core import ControllerCore, GoalStart, Tolerance
-from .gain_check import CheckProcess, checked
-from .goal_process import GoalProcess, parameter_table, setup_of, uses_goal_process
 from .goals import GoalExecution
 from .joint_trajectory import JointTrajectoryReference, RawPoint
 from .joints import JointSelector
 from .limits import JointLimits
-from .lost_results import LostResults
-from .parameters import GainUpdates, declare_controller_parameters, declare_limit_parameters
+from .parameters import GainUpdates, declare_controller_parameters, declare_controller_run, declare_limit_parameters
+from .sidecar.gain_check import CheckProcess, checked
+from .sidecar.goal_process import GoalProcess, parameter_table, setup_of, uses_goal_process
+from .sidecar.lost_results import LostResults
 
 GOAL_BATCH_S = 0.002  # ~/joint_trajectory is looked at every 2 ms
 GOAL_PROCESS_START_S = 60.0  # real time: how long the node waits for its goal process to serve the action
@@ -129,9 +129,9 @@ class ControllerNode(CommandingEntity):
     inputs, holds, goals, the law's torque): parameters, topics, logs and the lifecycle."""
 
     def __init__(self) -> None:
-        # the parameter services: real time, the goal process's (goal_process.ParameterStandIn), else this node's
+        # the parameter services: real time, the goal process's (sidecar.parameter_stand_in), else this node's
         self.node = node = LifecycleNode("controller", start_parameter_services=False)
-        run = declare_node_run(node, gains=True)
+        run = declare_controller_run(node)  # its parameters, the gains given resolved into run.spec
         self.mode, self.busy_wait, self.lockstep = run.mode, run.busy_wait, run.mode == "lockstep"
         robot = run.spec.robot_model()
         self.params = params = declare_controller_parameters(node, robot)

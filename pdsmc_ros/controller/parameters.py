@@ -1,6 +1,14 @@
-"""The controller's own parameters (besides the run's), validated at start, its output limits
-and its gains changed at run time.
+"""The controller node's parameters: the run and the gains it is given, its own parameters,
+its output limits and its gains changed at run time.
 
+* :func:`declare_controller_run` -- the first step of a gain's way from ``-p kp:=`` (or a params
+  file) to the torque: the run's parameters and every gain declared from the tables (the running
+  law's gains read-write), the gains given handed with the run's settings to the run's resolution
+  (:func:`~pdsmc_ros.runs.builder.run_from_parameters`, then
+  :func:`~pdsmc_ros.runs.builder.resolve_gains`), whose :class:`~pdsmc_ros.runs.builder.RunSpec`
+  the node hands to its core (:class:`~pdsmc_ros.controller.core.ControllerCore`), which builds
+  the law from it (:class:`~pdsmc_ros.control.law.ControlLaw`; the formula:
+  :mod:`pdsmc_ros.control.laws`).
 * :func:`declare_controller_parameters` -- ``joints`` (by name, any order: the order of the
   command's ``data``, of gains and torque limits given as parameters and of every per-joint
   output), ``autostart``, ``torque_limit``, ``enforce_limits``, ``stale_periods``, the action's
@@ -17,8 +25,8 @@ and its gains changed at run time.
   (:class:`pdsmc_ros.controller.commanding.RunawayGuard`). All are read at start (read-only),
   and none applies with ``enforce_limits:=false``.
 * :class:`GainUpdates` -- gains changed at run time (``ros2 param set``): the on-set callback
-  validates a change (the run it gives must pass the stability check), the post-set callback
-  applies it.
+  resolves a change by the same resolver and validates it (the run it gives must pass the
+  stability check), the post-set callback hands it to the core (the same law, its new gains).
 """
 
 from __future__ import annotations
@@ -36,15 +44,69 @@ from rclpy.parameter import Parameter
 from ..control import GAINS, Gains
 from ..control.soft_limits import effort_only_table, robot_soft_limits
 from ..errors import ConfigError, InvalidInputError, PdsmcError
-from ..parameters import CONTROLLER, OUTPUT_LIMITS
+from ..parameters import BUSY_WAIT, CONTROLLER, OUTPUT_LIMITS
 from ..parameters.joint_map import JointMap
 from ..parameters.ros import declare, value_of
+from ..robots import make_robot
 from ..robots.base import FloatArray, Manipulator
-from ..runs.builder import RunSpec, resolve_gains
+from ..robots.catalog import resolve_robot
+from ..ros.node_run import declare_run_parameters, take_robot_description
+from ..runs.builder import RunSpec, resolve_gains, run_from_parameters
 from .commanding import RunawayGuard
-from .gain_check import checked
 from .goals import GoalSettings, Tolerances
 from .joint_trajectory import TrajectoryRules
+from .sidecar.gain_check import checked
+
+
+@dataclass(frozen=True)
+class ControllerRun:
+    """What the controller node starts from: the run its parameters name (``spec``, its gains
+    resolved, in robot order), the mode, the busy-wait, ``stability`` (the keywords of
+    :func:`~pdsmc_ros.control.stability.check_rate` its gains must pass), ``joint_map`` (its
+    ``joints``) and ``values`` (every parameter declared so far, by name; None: not set)."""
+
+    spec: RunSpec
+    mode: str
+    busy_wait: float
+    stability: dict[str, Any]
+    joint_map: JointMap
+    values: dict[str, Any]
+
+
+def declare_controller_run(node: Node) -> ControllerRun:
+    """Declare the controller's run: the run's parameters, every gain (the law's read-write, checked
+    on set by :class:`GainUpdates`; one params file serves every node and law), the stability
+    check's, ``busy_wait`` and the controller's own (:data:`~pdsmc_ros.parameters.CONTROLLER`), and
+    build the run they name.
+
+    The gains given (``-p kp:=``, a params file) are in ``joints`` order; the run's resolution
+    (:func:`~pdsmc_ros.runs.builder.run_from_parameters`) puts them in robot order over the presets
+    and scales them by the scenario. No preset and none given is an error.
+
+    Raises
+    ------
+    ConfigError
+        One line naming the parameter and what is allowed.
+    """
+    values = declare_run_parameters(node, gains=True)  # the run's table, every gain, the stability check's
+    values.update(declare(node, (BUSY_WAIT,)))  # used in real time
+    take_robot_description(node, values["robot"])
+    try:
+        robot_joints = make_robot(resolve_robot(values["robot"])).joint_names
+    except ConfigError as exc:
+        raise ConfigError(f"parameters: {exc}") from None
+    values.update(declare(node, CONTROLLER, defaults={"joints": list(robot_joints)}))
+    joint_map = JointMap(robot_joints, values["joints"])
+    spec = run_from_parameters(values, joint_order=joint_map.user_of)  # the gains given, resolved
+    mode = values["mode"]
+    return ControllerRun(spec, mode, float(values["busy_wait"]), stability_from_values(values, mode), joint_map,
+                         values)
+
+
+def stability_from_values(values: dict[str, Any], mode: str) -> dict[str, Any]:
+    """``check_rate``'s keywords from ``stability_margin`` and ``delay_periods`` (checked when declared)."""
+    return {"mode": mode, "delay_periods": int(values["delay_periods"]),
+            "margin": float(values["stability_margin"]) or None, "entry": "node"}
 
 
 @dataclass(frozen=True)
@@ -66,7 +128,7 @@ class ControllerParameters:
 
 
 def declare_controller_parameters(node: Node, robot: Manipulator) -> ControllerParameters:
-    """Declare the controller's parameters (if :func:`~pdsmc_ros.ros.node_run.declare_node_run` has
+    """Declare the controller's parameters (if :func:`declare_controller_run` has
     not) and return them validated; a ConfigError naming the parameter if bad (an unknown joint name
     lists the robot's)."""
     values = declare(node, CONTROLLER, defaults={"joints": list(robot.joint_names)})

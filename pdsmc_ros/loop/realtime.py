@@ -14,7 +14,7 @@ thread, after the process's other threads (the executor's, Fast DDS's) exist. Th
 load, which would otherwise preempt one holding the GIL or a DDS lock the loop waits for) and
 to the same cores (:func:`pin_helpers`). Memory locking is per process. Both policies carry
 ``SCHED_RESET_ON_FORK``: a process started from a real-time thread (the gain check's,
-:mod:`pdsmc_ros.controller.gain_check`) starts at normal scheduling, never at the loop's
+:mod:`pdsmc_ros.controller.sidecar.gain_check`) starts at normal scheduling, never at the loop's
 priorities, where its start-up (a Python interpreter's imports, about a second of CPU) would
 starve the machine's normal processes -- a driver among them.
 

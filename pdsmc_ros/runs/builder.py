@@ -19,9 +19,9 @@ from ..config import choice, load_config
 from ..contours import Contour, JointReference
 from ..contours.presets import build_contour, contour_names, contour_set
 from ..control.gains import Gains
-from ..control.registry import SMC_MODEL_KEYS, law, smc_model_vector
+from ..control.registry import GAINS, SMC_MODEL_KEYS, law, smc_model_vector
 from ..errors import ConfigError, InvalidInputError, MissingGainsError
-from ..parameters.run_table import PAYLOAD_READINGS, RUN_DEFAULTS
+from ..parameters.run_table import PAYLOAD_READINGS, RUN_DEFAULTS, run_parameters
 from ..robots import ROBOTS, Manipulator, RobotParams, make_robot, robot_settings
 from ..robots.base import FloatArray
 from ..robots.catalog import resolve_model, resolve_robot
@@ -38,6 +38,7 @@ __all__ = [
     "make_run",
     "preset_gains",
     "resolve_gains",
+    "run_from_parameters",
     "run_from_settings",
     "scenario_gain_factors",
     "scenario_names",
@@ -453,6 +454,29 @@ def run_from_settings(settings: Mapping[str, Any], *, params: Mapping[str, Any] 
                     segment_duration=v["segment_duration"], payload_reading=v["payload_reading"],
                     duration_factor=v["duration_factor"], params=params, overrides=overrides,
                     needs_gains=needs_gains, joint_order=joint_order, model=model)
+
+
+def run_from_parameters(values: Mapping[str, Any], *, needs_gains: bool = True,
+                        joint_order: Sequence[int] | None = None) -> RunSpec:
+    """The run a node's declared parameter ``values`` name (by name; None: not set).
+
+    The run table's settings go to :func:`run_from_settings`; the gains given (``-p kp:=``, a
+    params file: rcl merges both) are the overrides layer of :func:`resolve_gains`, in
+    ``joint_order`` (the controller's ``joints``), put in robot order, over the presets, then
+    scaled by the scenario's factors, as in-process. An arm without preset gains needs them all
+    given when ``needs_gains`` (the controller); the other nodes run with neutral placeholders.
+
+    Raises
+    ------
+    ConfigError
+        ``parameters: `` and a message naming the parameter and what is allowed.
+    """
+    overrides = {name: values[name] for name in GAINS if values.get(name) is not None}
+    settings = {spec.name: values[spec.name] for spec in run_parameters()}
+    try:
+        return run_from_settings(settings, overrides=overrides, needs_gains=needs_gains, joint_order=joint_order)
+    except ConfigError as exc:
+        raise ConfigError(f"parameters: {exc}") from None
 
 
 def scenario_gain_factors(scenario: str, controller: str) -> dict[str, float]:

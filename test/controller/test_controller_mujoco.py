@@ -444,7 +444,7 @@ def test_a_runaway_aborts_the_goal_stops_the_arm_and_fails_the_run(ros_env: dict
     finally:
         # the action server ran in the controller's goal process (real time, goal_process:=auto on 2 cores or
         # more), a child in its session, with the spare that would replace it
-        goal_processes = in_session(ctl.pid, "pdsmc_ros.controller.goal_process")
+        goal_processes = in_session(ctl.pid, "pdsmc_ros.controller.sidecar.goal_child")
         client.close()
         code, _ = stop_process(ctl)
         stop_process(driver)
@@ -454,9 +454,9 @@ def test_a_runaway_aborts_the_goal_stops_the_arm_and_fails_the_run(ros_env: dict
     assert len(goal_processes) == 2, goal_processes  # the goal process and its spare
     # it ends with the controller (its input closes): no process left behind
     deadline = time.monotonic() + 10.0
-    while in_session(ctl.pid, "pdsmc_ros.controller.goal_process") and time.monotonic() < deadline:
+    while in_session(ctl.pid, "pdsmc_ros.controller.sidecar.goal_child") and time.monotonic() < deadline:
         time.sleep(0.1)
-    assert not in_session(ctl.pid, "pdsmc_ros.controller.goal_process")
+    assert not in_session(ctl.pid, "pdsmc_ros.controller.sidecar.goal_child")
 
 
 def in_session(session: int, needle: str) -> list[int]:

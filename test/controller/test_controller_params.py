@@ -15,9 +15,9 @@ from rclpy.parameter import Parameter  # noqa: E402
 from pdsmc_ros.controller.parameters import (
     GainUpdates,  # noqa: E402
     declare_controller_parameters,  # noqa: E402
+    declare_controller_run,  # noqa: E402
 )
 from pdsmc_ros.errors import ConfigError  # noqa: E402
-from pdsmc_ros.ros.node_run import declare_node_run  # noqa: E402
 
 REORDERED = ["joint3", "joint1", "joint2"]
 
@@ -47,7 +47,7 @@ def test_gains_and_limits_given_in_joints_order_land_in_robot_order(node_with) -
                      Parameter("joints", value=REORDERED),
                      Parameter("kp", value=[400.0, 2000.0, 1900.0]), Parameter("kd", value=[20.0, 100.0, 90.0]),
                      Parameter("torque_limit", value=[3.0, 1.0, 2.0]))
-    run = declare_node_run(node, gains=True)
+    run = declare_controller_run(node)
     robot = run.spec.robot_model()
     params = declare_controller_parameters(node, robot)
     spec = run.spec  # the one resolver put the gains given in joints order in robot order
@@ -67,12 +67,12 @@ def test_gains_and_limits_given_in_joints_order_land_in_robot_order(node_with) -
 def test_the_clamp_defaults_to_the_arms_effort_limits_and_opts_out(node_with) -> None:  # noqa: ANN001
     base = [Parameter("robot", value="serial_3r"), Parameter("type", value="pd")]
     node = node_with(*base, Parameter("joints", value=REORDERED))
-    run = declare_node_run(node, gains=True)
+    run = declare_controller_run(node)
     robot = run.spec.robot_model()
     params = declare_controller_parameters(node, robot)
     np.testing.assert_array_equal(params.torque_limit, np.asarray(robot.effort_limits)[[2, 0, 1]])
     off = node_with(*base, Parameter("enforce_limits", value=False), Parameter("torque_limit", value=[1.0] * 3))
-    declare_node_run(off, gains=True)
+    declare_controller_run(off)
     assert declare_controller_parameters(off, robot).torque_limit is None
 
 
@@ -80,7 +80,7 @@ def test_an_unknown_joint_is_refused_naming_the_robots_joints(node_with) -> None
     node = node_with(Parameter("robot", value="serial_3r"), Parameter("joints", value=["joint1", "joint2", "wrist"]))
     with pytest.raises(ConfigError, match=r"'wrist' is not a joint of the robot; its actuated joints are "
                                           r"\['joint1', 'joint2', 'joint3'\]"):
-        declare_node_run(node, gains=True)  # before the gains: they are given in joints order
+        declare_controller_run(node)  # before the gains: they are given in joints order
 
 
 @pytest.mark.timeout(120)
@@ -94,19 +94,20 @@ def test_the_node_exits_2_on_an_unknown_joint(ros_env: dict) -> None:
 
 
 def test_the_goal_process_serves_the_nodes_parameters_as_the_node_would(node_with) -> None:  # noqa: ANN001
-    """The goal process's stand-in (:class:`~pdsmc_ros.controller.goal_process.ParameterStandIn`)
+    """The goal process's stand-in (:class:`~pdsmc_ros.controller.sidecar.parameter_stand_in.ParameterStandIn`)
     declares every parameter of the node as it is (values, unset gains, descriptors), refuses what the
     node refuses with the same reason, and hands accepted gains over (``("gains", gains, given)``)."""
     from pdsmc_ros.control.stability import check_rate
-    from pdsmc_ros.controller.goal_process import ParameterStandIn, parameter_table
     from pdsmc_ros.controller.parameters import declare_limit_parameters
+    from pdsmc_ros.controller.sidecar.goal_process import parameter_table
+    from pdsmc_ros.controller.sidecar.parameter_stand_in import ParameterStandIn
     from pdsmc_ros.loop.realtime_params import declare_realtime_parameters
 
     node = node_with(Parameter("robot", value="serial_3r"), Parameter("type", value="pd"),
                      Parameter("mode", value="realtime"), Parameter("rate", value=1000.0),
                      Parameter("joints", value=REORDERED),  # gains in joints order: joint3, joint1, joint2
                      Parameter("kp", value=[160.0, 800.0, 800.0]), Parameter("kd", value=[8.0, 40.0, 40.0]))
-    run = declare_node_run(node, gains=True)
+    run = declare_controller_run(node)
     robot = run.spec.robot_model()
     params = declare_controller_parameters(node, robot)
     declare_limit_parameters(node, robot, params, 1.0 / run.spec.rate, False, run.spec.reference().sample([0.0]).q[0])

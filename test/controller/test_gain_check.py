@@ -1,4 +1,4 @@
-"""The stability check of a gain change in a process of its own (controller/gain_check.py).
+"""The stability check of a gain change in a process of its own (controller/sidecar/gain_check.py).
 
 The child's answers must be the in-process check's, word for word; a child that dies or hangs is
 a refusal with the reason and is replaced; closing ends it. ROS-free.
@@ -15,7 +15,7 @@ import pytest
 
 from pdsmc_ros.control import Gains
 from pdsmc_ros.control.stability import check_rate
-from pdsmc_ros.controller.gain_check import CheckProcess, checked
+from pdsmc_ros.controller.sidecar.gain_check import CheckProcess, checked
 from pdsmc_ros.errors import ConfigError, PdsmcError
 from pdsmc_ros.runs.builder import make_run
 

@@ -16,10 +16,11 @@ from pdsmc_ros.bag.stamps import step_stamp
 from pdsmc_ros.controller import goals as g
 from pdsmc_ros.controller.commanding import TorqueGuard
 from pdsmc_ros.controller.core import ControllerCore
-from pdsmc_ros.controller.goal_process import STATE_BACKLOG, FrameReader, FrameWriter, GoalProcess
 from pdsmc_ros.controller.joint_trajectory import MAX_POINTS
 from pdsmc_ros.controller.joints import JointSelector
 from pdsmc_ros.controller.limits import JointLimits
+from pdsmc_ros.controller.sidecar.framing import STATE_BACKLOG, FrameReader, FrameWriter
+from pdsmc_ros.controller.sidecar.goal_process import GoalProcess
 from pdsmc_ros.parameters.joint_map import JointMap
 from pdsmc_ros.runs.builder import make_run
 

@@ -1,4 +1,4 @@
-"""The result of a goal lost with the goal process (:mod:`pdsmc_ros.controller.lost_results`), with a
+"""The result of a goal lost with the goal process (:mod:`pdsmc_ros.controller.sidecar.lost_results`), with a
 plain rclpy client of the action's ``get_result`` service in this process: a request is kept while
 the goal process serves, answered once the goal is told lost, and a lost goal's late request is
 answered until a new child serves."""
@@ -18,7 +18,7 @@ from control_msgs.action import FollowJointTrajectory  # noqa: E402
 from unique_identifier_msgs.msg import UUID  # noqa: E402
 
 from pdsmc_ros.controller.goals import INVALID_GOAL, Outcome  # noqa: E402
-from pdsmc_ros.controller.lost_results import LostResults  # noqa: E402
+from pdsmc_ros.controller.sidecar.lost_results import LostResults  # noqa: E402
 
 SERVICE = FollowJointTrajectory.Impl.GetResultService
 LOST = Outcome("aborted", INVALID_GOAL, "the goal process ended (killed by SIGKILL): the goal was aborted")

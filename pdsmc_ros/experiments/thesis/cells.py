@@ -85,7 +85,7 @@ GAIN_READINGS: dict[tuple[str, str, str], tuple[dict[str, list[float]], str]] = 
 }
 
 
-def read_gains(robot: str, contour: str, controller: str) -> Gains | None:
+def gains_as_read(robot: str, contour: str, controller: str) -> Gains | None:
     """The preset gains with :data:`GAIN_READINGS` applied, or None if none applies."""
     reading = GAIN_READINGS.get((robot, contour, controller))
     if reading is None:
@@ -144,7 +144,7 @@ def matrix_specs(
                         contour,
                         controller,
                         scenario=scenario,
-                        gains=read_gains(robot, contour, controller) if gain_readings else None,
+                        gains=gains_as_read(robot, contour, controller) if gain_readings else None,
                         smc_model=model if law(controller).model_based else None,
                         payload_reading=payload_reading,
                     )

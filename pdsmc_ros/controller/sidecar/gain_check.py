@@ -7,11 +7,11 @@ holds the interpreter's lock beside the control loop: ``bench/storm.py --roles p
 the loop's p99 lateness 4.2 times its idle value, and with a core busy the driver's states went
 stale within 2 ms of a change (the check ran at SCHED_FIFO 1 there; at normal scheduling it held
 the lock while preempted, which was worse). :class:`CheckProcess` runs it in a child process
-instead: a fresh interpreter (``python -m pdsmc_ros.controller.gain_check``: no rclpy, none of
-the parent's threads or locks) at normal scheduling, which builds the run's reference once and
-answers each check over its standard input and output (pickles); the thread that asks waits on
-the pipe, without the lock. Lockstep controllers, which have no deadline, check in
-their own process (:func:`checked`). ROS-free.
+instead: a fresh interpreter (``python -m pdsmc_ros.controller.sidecar.gain_check``: no rclpy,
+none of the parent's threads or locks; :mod:`.process`) at normal scheduling, which builds the
+run's reference once and answers each check over its standard input and output (:mod:`.framing`'s
+frames); the thread that asks waits on the pipe, without the lock. Lockstep controllers, which
+have no deadline, check in their own process (:func:`checked`). ROS-free.
 """
 
 from __future__ import annotations
@@ -20,18 +20,19 @@ import contextlib
 import os
 import pickle
 import select
-import signal
 import subprocess
 import sys
 import threading
 import time
 from collections.abc import Callable
-from typing import Any
+from typing import Any, cast
 
-from ..control.stability import check_rate
-from ..errors import ConfigError, PdsmcError
-from ..robots.registry import find_robot, register_robot, robot_config
-from ..runs.builder import RunSpec
+from ...control.stability import check_rate
+from ...errors import ConfigError, PdsmcError
+from ...robots.registry import find_robot, register_robot, robot_config
+from ...runs.builder import RunSpec
+from .framing import FrameReader, frame, write_all
+from .process import as_child, kill, spawn, stopped
 
 WATCH_S = 0.1
 """How often a check waiting for its answer looks whether the child was stopped."""
@@ -80,9 +81,10 @@ class CheckProcess:
         # the child's start: the run, the check's keywords and the arm as registered here (a URDF arm
         # named, given as a path or received on /robot_description is registered in-process)
         arm = find_robot(spec.robot), dict(robot_config(spec.robot))
-        self.first_message = pickle.dumps((spec, self.stability, *arm))
+        self.first_message = frame((spec, self.stability, *arm))
         self.lock = threading.Lock()  # one check at a time on the pipe
         self.process: subprocess.Popen[bytes] | None = None
+        self.answers: FrameReader | None = None  # the child's output, read without waiting
 
     @classmethod
     def for_run(cls, spec: RunSpec, stability: dict[str, Any]) -> CheckProcess | None:
@@ -99,7 +101,7 @@ class CheckProcess:
             try:
                 process = self._started()
                 _send(process, spec)
-                reply = _receive(process, self.timeout_s)
+                reply = _receive(process, self.answers, self.timeout_s)
             except (OSError, EOFError, TimeoutError, pickle.UnpicklingError) as exc:
                 self._stop()
                 with contextlib.suppress(OSError):
@@ -125,27 +127,19 @@ class CheckProcess:
     def _started(self) -> subprocess.Popen[bytes]:
         if self.process is None or self.process.poll() is not None:
             self._stop()
-            # stdout is the answers' pipe; the child's stderr is the node's (its log)
-            self.process = subprocess.Popen([sys.executable, "-m", __name__], stdin=subprocess.PIPE,
-                                            stdout=subprocess.PIPE)
-            if self.process.stdin is None:  # pragma: no cover - started with a pipe
-                raise OSError("no pipe to the check process")
+            self.process = spawn(__name__)  # stdout is the answers' pipe; its stderr is the node's (its log)
+            if self.process.stdin is None or self.process.stdout is None:  # pragma: no cover - started with pipes
+                raise OSError("no pipes to the check process")
+            os.set_blocking(self.process.stdout.fileno(), False)
+            self.answers = FrameReader(self.process.stdout.fileno())
             self.process.stdin.write(self.first_message)
             self.process.stdin.flush()
         return self.process
 
     def _stop(self) -> None:
         process, self.process = self.process, None
-        if process is None:
-            return
-        if process.poll() is None:
-            process.kill()
-        for pipe in (process.stdin, process.stdout):
-            if pipe is not None:
-                with contextlib.suppress(OSError):
-                    pipe.close()
-        with contextlib.suppress(subprocess.TimeoutExpired):
-            process.wait(timeout=5.0)
+        if process is not None:
+            kill(process, 5.0)
 
     def close(self) -> None:
         """End the child, if it started."""
@@ -156,12 +150,12 @@ class CheckProcess:
 def _send(process: subprocess.Popen[bytes], obj: object) -> None:
     if process.stdin is None:  # pragma: no cover - started with a pipe
         raise OSError("no pipe to the check process")
-    pickle.dump(obj, process.stdin)
+    process.stdin.write(frame(obj))
     process.stdin.flush()
 
 
-def _receive(process: subprocess.Popen[bytes], timeout_s: float) -> object:
-    if process.stdout is None:  # pragma: no cover - started with a pipe
+def _receive(process: subprocess.Popen[bytes], answers: FrameReader | None, timeout_s: float) -> object:
+    if answers is None:  # pragma: no cover - set with the process
         raise OSError("no pipe from the check process")
     deadline = time.monotonic() + timeout_s
     while True:
@@ -169,49 +163,43 @@ def _receive(process: subprocess.Popen[bytes], timeout_s: float) -> object:
         if left <= 0.0:
             raise TimeoutError(f"no answer in {timeout_s:g} s")
         # waits without the interpreter's lock, looking now and then whether the child was stopped
-        ready, _, _ = select.select([process.stdout], [], [], min(left, WATCH_S))
+        ready, _, _ = select.select([answers.fd], [], [], min(left, WATCH_S))
         if ready:
-            return pickle.load(process.stdout)
+            replies = answers.read()
+            if replies:
+                return replies[0]  # one question at a time: one answer
+            if answers.closed:
+                raise EOFError("the check process ended")
+            continue  # part of the answer: the rest follows
         if stopped(process.pid):
             raise TimeoutError("the process is stopped (SIGSTOP): it would not answer")
-
-
-def stopped(pid: int) -> bool:
-    """Whether process ``pid`` is stopped (``SIGSTOP``, a debugger): state T or t in ``/proc/PID/stat``."""
-    try:
-        with open(f"/proc/{pid}/stat", "rb") as stat:
-            state = stat.read().rsplit(b")", 1)[1].split()[0]
-    except (OSError, IndexError):
-        return False
-    return state in (b"T", b"t")
 
 
 def main() -> None:
     """The child: the run and the check's keywords first, then for each spec received ``None``
     (stable) or the refusal's text, until its input closes."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # a Ctrl-C to the group is the parent's to handle
-    with contextlib.suppress(OSError, AttributeError):  # never a real-time policy inherited from a loop thread
-        os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
-    requests, answers = sys.stdin.buffer, sys.stdout.buffer
-    try:
-        spec, stability, arm, config = pickle.load(requests)
-    except EOFError:
+    as_child()
+    requests, out = FrameReader(sys.stdin.fileno()), sys.stdout.fileno()
+    waiting = requests.read_blocking()
+    if not waiting:
         return
+    spec, stability, arm, config = cast(tuple[RunSpec, dict[str, Any], Any, dict[str, Any]], waiting.pop(0))
     if arm is not None and find_robot(spec.robot) is None:
         register_robot(arm, config=config)
     reference = spec.reference()
     while True:
-        try:
-            new = pickle.load(requests)
-        except EOFError:
-            return  # the parent is gone
+        if not waiting:
+            waiting = requests.read_blocking()
+            if not waiting:
+                return  # the parent is gone
+        new = cast(RunSpec, waiting.pop(0))
         try:
             checked(lambda s: check_rate(s, reference, **stability), new)
             reply = None
         except PdsmcError as exc:
             reply = str(exc)
-        pickle.dump(reply, answers)
-        answers.flush()
+        with contextlib.suppress(OSError):  # the parent gone: the next read ends this process
+            write_all(out, frame(reply))
 
 
 if __name__ == "__main__":

@@ -33,8 +33,8 @@ from control_msgs.action import FollowJointTrajectory
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-from ..rclpy_internals import take_request
-from .goals import Outcome
+from ...rclpy_internals import take_request
+from ..goals import Outcome
 
 KEPT_REQUESTS = 64
 """Goals whose result requests are kept, the newest (one goal runs at a time; a client asks once)."""
@@ -42,7 +42,7 @@ KEPT_LOST = 16
 """Lost goals whose outcome is kept for requests that arrive until the new child serves."""
 STATUS = {"succeeded": GoalStatus.STATUS_SUCCEEDED, "canceled": GoalStatus.STATUS_CANCELED,
           "aborted": GoalStatus.STATUS_ABORTED}
-"""An :class:`~.goals.Outcome`'s status as ``action_msgs/GoalStatus``'s."""
+"""An :class:`~pdsmc_ros.controller.goals.Outcome`'s status as ``action_msgs/GoalStatus``'s."""
 
 
 class LostResults:
