@@ -368,6 +368,28 @@ def figure(rows: list[dict[str, Any]], path: Path) -> None:
     plt.close(fig)
 
 
+V_REST_CASES = (("ur5", "circle", "nominal"), ("ur5", "ellipse", "nominal"),
+                ("parallel_5r", "ellipse_horizontal", "nominal"), ("parallel_5r", "ellipse_horizontal", "high_speed"),
+                ("serial_3r", "ellipse", "nominal"))
+"""The cases of ``--v-rest``: where ``v0`` trades the contour error against the margin or the effort."""
+
+
+def v_rest_table(values: list[float]) -> str:
+    """``pdsmc_pos``'s ratio to ``pdsmc``, real-time margin and peak torque share for each ``v0`` of
+    ``values`` (the presets' other gains), on :data:`V_REST_CASES`: a markdown table."""
+    out = ["| case | " + " | ".join(f"v0 = {v:g}" for v in values) + " |", "| --- |" + " --- |" * len(values)]
+    for robot, contour, scenario in V_REST_CASES:
+        base = one_run(make_run(robot, contour, "pdsmc", scenario=scenario), "pdsmc")
+        cells = []
+        for v in values:
+            row = one_run(make_run(robot, contour, "pdsmc_pos", scenario=scenario, overrides={"v_rest": [v]}),
+                          "pdsmc_pos")
+            cells.append(f"{row.get('contour_mean', math.nan) / base['contour_mean']:.3f}, "
+                         f"x{row['margin_realtime']:.3f}, {row.get('effort_share', math.nan):.2f}")
+        out.append(f"| {robot} {contour} {scenario} | " + " | ".join(cells) + " |")
+    return "\n".join(out)
+
+
 def report(row: dict[str, Any]) -> None:
     print(f"{row['robot']} {row['contour']} {row['scenario']} {row['law']} x{row['gain_factor']:.3g}: "
           f"{row.get('contour_mean', math.nan):.3e} margin x{row['margin_realtime']:.2f} {row['diverged']}", flush=True)
@@ -379,6 +401,9 @@ def main() -> int:
     parser.add_argument("--quick", action="store_true", help="nominal only, no Monte Carlo")
     parser.add_argument("--runs", type=int, default=20, help="Monte Carlo plants per close case")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--v-rest", default="",
+                        help="comma-separated v0 values (rad/s): print pdsmc_pos's ratio, real-time margin and peak "
+                             "torque share for each on a few cases, and stop")
     parser.add_argument("--arms", default=",".join(ARMS), help="comma-separated arms of " + ", ".join(ARMS))
     parser.add_argument("--replot", action="store_true",
                         help="only draw the figure again from the runs of figures/position_domain.json under --out")
@@ -386,6 +411,15 @@ def main() -> int:
     if args.replot:
         saved = json.loads((Path(args.out) / "figures" / "position_domain.json").read_text())
         figure(saved["runs"], Path(args.out) / "figures" / "position_domain_ratios.png")
+        return 0
+    if args.v_rest:
+        try:
+            values = [float(x) for x in args.v_rest.split(",")]
+        except ValueError:
+            parser.error(f"--v-rest: comma-separated numbers > 0 (rad/s), got {args.v_rest!r}")
+        if not all(math.isfinite(v) and v > 0 for v in values):
+            parser.error(f"--v-rest: comma-separated numbers > 0 (rad/s), got {args.v_rest!r}")
+        print(v_rest_table(values))
         return 0
     arms = [a for a in args.arms.split(",") if a]
     if not arms or any(a not in ARMS for a in arms):
