@@ -239,7 +239,8 @@ def markdown(rows: list[dict[str, Any]], mc: list[dict[str, Any]], command: str,
            f"Written by `{command}` ({seconds:.0f} s on 2 shared cores); the laws and their equations:",
            ("[Position domain PD-SMC](explanation/position-domain.md). Every run: the arm's own rate, lockstep "
             "(the in-process plant), every law with the time-domain law's preset gains (`v0` = 0.05 rad/s "
-            "besides), the torque clamped to the effort limits."), "",
+            "besides; `@eq`: the position domain laws again at the time-domain law's real-time margin, "
+            "[below](#at-an-equal-stability-margin)), the torque clamped to the effort limits."), "",
            "## The contour error ratio, position / time domain", "",
            ("Mean contour error of the position-domain law over its time-domain law's (below 1: the position "
             "domain is better; the issue's goal for PD-SMC is 0.5). `pdsmc_vm`: the virtual master, the "
