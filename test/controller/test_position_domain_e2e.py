@@ -3,7 +3,8 @@
 The UR5 of example-robot-data in MuJoCo (``ros2 run pdsmc_ros mujoco_driver``) and the controller
 with ``type:=pdsmc_pos`` in real time at 1 kHz (the UR5's circle presets: the PD-SMC's, with
 ``v_rest = 0.7`` rad/s, the smallest of those measured that the real-time check accepts on the UR5's
-circle, x2.014; the presets' 0.05 gives x1.96 there: docs/explanation/position-domain.md), in a DDS domain of their own, stopped by PID. The goals
+circle, x2.014; the presets' 0.05 gives x1.96 there: docs/explanation/position-domain.md), in a DDS
+domain of their own, stopped by PID. The goals
 (``FollowJointTrajectory``) stop at every point, so the reference comes to rest at each (the law
 goes back to the time domain there, docs/explanation/position-domain.md); one has a segment in which
 the first segment's master, the shoulder pan, stays at rest while the shoulder lift and the elbow
