@@ -174,11 +174,13 @@ def test_a_light_joint_never_masters_a_heavy_one() -> None:
     assert m == 0
     assert np.all(k * np.abs(qd) <= k[m] * abs(qd[m]))
     assert check_gains(spec, mode="realtime").rate.passes
-def test_the_linearisation_is_the_laws_own_slope() -> None:
+@pytest.mark.parametrize(("robot", "contour", "at"), [("parallel_5r", "circle", 1.3), ("ur5", "zigzag", 7.333)])
+def test_the_linearisation_is_the_laws_own_slope(robot: str, contour: str, at: float) -> None:
     """The stability check's ``(Kp_eff E, Kd_eff E)`` against the compiled law's torque differenced
-    at the reference, inside the boundary layer."""
-    spec = make_run("parallel_5r", "circle", "pdsmc_pos")
-    ref = spec.reference().sample(np.array([1.3]))
+    at the reference, inside the boundary layer (the UR5's zigzag at 7.333 s: wrist 1 moves fastest, the
+    elbow has the largest stiffness-weighted speed: the check's master must be the law's)."""
+    spec = make_run(robot, contour, "pdsmc_pos")
+    ref = spec.reference().sample(np.array([at]))
     q_d, qd_d, qdd_d = ref.q[0], ref.qd[0], ref.qdd[0]
     mass = spec.robot_model().mass_matrix(q_d)
     kp_eff, kd_eff = effective_gains(spec, mass, qd_d, qdd_d)  # type: ignore[misc]
