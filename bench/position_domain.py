@@ -177,18 +177,19 @@ def one_run(spec: Any, label: str, factor: float = 1.0) -> dict[str, Any]:
 
 
 def static_ratio(spec: Any, result: Any) -> tuple[float, float]:
-    """What the master's error adds to a time-domain run's contour error, linearised: the mean of
-    ``|(I - t t^T) J (e - c e_m)|`` over the mean of ``|(I - t t^T) J e|`` (``e = q_d - q`` sampled,
-    ``J`` the task Jacobian, ``t`` the unit tangent ``J qd_d``, ``c`` the master's axis: the joint
-    ``pdsmc_pos`` masters with, :func:`master_sequence`). In the position domain's equilibrium the slaves
-    follow the master, so its error leaves the contour (docs/explanation/position-domain.md); this ratio
-    is that effect alone. Returned with the master's own share, the mean of ``|(I - t t^T) J c e_m|``
-    over the same: the two shares add to more than 1 where the master's and the slaves' errors cancel
-    across the path."""
+    """What the master's error adds to a time-domain run's contour error, linearised: the mean of ``|(I - t
+    t^T) J (e - c e_m)|`` over the mean of ``|(I - t t^T) J e|`` (``e = q_d - q`` sampled, ``J`` the task
+    Jacobian's rows in the contour's plane, ``t`` the unit tangent ``J qd_d``, ``c`` the master's axis: the
+    joint ``pdsmc_pos`` masters with, :func:`master_sequence`). In the position domain's equilibrium the
+    slaves follow the master, so its error leaves the contour (docs/explanation/position-domain.md); this
+    ratio is that effect alone. Returned with the master's own share, the mean of ``|(I - t t^T) J c e_m|``
+    over the same: the two shares add to more than 1 where the master's and the slaves' errors cancel across
+    the path."""
     samples = result.samples
     ref = spec.reference().sample(samples.t)
     model = spec.robot_model()
-    jac = model.jacobian(samples.q)
+    jac = model.jacobian(samples.q)[:, :2, :]  # the contour's plane (x, y; a spatial arm's u, v): the rows the
+    # contour error is measured in (a serial arm's and the UR5's third row is the pose angle, not on the path)
     e = ref.q - samples.q
     master = master_sequence(make_run(spec.robot, spec.contour, "pdsmc_pos", scenario=spec.scenario), samples.t)
     e_slaves = e.copy()
