@@ -212,8 +212,8 @@ def pdsmc_pos_linear_gains(g: FloatArray, smc_model: FloatArray, mass: FloatArra
 def law_error_map(g: FloatArray, qd_ref: FloatArray, qdd_ref: FloatArray) -> tuple[FloatArray, FloatArray]:
     """:func:`error_map` with the law's ``v0`` (its gain matrix's :data:`V_REST` row) and master (the joints'
     stiffness ``Kp + Ks lambda / phi`` weighting their speeds, as :func:`master_joint` does)."""
-    weights = g[KP] + g[KS] * g[LAM] / g[PHI]
-    return error_map(qd_ref, qdd_ref, float(g[V_REST, 0]), weights[:len(qd_ref)])
+    weights = np.array([stiffness(g, i) for i in range(len(qd_ref))])
+    return error_map(qd_ref, qdd_ref, float(g[V_REST, 0]), weights)
 
 
 def v_rest_preset(source: Mapping[str, FloatArray], model: Manipulator,  # noqa: ARG001
