@@ -34,11 +34,15 @@ position-domain derivative gain is ``Kd`` times the master's reference speed, so
 (the thesis's, in their units) serves both domains and every speed of the master, and at the
 reference (``sigma_dot = 1``) the slaves' gains are the time-domain law's.
 
-The master is the joint whose reference moves fastest, chosen anew per segment: another joint
-takes over when its reference speed exceeds the master's by :data:`SWITCH_RATIO` (the master's
-index is the law's state, so the choice does not flicker between two joints of nearly equal
-speed). No joint of the circle or the ellipse moves monotonically over the whole contour; the
-fastest one does over each of its segments, and is far from its turning points there.
+The master is the joint whose reference moves fastest, its speed weighted by its stiffness (``Kp + Ks
+lambda / phi``), chosen anew per segment: another joint takes over when its weighted speed exceeds the
+master's by :data:`SWITCH_RATIO` (the master's index is the law's state, so the choice does not flicker
+between two joints of nearly equal speed). The weight keeps a light joint from mastering a heavy one:
+a slave feeds back ``k_s (qd_s,d / qd_m,d) e_m`` of the master's error, at most ``k_m e_m`` so weighted;
+unweighted, the UR5's wrists (``Kp`` 43-633) mastered its shoulder and elbow (``Kp`` 2131-8037) and the
+real-time margin fell from x2.05-2.45 to x0.34-1.36 (``docs/explanation/position-domain.md``). No joint
+of the circle or the ellipse moves monotonically over the whole contour; the master does over each of
+its segments, and is far from its turning points there.
 :func:`error_map` is the law's linearisation for the stability check; the docs derive it
 (``docs/explanation/position-domain.md``).
 """
@@ -77,7 +81,7 @@ SIGMA_DOT_MIN = 0.8
 position-domain derivative ``qd / sigma_dot`` is at most 1.25 times its time-domain value (a master
 stalled, reversing against its reference, or measured with noise near rest)."""
 SWITCH_RATIO = 1.25
-"""A joint becomes the master when its reference speed exceeds the master's by this factor."""
+"""A joint becomes the master when its stiffness-weighted reference speed exceeds the master's by this factor."""
 
 
 @njit(cache=True, inline="always")
@@ -86,15 +90,24 @@ def _clamp(x, lo, hi):  # noqa: ANN001, ANN202
 
 
 @njit(cache=True, inline="always")
-def master_joint(qd_ref, state, n):  # noqa: ANN001, ANN201
-    """The master of this segment (0-based): the joint of the fastest reference, kept until another's
-    reference is :data:`SWITCH_RATIO` times faster; ``state[0, 0]`` holds it (plus one, 0: none yet)."""
+def stiffness(g, i):  # noqa: ANN001, ANN201
+    """Joint ``i``'s stiffness inside the boundary layer, ``Kp + Ks lambda / phi`` (Eq. 3.44 linear; ``Kp``
+    for the PD, whose ``ks`` row is 0): the weight of its reference speed in the master's choice."""
+    return g[KP, i] + g[KS, i] * g[LAM, i] / g[PHI, i]
+
+
+@njit(cache=True, inline="always")
+def master_joint(g, qd_ref, state, n):  # noqa: ANN001, ANN201
+    """The master of this segment (0-based): the joint of the largest ``k_i |qd_i,d|`` (``k_i`` its
+    :func:`stiffness`), kept until another's is :data:`SWITCH_RATIO` times larger; ``state[0, 0]`` holds it
+    (plus one, 0: none yet). Weighted so, a slave's stiffness on the master's error, ``k_s |qd_s,d / qd_m,d|``,
+    is at most the master's own ``k_m``: a light joint (a wrist) never drags a heavy one's reference."""
     best = 0
     for i in range(1, n):
-        if abs(qd_ref[i]) > abs(qd_ref[best]):
+        if stiffness(g, i) * abs(qd_ref[i]) > stiffness(g, best) * abs(qd_ref[best]):
             best = i
     m = int(state[0, 0]) - 1
-    if m < 0 or m >= n or abs(qd_ref[best]) > SWITCH_RATIO * abs(qd_ref[m]):
+    if m < 0 or m >= n or stiffness(g, best) * abs(qd_ref[best]) > SWITCH_RATIO * stiffness(g, m) * abs(qd_ref[m]):
         m = best
         state[0, 0] = m + 1.0
     return m
@@ -135,7 +148,7 @@ def position_domain(g, q, qd, q_ref, qd_ref, qdd_ref, tau, n, state, virtual):  
         rate = _clamp(1.0 + num / den, SIGMA_DOT_MIN, 1.0 / SIGMA_DOT_MIN)
         m = -1
     else:
-        m = master_joint(qd_ref, state, n)
+        m = master_joint(g, qd_ref, state, n)
         v = qd_ref[m]
         delta = v * (q[m] - q_ref[m]) / (v * v + v0 * v0)
         vs = v + qdd_ref[m] * delta
@@ -154,7 +167,8 @@ def position_domain(g, q, qd, q_ref, qd_ref, qdd_ref, tau, n, state, virtual):  
         tau[i] = _pdsmc_joint(g, e, ed, i)
 
 
-def error_map(qd_ref: FloatArray, qdd_ref: FloatArray, v0: float) -> tuple[FloatArray, FloatArray]:
+def error_map(qd_ref: FloatArray, qdd_ref: FloatArray, v0: float,
+              weights: FloatArray | None = None) -> tuple[FloatArray, FloatArray]:
     """The law linearised at the reference: the errors it feeds back are ``E e`` and ``E edot + G e``
     in place of the time-domain ``e = q_d - q`` and ``edot``, so ``tau = Kp E e + Kd (E edot + G e) + ...``.
 
@@ -165,13 +179,15 @@ def error_map(qd_ref: FloatArray, qdd_ref: FloatArray, v0: float) -> tuple[Float
     with ``sigma_dot`` through the master's: ``G`` has the master column's slave entries
     ``-a (qdd_s,d - a qd_s,d qdd_m,d)``, for ``|v| >> v0`` ``-v q_s,d''`` (the slave's reference curvature
     in the master's position domain, ``q_s,d'' = (qdd_s,d - q_s,d' qdd_m,d) / v^2``). ``sigma_dot`` is 1 at
-    the reference, inside its guard. The master is the fastest joint of ``qd_ref`` (the hysteresis of
-    :data:`SWITCH_RATIO` left out).
+    the reference, inside its guard. The master is the joint of the largest ``weights_i |qd_i,d|``
+    (:func:`master_joint`: the joints' stiffness; None: equal weights), the hysteresis of
+    :data:`SWITCH_RATIO` left out.
     """
     qd_ref = np.asarray(qd_ref, dtype=float)
     qdd_ref = np.asarray(qdd_ref, dtype=float)
     n = qd_ref.shape[0]
-    m = int(np.argmax(np.abs(qd_ref)))
+    w = np.ones(n) if weights is None else np.asarray(weights, dtype=float)
+    m = int(np.argmax(w * np.abs(qd_ref)))
     v = float(qd_ref[m])
     a = v / (v * v + v0 * v0)
     e_map, g_map = np.eye(n), np.zeros((n, n))
@@ -194,8 +210,10 @@ def pdsmc_pos_linear_gains(g: FloatArray, smc_model: FloatArray, mass: FloatArra
 
 
 def law_error_map(g: FloatArray, qd_ref: FloatArray, qdd_ref: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """:func:`error_map` with the law's ``v0`` (its gain matrix's :data:`V_REST` row)."""
-    return error_map(qd_ref, qdd_ref, float(g[V_REST, 0]))
+    """:func:`error_map` with the law's ``v0`` (its gain matrix's :data:`V_REST` row) and master (the joints'
+    stiffness ``Kp + Ks lambda / phi`` weighting their speeds, as :func:`master_joint` does)."""
+    weights = np.array([stiffness(g, i) for i in range(len(qd_ref))])
+    return error_map(qd_ref, qdd_ref, float(g[V_REST, 0]), weights)
 
 
 def v_rest_preset(source: Mapping[str, FloatArray], model: Manipulator,  # noqa: ARG001

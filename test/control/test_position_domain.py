@@ -63,6 +63,11 @@ def hand_pdsmc_pos(g: np.ndarray, master: int, q: np.ndarray, qd: np.ndarray, q_
     return tau
 
 
+def stiffness_of(g: np.ndarray) -> np.ndarray:
+    """Each joint's ``Kp + Ks lambda / phi``, the weight of its speed in the master's choice."""
+    return g[0] + g[2] * g[3] / g[4]
+
+
 @pytest.mark.parametrize("controller", ["pdsmc_pos", "pd_pos"])
 def test_the_law_is_its_hand_computation_on_the_serial_arm(controller: str) -> None:
     spec = make_run("serial_3r", "circle", controller)
@@ -70,10 +75,10 @@ def test_the_law_is_its_hand_computation_on_the_serial_arm(controller: str) -> N
     rng = np.random.default_rng(53)
     ref = spec.reference().sample(rng.uniform(0.3, 3.7, 25))
     for k in range(25):
-        control = ControlLaw.from_spec(spec)  # a fresh law: its master is this reference's fastest joint
+        control = ControlLaw.from_spec(spec)  # a fresh law: its master is this reference's fastest joint, weighted
         q = ref.q[k] + rng.normal(0, 2e-3, 3)
         qd = ref.qd[k] + rng.normal(0, 2e-2, 3)
-        master = int(np.argmax(np.abs(ref.qd[k])))
+        master = int(np.argmax(stiffness_of(g) * np.abs(ref.qd[k])))
         expected = hand_pdsmc_pos(g, master, q, qd, ref.q[k], ref.qd[k], ref.qdd[k])
         got = control.torque(q, qd, ref.q[k], ref.qd[k], ref.qdd[k])
         assert np.allclose(got, expected, rtol=1e-12, atol=1e-12 * np.max(np.abs(expected)))
@@ -143,21 +148,39 @@ def test_a_stalled_master_holds_the_slaves_derivative_gain() -> None:
 
 def test_the_master_changes_past_the_switch_ratio_only() -> None:
     spec = make_run("serial_3r", "circle", "pdsmc_pos")
+    k = stiffness_of(spec.gains.matrix())
     control = ControlLaw.from_spec(spec)
     q, zero = np.zeros(3), np.zeros(3)
-    control.torque(q, zero, q, np.array([1.0, 0.5, 0.0]), zero)
-    assert control.state[0, 0] == 1.0  # joint 1, the fastest
-    control.torque(q, zero, q, np.array([1.0, 0.99 * SWITCH_RATIO, 0.0]), zero)
+    control.torque(q, zero, q, np.array([1.0, 0.5 * k[0] / k[1], 0.0]), zero)
+    assert control.state[0, 0] == 1.0  # joint 1, the fastest by its weighted speed
+    control.torque(q, zero, q, np.array([1.0, 0.99 * SWITCH_RATIO * k[0] / k[1], 0.0]), zero)
     assert control.state[0, 0] == 1.0  # faster, not by the ratio: kept
-    control.torque(q, zero, q, np.array([1.0, 1.01 * SWITCH_RATIO, 0.0]), zero)
+    control.torque(q, zero, q, np.array([1.0, 1.01 * SWITCH_RATIO * k[0] / k[1], 0.0]), zero)
     assert control.state[0, 0] == 2.0
 
 
-def test_the_linearisation_is_the_laws_own_slope() -> None:
+def test_a_light_joint_never_masters_a_heavy_one() -> None:
+    """The master is chosen by its speed weighted by its stiffness: on the UR5's circle the shoulder pan
+    (``Kp`` 2808) masters, not the wrist 3 moving as fast (``Kp`` 43), so no slave feeds back more of the
+    master's error than the master itself, and the position domain PD passes the real-time check (x2 with
+    two periods of delay; the fastest joint unweighted as master: unstable at any rate)."""
+    spec = make_run("ur5", "circle", "pd_pos")
+    k = stiffness_of(spec.gains.matrix())
+    qd = np.array([-0.548, 0.018, -0.211, 0.193, 0.0, -0.5481])  # the circle at t = 1.667 s: wrist 3 a hair faster
+    control = ControlLaw.from_spec(spec)
+    q = spec.reference().sample(np.array([1.667])).q[0]
+    control.torque(q, np.zeros(6), q, qd, np.zeros(6))
+    m = int(control.state[0, 0]) - 1
+    assert m == 0
+    assert np.all(k * np.abs(qd) <= k[m] * abs(qd[m]))
+    assert check_gains(spec, mode="realtime").rate.passes
+@pytest.mark.parametrize(("robot", "contour", "at"), [("parallel_5r", "circle", 1.3), ("ur5", "zigzag", 7.333)])
+def test_the_linearisation_is_the_laws_own_slope(robot: str, contour: str, at: float) -> None:
     """The stability check's ``(Kp_eff E, Kd_eff E)`` against the compiled law's torque differenced
-    at the reference, inside the boundary layer."""
-    spec = make_run("parallel_5r", "circle", "pdsmc_pos")
-    ref = spec.reference().sample(np.array([1.3]))
+    at the reference, inside the boundary layer (the UR5's zigzag at 7.333 s: wrist 1 moves fastest, the
+    elbow has the largest stiffness-weighted speed: the check's master must be the law's)."""
+    spec = make_run(robot, contour, "pdsmc_pos")
+    ref = spec.reference().sample(np.array([at]))
     q_d, qd_d, qdd_d = ref.q[0], ref.qd[0], ref.qdd[0]
     mass = spec.robot_model().mass_matrix(q_d)
     kp_eff, kd_eff = effective_gains(spec, mass, qd_d, qdd_d)  # type: ignore[misc]
@@ -172,7 +195,7 @@ def test_the_linearisation_is_the_laws_own_slope() -> None:
         slope_qd[:, j] = (tau(q_d, qd_d + dx) - tau(q_d, qd_d - dx)) / (2 * h)
     assert np.allclose(-slope_q, kp_eff, rtol=1e-5, atol=1e-6 * np.max(np.abs(kp_eff)))
     assert np.allclose(-slope_qd, kd_eff, rtol=1e-5, atol=1e-6 * np.max(np.abs(kd_eff)))
-    e_map, g_map = error_map(qd_d, qdd_d, V_REST_PRESET)
+    e_map, g_map = error_map(qd_d, qdd_d, V_REST_PRESET, stiffness_of(spec.gains.matrix()))
     assert not np.allclose(e_map, np.eye(n)) and np.any(g_map != 0.0)  # the slaves ignore the master's lag
 
 

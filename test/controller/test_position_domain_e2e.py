@@ -2,8 +2,9 @@
 
 The UR5 of example-robot-data in MuJoCo (``ros2 run pdsmc_ros mujoco_driver``) and the controller
 with ``type:=pdsmc_pos`` in real time at 1 kHz (the UR5's circle presets: the PD-SMC's, with
-``v_rest = 0.5`` rad/s, the smallest of those measured that the real-time check accepts on the UR5,
-x2.02: docs/explanation/position-domain.md), in a DDS domain of their own, stopped by PID. The goals
+``v_rest = 0.7`` rad/s, the smallest of those measured that the real-time check accepts on the UR5's
+circle, x2.014; the presets' 0.05 gives x1.96 there: docs/explanation/position-domain.md), in a DDS
+domain of their own, stopped by PID. The goals
 (``FollowJointTrajectory``) stop at every point, so the reference comes to rest at each (the law
 goes back to the time domain there, docs/explanation/position-domain.md); one has a segment in which
 the first segment's master, the shoulder pan, stays at rest while the shoulder lift and the elbow
@@ -101,7 +102,7 @@ def test_goals_that_turn_back_and_leave_the_master_at_rest_end_calm(ros_env: dic
                               stdout=(tmp_path / "driver.log").open("w"), stderr=subprocess.STDOUT,
                               start_new_session=True),
              subprocess.Popen(["ros2", "run", "pdsmc_ros", "controller", *COMMON, "-p", "robot:=ur5",
-                               "-p", "contour:=circle", "-p", "type:=pdsmc_pos", "-p", "v_rest:=0.5",
+                               "-p", "contour:=circle", "-p", "type:=pdsmc_pos", "-p", "v_rest:=0.7",
                                "-p", "mode:=realtime", "-p", "rate:=1000.0", "-p", "sample_rate:=500.0",
                                "-p", "stale_periods:=200"],
                               env=env, stdout=(tmp_path / "controller.log").open("w"), stderr=subprocess.STDOUT,
