@@ -20,6 +20,11 @@ The command's writer thread publishes serialized bytes with the interpreter lock
 rclpy's ``publish`` never does: :class:`SerializedPublish` calls rcl's
 ``rcl_publish_serialized_message`` through ctypes on the publisher's private handle pointer.
 
+Every call on a private handle is made here too, or bound here once: the serve loop and the
+recorder wait on their subscriptions with a :class:`SubscriptionWaitSet` (woken by a :class:`WakeUp`
+from another thread) and take their messages with :func:`take_raw`; the guarded publishers write
+serialized bytes with :func:`raw_publisher`.
+
 The controller's process keeps the result requests of the goal process's goals, taking them from a
 service no executor spins (:func:`take_request`): rclpy takes a service's requests only in its
 executor.
@@ -28,6 +33,7 @@ executor.
 from __future__ import annotations
 
 import ctypes
+import functools
 import importlib.metadata
 import os
 from typing import Any
@@ -40,11 +46,6 @@ from rclpy.parameter import Parameter
 WRITTEN_AGAINST = "7.1.5"
 """The rclpy release this module was written and tested against (ROS 2 Jazzy's)."""
 
-WaitSet = _rclpy.WaitSet
-"""rcl's wait set: the serve loop and the recorder wait on their subscriptions' handles with it
-(``clear_entities``, ``add_subscription``, ``add_guard_condition``, ``wait``)."""
-GuardCondition = _rclpy.GuardCondition
-"""rcl's guard condition, made from a context's handle (the intra-process routes wake the loop with it)."""
 RCLError = _rclpy.RCLError
 """What rcl's bindings raise (a publish on a destroyed publisher, say)."""
 
@@ -52,6 +53,7 @@ USED = {
     "rclpy.impl.implementation_singleton.rclpy_implementation": (
         "WaitSet", "GuardCondition", "RCLError", "rclpy_logging_rcutils_log"),
     "rclpy_implementation.WaitSet": ("clear_entities", "add_subscription", "add_guard_condition", "wait"),
+    "rclpy_implementation.GuardCondition": ("trigger_guard_condition", "destroy_when_not_in_use"),
     "rclpy_implementation.Subscription": ("take_message",),
     "rclpy_implementation.Publisher": ("publish_raw", "pointer"),
     "rclpy_implementation.Service": ("service_take_request",),
@@ -68,6 +70,7 @@ def missing(node: Node | None = None) -> list[str]:
     holders: dict[str, Any] = {
         "rclpy.impl.implementation_singleton.rclpy_implementation": _rclpy,
         "rclpy_implementation.WaitSet": getattr(_rclpy, "WaitSet", None),
+        "rclpy_implementation.GuardCondition": getattr(_rclpy, "GuardCondition", None),
         "rclpy_implementation.Subscription": getattr(_rclpy, "Subscription", None),
         "rclpy_implementation.Publisher": getattr(_rclpy, "Publisher", None),
         "rclpy_implementation.Service": getattr(_rclpy, "Service", None),
@@ -140,6 +143,69 @@ def declared_parameters(node: Node) -> dict[str, Parameter]:
         raise AttributeError(f"{__name__}: this rclpy ({installed_version()}) keeps no Node._parameters "
                              f"(written against {WRITTEN_AGAINST})") from None
     return declared
+
+
+class SubscriptionWaitSet:
+    """rcl's wait set (rclpy's private ``WaitSet``) over subscriptions' handles and at most
+    ``guards`` guard conditions: the serve loop and the recorder wait on their own subscriptions
+    with it, outside any executor (rclpy's public ``WaitSet`` is its executor's own).
+
+    Parameters
+    ----------
+    subscriptions, guards : int
+        How many subscriptions and :class:`WakeUp` guard conditions a :meth:`wait` may be given.
+    context : rclpy.context.Context
+        The context the subscriptions belong to.
+    """
+
+    def __init__(self, subscriptions: int, guards: int, context: Any) -> None:
+        self._wait_set = _rclpy.WaitSet(subscriptions, guards, 0, 0, 0, 0, context.handle)
+
+    def wait(self, handles: Any, timeout_ns: int, wake_up: WakeUp | None = None) -> None:
+        """Wait until one of the subscriptions' ``handles`` (their rclpy ``Subscription.handle``)
+        has a message, ``wake_up`` is triggered, or ``timeout_ns`` has passed."""
+        wait_set = self._wait_set
+        wait_set.clear_entities()
+        for handle in handles:
+            wait_set.add_subscription(handle)
+        if wake_up is not None:
+            wait_set.add_guard_condition(wake_up.guard)
+        wait_set.wait(timeout_ns)
+
+
+class WakeUp:
+    """A guard condition of no node (rclpy's private ``GuardCondition`` made from a context's
+    handle): a thread that queues a message for the loop wakes the loop's :class:`SubscriptionWaitSet`."""
+
+    def __init__(self, context: Any) -> None:
+        self.guard = _rclpy.GuardCondition(context.handle)
+
+    def trigger(self) -> None:
+        self.guard.trigger_guard_condition()
+
+    def destroy(self) -> None:
+        self.guard.destroy_when_not_in_use()
+
+
+def take_raw(subscription: Any) -> Any:
+    """``take()``: the next serialized message of an rclpy ``subscription`` (created with
+    ``raw=True``) and its message info, ``(data, info)``, or None if none waits -- rclpy's private
+    ``handle.take_message``, bound once (a C partial: no Python call in the loop's path)."""
+    return functools.partial(subscription.handle.take_message, subscription.msg_type, True)
+
+
+def raw_publisher(publisher: Any) -> Any:
+    """``publish(data)``: serialized bytes written by an rclpy ``publisher`` (its private
+    ``handle.publish_raw``, under the handle's guard against its destruction meanwhile); raises
+    :data:`RCLError` as rclpy's ``publish`` does."""
+    handle = publisher.handle
+    raw = handle.publish_raw
+
+    def publish(data: bytes) -> None:
+        with handle:
+            raw(data)
+
+    return publish
 
 
 def take_request(service: Any) -> tuple[Any, Any] | None:

@@ -13,7 +13,9 @@ from pdsmc_ros import rclpy_internals  # noqa: E402
 
 PACKAGE = Path(__file__).resolve().parent.parent / "pdsmc_ros"
 PRIVATE = re.compile(r"implementation_singleton|\._parameter_overrides\b|\bnode\._parameters\b|"
-                     r"_parameter_event_publisher|rcl_publish_serialized_message|service_take_request")
+                     r"_parameter_event_publisher|rcl_publish_serialized_message|service_take_request|"
+                     r"take_message|publish_raw|clear_entities|add_guard_condition|trigger_guard_condition|"
+                     r"destroy_when_not_in_use|\bWaitSet\b|\bGuardCondition\b")
 """How a private rclpy, rcl or rmw name reads in the package's source."""
 
 

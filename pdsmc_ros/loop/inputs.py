@@ -108,12 +108,13 @@ def _taken_by_wait_set(_msg: bytes) -> None:  # pragma: no cover - never called
     """Callback of a lockstep input: its messages are taken by run_nodes' wait set."""
 
 
-def take_all(inputs: Sequence[tuple[Any, Any, Callable[[bytes], None]]]) -> bool:
-    """Hand every waiting message of ``inputs`` to its handler; whether there was any."""
+def take_all(inputs: Sequence[tuple[Any, Callable[[], Any], Callable[[bytes], None]]]) -> bool:
+    """Hand every waiting message of ``inputs`` (``(handle, take, handler)``, ``take`` as
+    :func:`~pdsmc_ros.rclpy_internals.take_raw` makes it) to its handler; whether there was any."""
     took = False
-    for handle, msg_type, handler in inputs:
+    for _, take, handler in inputs:
         while True:
-            taken = handle.take_message(msg_type, True)
+            taken = take()
             if taken is None:
                 break
             handler(taken[0])
@@ -134,7 +135,7 @@ def take_local(inputs: Sequence[tuple[deque, Callable[[bytes], None]]]) -> bool:
 BOUNDED_BATCH = 8  # real time: an observer's batch handed over while a tick is near
 
 
-def take_batches(inputs: Sequence[tuple[Any, Any, Callable[[list[bytes]], None]]],
+def take_batches(inputs: Sequence[tuple[Any, Callable[[], Any], Callable[[list[bytes]], None]]],
                   until: float = math.inf) -> bool:
     """Observers: each input's waiting messages to its handler as one list.
 
@@ -143,12 +144,12 @@ def take_batches(inputs: Sequence[tuple[Any, Any, Callable[[list[bytes]], None]]
     input that had some; the rest stay queued for the next pass.
     """
     took = False
-    for handle, msg_type, handler in inputs:
+    for _, take, handler in inputs:
         limit = BOUNDED_BATCH if time.perf_counter() >= until else -1
         batch: list[Any] = []
         receipt = type(handler) is WithReceipt
         while len(batch) != limit:
-            taken = handle.take_message(msg_type, True)
+            taken = take()
             if taken is None:
                 break
             batch.append((taken[0], _times(taken[1])) if receipt else taken[0])

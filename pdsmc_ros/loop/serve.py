@@ -64,7 +64,7 @@ def serve_loop(executor: SingleThreadedExecutor, group: Any,
                 busy_wait: float = AUTO_BUSY_WAIT, reports: Sequence[LoopReport] = ()) -> None:
     """Take the loop's inputs with a wait set of their own; serve the rest beside them.
 
-    Every ready input of ``hot`` is drained (``take_message`` until empty) and handed to
+    Every ready input of ``hot`` is drained (taken until empty) and handed to
     its handler at every pass. Lockstep: every ``COLD_PERIOD_S`` the executor gets one
     non-blocking turn (timers, parameters, ``/clock``). Real time (a ``period``): the
     executor spins in a thread of its own (one of its turns took about 1 ms) and
@@ -90,10 +90,11 @@ def serve_loop(executor: SingleThreadedExecutor, group: Any,
     local_hot, local_observed = list(local.hot), list(local.observed)
     any_observed = bool(observed or local_observed)
     guard = local.guard if period else None  # only the real-time executor thread publishes off the loop
-    wait_set = _rclpy_impl.WaitSet(len(hot) + len(observed), 0 if guard is None else 1, 0, 0, 0, 0,
-                                   executor.context.handle)
-    inputs = [(sub.handle, sub.msg_type, handler) for sub, handler in hot]
-    observer_inputs = [(sub.handle, sub.msg_type, handler) for sub, handler in observed]
+    wait_set = _rclpy_impl.SubscriptionWaitSet(len(hot) + len(observed), 0 if guard is None else 1, executor.context)
+    inputs = [(sub.handle, _rclpy_impl.take_raw(sub), handler) for sub, handler in hot]
+    observer_inputs = [(sub.handle, _rclpy_impl.take_raw(sub), handler) for sub, handler in observed]
+    hot_handles = [handle for handle, _, _ in inputs]
+    every_handle = hot_handles + [handle for handle, _, _ in observer_inputs]
     collector = Collector() if period else Collector(young_at=50_000)
     collector.start()
     switch_interval = sys.getswitchinterval()
@@ -207,12 +208,7 @@ def serve_loop(executor: SingleThreadedExecutor, group: Any,
                 else:
                     time.sleep(sleep)
                 continue
-            wait_set.clear_entities()
-            for handle, _, _ in waited:
-                wait_set.add_subscription(handle)
-            if guard is not None:
-                wait_set.add_guard_condition(guard)
-            wait_set.wait(int(sleep * 1e9))
+            wait_set.wait(every_handle if observing else hot_handles, int(sleep * 1e9), guard)
     finally:
         restore(applied)
         for report in due_reports(reports, collector):

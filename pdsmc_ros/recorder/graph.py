@@ -267,28 +267,27 @@ class GraphRecorder(BagOutput):
         context = self.io.context
         entries: list[Recorded] = []
         wait_set: Any = None
+        handles: list[Any] = []
         while not self.stopping.is_set() and context.ok():
             if entries is not self.entries:
                 entries = self.entries
-                wait_set = _rclpy.WaitSet(len(entries), 0, 0, 0, 0, 0, context.handle) if entries else None
+                wait_set = _rclpy.SubscriptionWaitSet(len(entries), 0, context) if entries else None
+                handles = [entry.subscription.handle for entry in entries]
             if wait_set is None:
                 time.sleep(TAKE_WAIT_S)
                 continue
-            wait_set.clear_entities()
-            for entry in entries:
-                wait_set.add_subscription(entry.subscription.handle)
-            wait_set.wait(int(TAKE_WAIT_S * 1e9))
+            wait_set.wait(handles, int(TAKE_WAIT_S * 1e9))
             time.sleep(TAKE_BATCH_S)
             self._take(entries)
         self._take(self.entries)  # what arrived up to the stop
 
     def _take(self, entries: Sequence[Recorded]) -> None:
         for entry in entries:
-            handle, msg_type = entry.subscription.handle, entry.subscription.msg_type
+            take = _rclpy.take_raw(entry.subscription)
             while True:
                 batch = []
                 while len(batch) < TAKE_MAX:
-                    taken = handle.take_message(msg_type, True)
+                    taken = take()
                     if taken is None:
                         break
                     data, info = taken

@@ -85,7 +85,7 @@ class IntraProcess:
     def __init__(self, context: Any) -> None:
         self.routes: dict[str, list[Route]] = {}
         self.pending: list[tuple[str, Any, QoSProfile, Callable[[deque], None], Callable[[], None]]] = []
-        self.guard = _rclpy_impl.GuardCondition(context.handle)
+        self.guard = _rclpy_impl.WakeUp(context)
         self.loop_thread = threading.get_ident()
         self.bound = False
 
@@ -124,11 +124,11 @@ class IntraProcess:
 
     def wake(self) -> None:
         """End the loop's wait (a message was queued from another thread)."""
-        self.guard.trigger_guard_condition()
+        self.guard.trigger()
 
     def destroy(self) -> None:
         self.routes.clear()
-        self.guard.destroy_when_not_in_use()
+        self.guard.destroy()
 
 
 _current: IntraProcess | None = None

@@ -27,9 +27,9 @@ class WriterThread:
     """The middleware's writes of one publisher's serialized messages, in a thread of their own.
 
     A write into Fast DDS takes its writer's lock, which Fast DDS's sending thread holds while it
-    sends to every matched reader: in a storm of clients connecting (``bench/storm.py``) the
+    sends to every matched reader: in a storm of clients connecting (``bench/storm/``) the
     loop's effort command waited 0.7-13 ms there, the interpreter lock held all along (rclpy's
-    ``publish_raw`` keeps it). ros2_control's answer is realtime_tools' ``RealtimePublisher``: the
+    raw publish keeps it). ros2_control's answer is realtime_tools' ``RealtimePublisher``: the
     loop hands the message over and a thread of its own publishes it. Here the loop's
     :meth:`write` stores the bytes in a one-message slot and wakes the thread, which calls
     rcl's publish with the interpreter lock released
@@ -133,7 +133,7 @@ class GuardedPublisher:
         self.publisher = publisher
         self.node = node
         self.failures = 0
-        self._handle = publisher.handle
+        self._write_serialized = _rclpy_impl.raw_publisher(publisher)
         # serialized messages written by a thread of their own (the real-time loop's command)
         self.writer: WriterThread | None = None
         if writer_thread:
@@ -152,8 +152,7 @@ class GuardedPublisher:
             if type(msg) is bytes:  # the loop's serialized messages: straight to rcl
                 # over DDS unless only local subscribers take it; by the writer's thread while it runs
                 if (route is None or route.deliver(msg)) and (self.writer is None or not self.writer.write(msg)):
-                    with self._handle:
-                        self._handle.publish_raw(msg)
+                    self._write_serialized(msg)
             else:
                 data = serialize_message(msg) if route is not None and route.queues else b""
                 if route is None or route.deliver(data):
