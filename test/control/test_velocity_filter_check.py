@@ -112,3 +112,21 @@ def test_tune_realism_bench_keeps_only_gains_that_hold_on_that_arm(tmp_path: Pat
         cli.main(["tune", "--robot", "ur5", "--contour", "circle", "--controller", "pd", "--realism", "lab",
                   "--out", str(tmp_path / "x.yaml")])
     assert stop.value.code == cli.EXIT_USAGE and not (tmp_path / "x.yaml").exists()
+
+
+def test_tune_realism_bench_refuses_an_arm_held_at_its_start_by_friction() -> None:
+    """The contour error is the distance to the nearest point of the path: an arm that never leaves
+    its start scores zero. SMC gains too weak to break the bench arm's Coulomb friction (the ones
+    ``tune --realism bench`` kept before the rule: 1.5e-7 m) are refused for not following."""
+    from pdsmc_ros.experiments.tuning import FOLLOWS, Requirement, coverage, evaluate
+
+    spec = make_run("ur5", "circle", "smc")
+    limit = np.asarray(spec.robot_model().effort_limits, dtype=float)
+    weak = spec.gains.scaled({"ks": 0.1 / 14.04, "lam": 0.2734 / 50.0})
+    stuck = evaluate(spec, weak, limit, Requirement(realism="bench"))
+    assert not stuck.ok and stuck.verdict.startswith("does not follow the contour"), stuck.verdict
+    assert stuck.contour_mean is not None and stuck.contour_mean < 1e-5  # what it would have scored
+    # the rule by hand: a box of half the path's diagonal covers 50 %, a point none
+    path = np.array([[0.0, 0.0], [0.3, 0.0], [0.3, 0.3], [0.0, 0.3]])
+    assert coverage(path / 2, path) == pytest.approx(0.5) and coverage(path[:1], path) == 0.0
+    assert coverage(path, path) == 1.0 and FOLLOWS == 0.5
