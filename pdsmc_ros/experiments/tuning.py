@@ -324,7 +324,7 @@ def tune(
             break
         w /= 2.0
     if not best.ok:
-        raise ConfigError(f"tune {robot}/{contour}/{controller}: the starting gains are {best.verdict}")
+        raise ConfigError(f"tune {robot}/{contour}/{controller}: the starting gains: {best.verdict}")
     swept = [name for name in SWEPT if name in needed] + [name for name in needed if name not in (*SWEPT, *KEPT)]
     with _evaluator(spec, limit, scheduler, requirement, others) as evaluate_all:
         for _ in range(rounds):
