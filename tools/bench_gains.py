@@ -6,7 +6,7 @@ shipped gains' margin, each joint's bandwidth factor and the margin of the gains
 
 Why not `pdsmc tune --realism bench`: it scores the contour error alone, so a joint that barely moves the end
 effector along the contour (the UR5's last wrist) is tuned to a stiffness the bench arm's Coulomb friction
-defeats (0.1-0.4 rad short of a goal). Slowing the shipped gains keeps each joint's tuning and
+defeats (0.1-0.4 rad short of a goal). This keeps the shipped tuning's balance between the joints: it
 slows every joint's bandwidth by one factor (a stiffness by its square, a damping by it: BANDWIDTH), the
 largest that passes with the margin (x2, real time, the drive's delay and velocity filter modelled), then
 gives each joint back, wrists first, as much of its own bandwidth as still passes.
@@ -50,7 +50,7 @@ def slowed(gains: Gains, factors: np.ndarray, controller: str, kd_floor: float =
     return gains.replaced({name: [float(f"{x:.4g}") for x in v] for name, v in scaled.items()}, controller)
 
 
-def _slowest_passing(gains: Gains, controller: str, passes: Callable[[Gains], bool], kd_floor: float) -> np.ndarray:
+def _fastest_passing(gains: Gains, controller: str, passes: Callable[[Gains], bool], kd_floor: float) -> np.ndarray:
     """Each joint's bandwidth factor: all joints slowed together by the largest factor that passes (they
     are coupled through the inertia: the elbow's mode moves the shoulder), then each joint given back,
     wrists first (the joints friction holds back most), what still passes."""
@@ -93,7 +93,7 @@ def bench_gains(arm: str, contour: str, controller: str, rate: float) -> tuple[G
 
     kd_floor = 0.0
     for _ in range(KD_FLOORS):
-        factors = _slowest_passing(spec.gains, controller, lambda g: check(g).rate.passes, kd_floor)
+        factors = _fastest_passing(spec.gains, controller, lambda g: check(g).rate.passes, kd_floor)
         result = check(slowed(spec.gains, factors, controller, kd_floor))
         # a PD-SMC's Eq. 3.19 bounds its Kd from below (lambda M, K + C^T): slowed too far, a joint of
         # little inertia (the last wrist) drops under it; its Kd is held above the bound and the rest redone
