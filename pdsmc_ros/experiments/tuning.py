@@ -47,6 +47,12 @@ BOUNDARY_LAYER = 0.25
 """phi of the starting point: the thesis's serial arm's (Table 4.16)."""
 SLOWER_STARTS = 6
 """Times the starting bandwidth is halved when the starting gains fail the check."""
+FOLLOWS = 0.5
+"""The least share of the contour's extent the end effector must cover for a candidate to be kept.
+The contour error is the distance to the nearest point of the path, so an arm that never leaves its
+start (on the path) scores zero: held by the stand-in's Coulomb friction, a candidate with too little
+torque did (``tune --realism bench``, SMC on the UR5: 1.5e-7 m, the end effector 0.12 m from its
+desired point); a run that follows, however loosely, covers the extent."""
 
 
 @dataclass(frozen=True)
@@ -219,12 +225,26 @@ def evaluate(spec: RunSpec, gains: Gains, torque_limit: np.ndarray,
     torque = tuple(float(x) for x in metrics.max_torque)
     if not np.isfinite(metrics.contour_mean):
         return Candidate(gains, None, torque, "diverged")
+    covered = coverage(result.samples.xy, result.samples.xy_ref)
+    if covered < FOLLOWS:
+        return Candidate(gains, metrics.contour_mean, torque,
+                         f"does not follow the contour: its end effector covered {covered:.0%} of the contour's "
+                         f"extent (at least {FOLLOWS:.0%})")
     over = np.flatnonzero(np.asarray(torque) > torque_limit)
     if over.size:
         j = int(over[0])
         return Candidate(gains, metrics.contour_mean, torque,
                          f"joint {j + 1} needs {torque[j]:.4g} N m > its limit {torque_limit[j]:.4g}")
     return Candidate(gains, float(metrics.contour_mean), torque, "ok")
+
+
+def coverage(xy: np.ndarray, xy_ref: np.ndarray) -> float:
+    """The end effector's extent (the diagonal of the box its samples ``xy`` span) over the desired
+    path's (``xy_ref``'s); 1 for a run without samples or a path of no extent."""
+    extent = float(np.linalg.norm(np.ptp(xy_ref, axis=0))) if len(xy_ref) else 0.0
+    if extent == 0.0:
+        return 1.0
+    return float(np.linalg.norm(np.ptp(xy, axis=0))) / extent
 
 
 def tune(
@@ -304,7 +324,7 @@ def tune(
             break
         w /= 2.0
     if not best.ok:
-        raise ConfigError(f"tune {robot}/{contour}/{controller}: the starting gains are {best.verdict}")
+        raise ConfigError(f"tune {robot}/{contour}/{controller}: the starting gains: {best.verdict}")
     swept = [name for name in SWEPT if name in needed] + [name for name in needed if name not in (*SWEPT, *KEPT)]
     with _evaluator(spec, limit, scheduler, requirement, others) as evaluate_all:
         for _ in range(rounds):

@@ -112,3 +112,41 @@ def test_tune_realism_bench_keeps_only_gains_that_hold_on_that_arm(tmp_path: Pat
         cli.main(["tune", "--robot", "ur5", "--contour", "circle", "--controller", "pd", "--realism", "lab",
                   "--out", str(tmp_path / "x.yaml")])
     assert stop.value.code == cli.EXIT_USAGE and not (tmp_path / "x.yaml").exists()
+
+
+def test_tune_realism_bench_refuses_an_arm_held_at_its_start_by_friction() -> None:
+    """The contour error is the distance to the nearest point of the path: an arm that never leaves
+    its start scores zero. SMC gains too weak to break the bench arm's Coulomb friction (the ones
+    ``tune --realism bench`` kept before the rule: 1.5e-7 m) are refused for not following."""
+    from pdsmc_ros.experiments.tuning import FOLLOWS, Requirement, coverage, evaluate
+
+    spec = make_run("ur5", "circle", "smc")
+    limit = np.asarray(spec.robot_model().effort_limits, dtype=float)
+    weak = spec.gains.scaled({"ks": 0.1 / 14.04, "lam": 0.2734 / 50.0})
+    stuck = evaluate(spec, weak, limit, Requirement(realism="bench"))
+    assert not stuck.ok and stuck.verdict.startswith("does not follow the contour"), stuck.verdict
+    assert stuck.contour_mean is not None and stuck.contour_mean < 1e-5  # what it would have scored
+    # the rule by hand: a box of half the path's diagonal covers 50 %, a point none
+    path = np.array([[0.0, 0.0], [0.3, 0.0], [0.3, 0.3], [0.0, 0.3]])
+    assert coverage(path / 2, path) == pytest.approx(0.5) and coverage(path[:1], path) == 0.0
+    assert coverage(path, path) == 1.0 and FOLLOWS == 0.5
+
+
+BENCH_FILES = sorted((Path(__file__).resolve().parents[2] / "config").glob("ur5_bench_*.yaml"))
+
+
+@pytest.mark.parametrize("path", BENCH_FILES, ids=[p.stem for p in BENCH_FILES])
+def test_the_ur5_bench_params_files_pass_the_bench_check_that_the_shipped_gains_fail(
+        path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """config/ur5_bench_<law>.yaml (tools/bench_gains.py): accepted by ``check-gains --realism bench``
+    at its x2 margin; the shipped gains of the same law are not (docs/explanation/ladder.md)."""
+    law = path.stem.removeprefix("ur5_bench_")
+    command = ["check-gains", "--robot", "ur5", "--contour", "circle", "--controller", law, "--rate", "1000",
+               "--realism", "bench"]
+    assert cli.main([*command, "--params-file", str(path)]) == 0, capsys.readouterr().out
+    assert "4 periods of delay + velocity differenced, filtered at 100 Hz" in capsys.readouterr().out
+    assert cli.main(command) == cli.EXIT_FAILURE
+
+
+def test_a_bench_params_file_for_each_law_but_three() -> None:
+    assert [p.stem for p in BENCH_FILES] == [f"ur5_bench_{law}" for law in ("ctc", "ismc", "pd", "pdg", "pdsmc", "smc")]
