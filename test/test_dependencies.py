@@ -35,11 +35,7 @@ PACKAGE = ROOT / "pdsmc_ros"
 KNOWN_CIRCLES: set[frozenset[str]] = set()
 """Import circles that still exist, each a set of modules (a strongly connected component)."""
 
-KNOWN_UPWARD: set[tuple[str, str]] = {
-    # the real-time defaults (priorities, busy-wait) are still defined by the loop: loop/realtime.py is
-    # being reworked for "Real time that serves the ordinary run"; they move into the table after it
-    ("pdsmc_ros.parameters.tables", "pdsmc_ros.loop.realtime"),
-}
+KNOWN_UPWARD: set[tuple[str, str]] = set()
 """Imports against the direction still in the package, each (importer, imported)."""
 
 MATHS = ("kernels", "control", "robots", "contours", "metrics", "sim", "identification")

@@ -36,13 +36,8 @@ from pathlib import Path
 
 from ..errors import ConfigError
 from ..glibc import M_MMAP_MAX, M_TRIM_THRESHOLD, libc, mallopt
+from ..parameters.tables import DEFAULT_PRIORITY, MAX_PRIORITY
 
-DEFAULT_PRIORITY = 50  # ros2_control's controller manager: SCHED_FIFO 50 (the controller's default)
-# the plant (the hardware's stand-in) and the trajectory (the controller's reference) tick at FIFO
-# too, just below the controller: when three loop processes contend for two cores, the controller
-# goes first (measured: docs/PERFORMANCE.md, sixteenth session)
-PLANT_PRIORITY = DEFAULT_PRIORITY - 1
-TRAJECTORY_PRIORITY = DEFAULT_PRIORITY - 2
 BUSY_WAIT_S = 0.0002  # seconds spun before each tick at normal priority (the nodes' busy_wait default)
 FIFO_BUSY_WAIT_S = 0.00005  # at SCHED_FIFO unless busy_wait is given: a FIFO thread wakes on time
 # ... except for about 1 % of its wake-ups from a sleep (cyclictest: docs/PERFORMANCE.md): a
@@ -51,8 +46,6 @@ FIFO_BUSY_WAIT_S = 0.00005  # at SCHED_FIFO unless busy_wait is given: a FIFO th
 # spinning at the same instants on two cores wait for one another
 FIFO_COMPOSED_BUSY_WAIT_S = 0.0003
 FIFO_BUSY_SHARE = 0.5  # at SCHED_FIFO: the share of a period the loop may spin at most
-AUTO_BUSY_WAIT = -1.0  # busy_wait's default: chosen by busy_wait_for from the scheduling and the loops
-MAX_PRIORITY = 99
 # mlockall flags of Linux on x86, arm and riscv (<bits/mman-linux.h>)
 MCL_CURRENT, MCL_FUTURE = 1, 2
 

@@ -18,9 +18,9 @@ from ..bag.loop_statistics import status_name
 from ..errors import ConfigError
 from ..parameters import realtime_parameters
 from ..parameters.ros import declare
+from ..parameters.tables import DEFAULT_PRIORITY
 from ..ros.diagnostics import Diagnostics
 from .realtime import (
-    DEFAULT_PRIORITY,
     FIFO_BUSY_SHARE,
     Applied,
     Collector,

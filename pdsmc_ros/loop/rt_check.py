@@ -29,14 +29,12 @@ import numpy as np
 
 from ..arguments import EXIT_USAGE, OneLineParser
 from ..errors import InvalidInputError
+from ..parameters.tables import AUTO_BUSY_WAIT, DEFAULT_PRIORITY, MAX_PRIORITY
 from .realtime import (
     AFFINITY_FIX,
-    AUTO_BUSY_WAIT,
     CAP_IPC_LOCK,
     CAP_SYS_NICE,
-    DEFAULT_PRIORITY,
     FIFO_FIX,
-    MAX_PRIORITY,
     MEMLOCK_FIX,
     Collector,
     RealtimeSettings,

@@ -20,10 +20,11 @@ from typing import Any
 from rclpy.executors import SingleThreadedExecutor
 
 from .. import rclpy_internals as _rclpy_impl
+from ..parameters.tables import AUTO_BUSY_WAIT
 from .executor_thread import ExecutorThread
 from .inputs import pending, take_all, take_batches, take_local, take_local_batches
 from .log import loop_running
-from .realtime import AUTO_BUSY_WAIT, Collector, raise_helpers, restore
+from .realtime import Collector, raise_helpers, restore
 from .realtime_params import LoopReport, apply_settings, due_reports
 
 

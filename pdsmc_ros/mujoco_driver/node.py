@@ -33,10 +33,10 @@ from ..errors import CdrError, ConfigError, InvalidInputError
 from ..loop.inputs import Inputs
 from ..loop.lifecycle import EXIT_OK
 from ..loop.process import run_node
-from ..loop.realtime import PLANT_PRIORITY
 from ..parameters import mujoco_driver_parameters
 from ..parameters.joint_map import check_joint_names
 from ..parameters.ros import declare, guard
+from ..parameters.tables import PLANT_PRIORITY
 from ..robots.catalog import resolve_robot
 from ..robots.registry import make_robot
 from ..ros.publishers import GuardedPublisher

@@ -20,7 +20,6 @@ from typing import Any
 from ..control.registry import GAINS
 from ..control.soft_limits import DEFAULT_K_POSITION, SOFT_VELOCITY_BAND
 from ..errors import ConfigError
-from ..loop.realtime import AUTO_BUSY_WAIT, DEFAULT_PRIORITY, MAX_PRIORITY, PLANT_PRIORITY, TRAJECTORY_PRIORITY
 from ..robots.catalog import allowed_robots
 from .declaration import JOINT, ParameterSpec
 from .run_table import run_parameters
@@ -63,9 +62,9 @@ JOINT_STATE_ORDERS = ("alphabetical", "urdf", "reversed")
 """The orders the MuJoCo stand-in can publish ``/joint_states`` in (``joint_state_order``)."""
 
 INTROSPECTION_STATES = ("disabled", "metadata", "contents")
+"""rcl's service introspection states (``RCL_SERVICE_INTROSPECTION_OFF``, ``_METADATA``, ``_CONTENTS``)."""
 GOAL_PROCESS_CHOICES = ("auto", "always", "never")
 """Where a real-time controller serves its action and parameters (``goal_process:=``)."""
-"""rcl's service introspection states (``RCL_SERVICE_INTROSPECTION_OFF``, ``_METADATA``, ``_CONTENTS``)."""
 
 NODES = ("controller", "plant", "trajectory", "recorder", "mujoco_driver", "viewer")
 """The package's nodes: one params file may configure several of them (``run_experiment.sh``
@@ -90,6 +89,21 @@ def gain_parameters(*, applied: bool | Collection[str]) -> tuple[ParameterSpec, 
           read_only=not (applied is True or (not isinstance(applied, bool) and g.name in applied)))
         for g in GAINS.values()
     )
+
+
+DEFAULT_PRIORITY = 50
+"""``thread_priority``'s default in real time for the controller: ros2_control's controller manager's
+SCHED_FIFO 50."""
+PLANT_PRIORITY = DEFAULT_PRIORITY - 1
+"""... for the plant (the hardware's stand-in, the MuJoCo driver too) and, below it, the trajectory
+(:data:`TRAJECTORY_PRIORITY`): they tick at SCHED_FIFO just below the controller, so that when three
+loop processes contend for two cores the controller goes first (docs/PERFORMANCE.md)."""
+TRAJECTORY_PRIORITY = DEFAULT_PRIORITY - 2
+MAX_PRIORITY = 99
+"""The highest SCHED_FIFO priority Linux gives."""
+AUTO_BUSY_WAIT = -1.0
+"""``busy_wait``'s default: chosen from the loop's scheduling and how many loops share its thread
+(:func:`pdsmc_ros.loop.realtime.busy_wait_for`)."""
 
 
 BUSY_WAIT = P(

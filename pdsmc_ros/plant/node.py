@@ -43,8 +43,8 @@ from ..errors import CdrError
 from ..loop.inputs import Inputs
 from ..loop.lifecycle import EXIT_FAILURE, EXIT_OK
 from ..loop.process import run_node
-from ..loop.realtime import PLANT_PRIORITY
 from ..parameters.descriptors import decimation
+from ..parameters.tables import PLANT_PRIORITY
 from ..ros.diagnostics import Diagnostics
 from ..ros.node_run import declare_node_run
 from ..ros.publishers import GuardedPublisher

@@ -40,9 +40,9 @@ from ..errors import CdrError
 from ..loop.inputs import Inputs
 from ..loop.lifecycle import EXIT_OK, WATCH_GRACE_S, end_when_plant_leaves
 from ..loop.process import run_node
-from ..loop.realtime import TRAJECTORY_PRIORITY
 from ..parameters import TRAJECTORY
 from ..parameters.ros import declare
+from ..parameters.tables import TRAJECTORY_PRIORITY
 from ..ros.node_run import declare_node_run
 from ..ros.publishers import GuardedPublisher
 from ..ros.topics import STEADY_CLOCK, STREAM_QOS, TOPIC_EE_DESIRED, TOPIC_JOINT_STATES, TOPIC_REFERENCE

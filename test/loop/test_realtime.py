@@ -21,7 +21,6 @@ import pytest
 from pdsmc_ros.bag.loop_statistics import parse_values
 from pdsmc_ros.errors import ConfigError
 from pdsmc_ros.loop.realtime import (
-    AUTO_BUSY_WAIT,
     BUSY_WAIT_S,
     FIFO_BUSY_SHARE,
     FIFO_BUSY_WAIT_S,
@@ -31,6 +30,7 @@ from pdsmc_ros.loop.realtime import (
     busy_wait_for,
 )
 from pdsmc_ros.loop.statistics import LoopStatistics
+from pdsmc_ros.parameters.tables import AUTO_BUSY_WAIT
 
 ROOT = Path(__file__).resolve().parent.parent.parent
 

@@ -13,7 +13,6 @@ import pytest
 pytest.importorskip("rclpy")
 
 from pdsmc_ros.loop.realtime import (
-    AUTO_BUSY_WAIT,
     BUSY_WAIT_S,
     FIFO_BUSY_SHARE,
     FIFO_BUSY_WAIT_S,
@@ -23,6 +22,7 @@ from pdsmc_ros.loop.realtime import (
     restore,
 )
 from pdsmc_ros.loop.realtime_params import apply_settings  # noqa: E402
+from pdsmc_ros.parameters.tables import AUTO_BUSY_WAIT
 
 
 class Logger:
