@@ -89,7 +89,7 @@ transitions in: 0.216 kg; around only the slow stretches in which the joint is a
 0.186 kg. The cost: more of a run in the dead zone (17-37 % of the samples on those arms, 14-27 %
 without), so a run needs more periods for :data:`~.estimate.SAMPLES_PER_PARAMETER`; and on exact
 data without friction (bench/identification.py) half the equations (610 of 1,300), the condition
-number of the fitted ones 880 instead of 242, the worst motor inertia error 4.0 % instead of 1.5 %."""
+number of the fitted ones 880 instead of 265, the worst motor inertia error 4.0 % instead of 1.5 %."""
 SLOW_SHARE = 0.05
 """A joint slower than this share of its peak speed is in the dead zone too: there it may stick,
 held by a static friction anywhere within ``+/- fc`` that ``fc sign(qd)`` does not model (on the
