@@ -26,8 +26,10 @@
    against the same truth.
 
 The last line: ``verdict=PASS|FAIL payload_error=E worst_coulomb_error=E worst_viscous_error=E
-worst_heldout_nrmse=E worst_heldout_nrmse_outside_dead_zone=E consistent=yes|no condition=C``
-(the verdict on the NRMSE at every sample, dead zones included).
+worst_heldout_nrmse=E worst_heldout_nrmse_outside_dead_zone=E worst_heldout_nrmse_static_friction_at_rest=E
+consistent=yes|no condition=C`` (the verdict on the NRMSE at every sample, dead zones included, each
+sample's prediction a value; ``static_friction_at_rest``: where a joint is at rest the model's
+prediction the interval static friction allows, ``+/- fc``: pdsmc_ros.identification.identify.prediction_nrmse).
 """
 
 from __future__ import annotations
@@ -121,6 +123,7 @@ def check(identified_dir: Path, robot: str, truth: StandInTruth, label: str) -> 
     viscous_error = viscous / truth.friction_viscous - 1.0
     held_out = np.array(list(report["nrmse"]["validation"].values()), dtype=float)
     moving = np.array(list(report["nrmse"]["validation_outside_dead_zone"].values()), dtype=float)
+    static = np.array(list(report["nrmse"]["validation_static_friction_at_rest"].values()), dtype=float)
     dynamics = ArmDynamics(arm_of(robot))
     standard = np.array([entry["value"] for entry in report["standard_parameters"]], dtype=float)
     consistent = bool(np.all(is_consistent(standard, dynamics)))
@@ -129,12 +132,12 @@ def check(identified_dir: Path, robot: str, truth: StandInTruth, label: str) -> 
           f"{np.round(identified['payload_com'], 4).tolist()} m (true {np.round(truth.payload_com, 4).tolist()})")
     names = dynamics.layout.joint_names
     print("joint                  Coulomb true  identified  error    viscous true  identified  error    "
-          "held-out NRMSE: all, outside the dead zone (URDF's)")
+          "held-out NRMSE: all, outside the dead zone, at rest +/- fc (URDF's)")
     nominal_out = report["nrmse"].get("nominal_on_validation", {})
     for j, name in enumerate(names):
         print(f"{name:22s} {truth.friction_coulomb[j]:12.4g} {coulomb[j]:11.4g} {coulomb_error[j]:+7.2%} "
               f"{truth.friction_viscous[j]:13.4g} {viscous[j]:11.4g} {viscous_error[j]:+7.2%}    "
-              f"{held_out[j]:.2%}, {moving[j]:.2%}"
+              f"{held_out[j]:.2%}, {moving[j]:.2%}, {static[j]:.2%}"
               + (f" ({nominal_out[name]:.1%})" if name in nominal_out else ""))
     print(f"identified model physically consistent (every link's pseudo-inertia, payload, frictions): "
           f"{'yes' if consistent else 'NO'}")
@@ -145,6 +148,7 @@ def check(identified_dir: Path, robot: str, truth: StandInTruth, label: str) -> 
           f"worst_coulomb_error={np.max(np.abs(coulomb_error)):.4f} "
           f"worst_viscous_error={np.max(np.abs(viscous_error)):.4f} worst_heldout_nrmse={held_out.max():.4f} "
           f"worst_heldout_nrmse_outside_dead_zone={moving.max():.4f} "
+          f"worst_heldout_nrmse_static_friction_at_rest={static.max():.4f} "
           f"consistent={'yes' if consistent else 'no'} condition={report['condition_number']:.4g}")
     return bool(met)
 

@@ -66,8 +66,8 @@ def run(args: argparse.Namespace) -> int:
     result = identify(dynamics, recording.t, recording.q, recording.tau, cutoff=args.cutoff)
     validation = None
     if held_out is not None:
-        fitted, nominal, moving = validate(result, held_out.t, held_out.q, held_out.tau)
-        validation = (str(args.validate), fitted, nominal, moving)
+        fitted, nominal, moving, static = validate(result, held_out.t, held_out.q, held_out.tau)
+        validation = (str(args.validate), fitted, nominal, moving, static)
     data = report_data(result, robot=args.robot, bag=str(args.bag), validation=validation)
     source = f"Identified from {args.bag} (pdsmc identify), starting from {args.robot}."
     urdf = corrected_urdf(dynamics, result.fit.values, note=source)

@@ -75,7 +75,7 @@ def filtered_regressor(dynamics: ArmDynamics, prepared: Prepared) -> FloatArray:
     q, qd, qdd = prepared.motion()
     columns = dynamics.regressor(q, qd, qdd).reshape(len(q), n * p)
     smooth = prepared.smooth(columns).reshape(-1, n, p)
-    steps = prepared.stepped(np.sign(prepared.qd))  # Coulomb friction's sign, from every sample
+    steps = prepared.stepped(prepared.coulomb_sign())  # Coulomb friction's sign, from every sample
     coulomb = dynamics.layout.joint_field("friction_coulomb").start + np.arange(n)
     smooth[:, np.arange(n), coulomb] = steps
     out: FloatArray = smooth.reshape(-1, p)
@@ -83,13 +83,26 @@ def filtered_regressor(dynamics: ArmDynamics, prepared: Prepared) -> FloatArray:
 
 
 def prediction_nrmse(regressor: FloatArray, parameters: FloatArray, prepared: Prepared, *,
-                     moving_only: bool = False) -> FloatArray:
+                     moving_only: bool = False, static: slice | None = None) -> FloatArray:
     """Per joint, the NRMSE (:func:`~.estimate.nrmse`: RMS error over the measured range) of the
     efforts ``parameters`` predict against the run's, both filtered alike (``regressor``:
     :func:`filtered_regressor`), at every kept sample (velocity reversals and slow stretches
     included); ``moving_only``: at the samples each joint's equations were fitted on (outside its
-    dead zone, :attr:`~.signals.Prepared.moving`), the range still the whole run's."""
+    dead zone, :attr:`~.signals.Prepared.moving`), the range still the whole run's.
+
+    ``static`` (the Coulomb frictions' slice of ``parameters``): Coulomb friction as the set-valued
+    law it is at rest (Karnopp's model, ASME J. Dyn. Syst. 1985; Leine & Nijmeijer 2004): where a
+    joint is slower than its band (:meth:`~.signals.Prepared.at_rest`) the model predicts the
+    interval ``rest +/- fc`` -- whatever torque within it, static friction holds the joint -- and
+    the error there is the measured effort's distance from that interval; a model whose ``fc`` or
+    rigid-body torque is wrong still misses it."""
     predicted = (regressor @ parameters).reshape(prepared.tau.shape)
+    if static is not None:
+        fc = parameters[static]
+        friction = (regressor[:, static] @ fc).reshape(prepared.tau.shape)
+        rest = predicted - friction
+        held = np.clip(prepared.tau, rest - fc, rest + fc)
+        predicted = np.where(prepared.at_rest(), held, predicted)
     if not moving_only:
         return nrmse(prepared.tau, predicted)
     spread = prepared.tau.max(axis=0) - prepared.tau.min(axis=0)
@@ -141,13 +154,17 @@ def identify(dynamics: ArmDynamics, t: ArrayLike, q: ArrayLike, tau: ArrayLike, 
 
 
 def validate(identification: Identification, t: ArrayLike, q: ArrayLike, tau: ArrayLike
-             ) -> tuple[FloatArray, FloatArray, FloatArray]:
+             ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
     """The fitted and the nominal model's NRMSE per joint on another run (held out), filtered
-    with the identification's cut-off; and the fitted model's outside each joint's dead zone
-    (:func:`prediction_nrmse`'s ``moving_only``)."""
-    prepared = prepare(t, q, tau, cutoff=identification.prepared.cutoff)
+    with the identification's cut-off and Coulomb band; the fitted model's outside each joint's
+    dead zone (:func:`prediction_nrmse`'s ``moving_only``); and the fitted model's with static
+    friction as the interval it is at rest (:func:`prediction_nrmse`'s ``static``)."""
+    prepared = prepare(t, q, tau, cutoff=identification.prepared.cutoff,
+                       stick_band=identification.prepared.stick_band)
     dynamics = identification.dynamics
     regressor = filtered_regressor(dynamics, prepared)
-    return (prediction_nrmse(regressor, identification.fit.values, prepared),
+    values = identification.fit.values
+    return (prediction_nrmse(regressor, values, prepared),
             prediction_nrmse(regressor, dynamics.nominal, prepared),
-            prediction_nrmse(regressor, identification.fit.values, prepared, moving_only=True))
+            prediction_nrmse(regressor, values, prepared, moving_only=True),
+            prediction_nrmse(regressor, values, prepared, static=dynamics.layout.joint_field("friction_coulomb")))

@@ -27,7 +27,7 @@ def _per_joint(names: tuple[str, ...], values: FloatArray) -> dict[str, float]:
 
 
 def report_data(result: Identification, *, robot: str, bag: str,
-                validation: tuple[str, FloatArray, FloatArray, FloatArray] | None = None) -> dict[str, Any]:
+                validation: tuple[str, FloatArray, FloatArray, FloatArray, FloatArray] | None = None) -> dict[str, Any]:
     """Everything the identification found, as plain data (``identification.yaml``)."""
     dynamics = result.dynamics
     layout = dynamics.layout
@@ -69,11 +69,12 @@ def report_data(result: Identification, *, robot: str, bag: str,
         "seconds": {k: float(v) for k, v in result.seconds.items()},
     }
     if validation is not None:
-        held_out, fitted, nominal, moving = validation
+        held_out, fitted, nominal, moving, static = validation
         data["nrmse"]["validation_bag"] = held_out
         data["nrmse"]["validation"] = _per_joint(names, fitted)
         data["nrmse"]["nominal_on_validation"] = _per_joint(names, nominal)
         data["nrmse"]["validation_outside_dead_zone"] = _per_joint(names, moving)
+        data["nrmse"]["validation_static_friction_at_rest"] = _per_joint(names, static)
     return data
 
 
@@ -93,14 +94,16 @@ def report_lines(data: dict[str, Any]) -> list[str]:
                            if data["consistency"]["projected"] else ("the least-squares estimate, made consistent "
                                                                      "with the URDF where the data do not decide")),
         (f"{'joint':24s} {'armature (kg m^2)':>22s} {'coulomb (N m)':>20s} {'viscous (N m s)':>20s} "
-         f"{'NRMSE fit':>10s}") + (" held-out (moving) " if "validation" in data["nrmse"] else "") + "  (URDF)",
+         f"{'NRMSE fit':>10s}") + (" held-out (moving) [at rest: +/- fc]" if "validation" in data["nrmse"] else "")
+        + "  (URDF)",
     ]
     for name in names:
         cells = [f"{joints[f]['value'][name]:9.4g} +/- {joints[f]['standard_error'][name]:<8.2g}" for f in JOINT_FIELDS]
         nrmse = data["nrmse"]
         line = f"{name:24s} {cells[0]:>22s} {cells[1]:>20s} {cells[2]:>20s} {nrmse['fit'][name]:9.2%}"
         if "validation" in nrmse:
-            line += (f" {nrmse['validation'][name]:8.2%} ({nrmse['validation_outside_dead_zone'][name]:6.2%})  "
+            line += (f" {nrmse['validation'][name]:8.2%} ({nrmse['validation_outside_dead_zone'][name]:6.2%}) "
+                     f"[{nrmse['validation_static_friction_at_rest'][name]:6.2%}]  "
                      f"({nrmse['nominal_on_validation'][name]:.1%})")
         else:
             line += f"  ({nrmse['nominal_on_fit'][name]:.1%})"

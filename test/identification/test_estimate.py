@@ -208,8 +208,9 @@ def test_the_motion_bandwidth_is_read_above_an_encoders_white_floor() -> None:
 
 def test_a_slow_joint_is_in_the_dead_zone() -> None:
     """Where a joint is slower than SLOW_SHARE of its peak speed its equations are left out (it may
-    stick there); elsewhere, away from reversals, they are kept."""
-    from pdsmc_ros.identification.signals import SLOW_SHARE, prepare
+    stick there), and within SLOW_GUARD_PERIODS of the cut-off of such a stretch (the filter's
+    reach); elsewhere, away from reversals, they are kept."""
+    from pdsmc_ros.identification.signals import SLOW_GUARD_PERIODS, SLOW_SHARE, prepare
 
     rate = 500.0
     t = np.arange(0.0, 30.0, 1.0 / rate)
@@ -219,4 +220,13 @@ def test_a_slow_joint_is_in_the_dead_zone() -> None:
     slow = np.abs(qd) < SLOW_SHARE * np.max(np.abs(qd), axis=0)
     assert np.any(slow)
     assert not np.any(prepared.moving[slow])
-    assert np.mean(prepared.moving[~slow]) > 0.9
+    guard = SLOW_GUARD_PERIODS / prepared.cutoff
+    assert guard > 0.0
+    # each kept sample's time to the nearest slow instant of the recording, per joint
+    slow_at = np.abs(prepared.qd) < SLOW_SHARE * np.max(np.abs(qd), axis=0)
+    distance = np.stack([np.min(np.abs(prepared.t[:, None] - prepared.grid[slow_at[:, j]][None, :]), axis=1)
+                         for j in range(q.shape[1])], axis=1)
+    assert not np.any(prepared.moving[distance < 0.9 * guard])
+    far = distance > 1.1 * guard
+    assert np.count_nonzero(far) >= 10
+    assert np.mean(prepared.moving[far]) > 0.9

@@ -20,7 +20,12 @@ from pdsmc_ros.identification.excitation import (  # noqa: E402
     optimise_excitation,
 )
 from pdsmc_ros.identification.model import ArmDynamics, arm_of  # noqa: E402
-from pdsmc_ros.identification.signals import motion_bandwidth, prepare  # noqa: E402
+from pdsmc_ros.identification.signals import (  # noqa: E402
+    SLOW_GUARD_PERIODS,
+    SLOW_SHARE,
+    motion_bandwidth,
+    prepare,
+)
 
 
 @pytest.fixture(scope="module")
@@ -122,7 +127,12 @@ def test_filtering_keeps_the_motion_and_finds_its_bandwidth() -> None:
         width = int(0.1 * rate / prepared.cutoff)
         near[max(r - width + 2, 0): r + width - 1] = True
     assert not np.any(prepared.moving[:, 1][near[k]])
-    assert np.mean(prepared.moving[:, 1]) > 0.5
+    # kept wherever it is farther than the slow stretches' guard from every instant slower than
+    # SLOW_SHARE of its peak speed (test_estimate.py has the guard's own test)
+    slow = t[np.abs(qd[:, 1]) < SLOW_SHARE * np.max(np.abs(qd[:, 1]))]
+    far = np.min(np.abs(t[k][:, None] - slow[None, :]), axis=1) > 1.1 * SLOW_GUARD_PERIODS / prepared.cutoff
+    assert np.count_nonzero(far) >= 10
+    assert np.all(prepared.moving[far, 1])
 
 
 @pytest.mark.parametrize(("args", "message"), [

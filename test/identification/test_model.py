@@ -9,8 +9,14 @@ import pytest
 pin = pytest.importorskip("pinocchio")
 
 from pdsmc_ros.identification.base import base_parameters  # noqa: E402
-from pdsmc_ros.identification.consistent import is_consistent  # noqa: E402
-from pdsmc_ros.identification.model import ArmDynamics, arm_of, placement_map, pseudo_inertia  # noqa: E402
+from pdsmc_ros.identification.consistent import MARGIN, is_consistent  # noqa: E402
+from pdsmc_ros.identification.model import (  # noqa: E402
+    INERTIAL_FIELDS,
+    ArmDynamics,
+    arm_of,
+    placement_map,
+    pseudo_inertia,
+)
 from pdsmc_ros.robots.urdf_robot import urdf_arm  # noqa: E402
 
 
@@ -120,7 +126,20 @@ def test_the_options_payload_is_in_the_arms_model_and_the_prior(tmp_path) -> Non
 
 
 def test_the_urdfs_own_parameters_are_checked_for_consistency() -> None:
-    assert np.all(is_consistent(ArmDynamics(arm_of("ur5")).nominal, ArmDynamics(arm_of("ur5"))))
+    ur5 = ArmDynamics(arm_of("ur5"))
+    assert np.all(is_consistent(ur5.nominal, ur5))
+    # a body's URDF inertial is the prior as it is
+    np.testing.assert_array_equal(ur5.nominal[ur5.layout.link(0)], ur5.model.inertias[1].toDynamicParameters())
     twin = ArmDynamics(arm_of("serial_3r"))
-    # the thesis URDF's planar links carry a 1e-6 placeholder out-of-plane inertia: no body has it
-    assert not np.all(is_consistent(twin.nominal, twin)[: twin.n])
+    # the thesis URDF's planar links carry a 1e-6 placeholder out-of-plane inertia: no body has it ...
+    raw = np.concatenate([twin.model.inertias[i + 1].toDynamicParameters() for i in range(twin.n)])
+    as_given = twin.nominal.copy()
+    as_given[: 10 * twin.n] = raw
+    assert twin.layout.link(twin.n - 1).stop == 10 * twin.n
+    assert not np.any(is_consistent(as_given, twin)[: twin.n])
+    # ... so the prior is a thin rod's (the stand-in's rule), strictly a body, its in-plane moment kept
+    assert np.all(is_consistent(twin.nominal, twin, margin=MARGIN)[: twin.n])
+    iyy = INERTIAL_FIELDS.index("Iyy")
+    np.testing.assert_allclose(twin.nominal[iyy: 10 * twin.n: 10], raw[iyy::10])
+    changed = twin.nominal[: 10 * twin.n] != raw
+    assert set(np.flatnonzero(changed) % 10) == {INERTIAL_FIELDS.index("Izz")}
