@@ -118,7 +118,7 @@ def test_ellipse_distance_of_points_along_the_normal() -> None:
 
 
 def test_contour_error_formulas() -> None:
-    circle = EllipseContour("c", [0.0, 0.1], 0.4, 0.4, 5.0)
+    circle = EllipseContour("c", [0.0, 0.1], 0.4, 0.4, 5.0, ellipse_error="nearest")
     xy = np.array([[0.4003, 0.1], [0.0, 0.1 - 0.3999]])
     assert np.allclose(circle.contour_error(np.zeros(2), xy), [3e-4, 1e-4])  # Eq. 2.10
     seg = SegmentContour("s", [[0.0, 0.0], [1.0, 1.0]], 2.0)
@@ -129,7 +129,7 @@ def test_contour_error_formulas() -> None:
     assert seg.contour_error(t, off)[0] == pytest.approx(np.sqrt(2) * 1e-4)  # Eq. 2.9
     ell = EllipseContour("e", [0.0, 0.0], 0.2, 0.5, 8.0, ellipse_error="osculating")
     pt = ell.task([2.0]).p[:, :2] * (1 + 1e-4)
-    near = EllipseContour("e", [0.0, 0.0], 0.2, 0.5, 8.0)
+    near = EllipseContour("e", [0.0, 0.0], 0.2, 0.5, 8.0, ellipse_error="nearest")
     assert ell.contour_error(np.array([2.0]), pt)[0] == pytest.approx(
         near.contour_error(np.array([2.0]), pt)[0], rel=1e-3
     )

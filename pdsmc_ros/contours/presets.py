@@ -31,15 +31,16 @@ def contour_set(robot: str) -> str:
     return make_robot(resolve_robot(robot)).contour_set()
 
 
-def build_contour(
+def contour_preset(
     robot: str,
     name: str,
     *,
-    ellipse_error: str = "nearest",
-    waypoints_file: str | None = None,
-    segment_duration: float = 2.0,
+    ellipse_error: str,
+    waypoints_file: str | None,
+    segment_duration: float,
 ) -> Contour:
-    """The named contour preset (or a CSV contour) for ``robot``.
+    """The named contour preset (or a CSV contour) for ``robot``; the settings' defaults are the run
+    table's (:func:`pdsmc_ros.runs.builder.build_contour` applies them).
 
     A URDF arm runs its contour set's presets fitted to its ``contour_size`` (m, the box's
     longer side, centred on its task plane's origin; none: as they are) and CSV contours as

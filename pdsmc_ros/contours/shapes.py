@@ -176,7 +176,7 @@ class EllipseContour(Contour):
         duration: float,
         *,
         pose: tuple[float, float] | None = None,
-        ellipse_error: str = "nearest",
+        ellipse_error: str,
     ) -> None:
         c = as_vector(center, 2, "center")
         for label, value in (("rx", rx), ("ry", ry), ("duration", duration)):

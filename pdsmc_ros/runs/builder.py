@@ -17,7 +17,7 @@ import numpy as np
 from .. import __version__
 from ..config import choice, load_config
 from ..contours import Contour, JointReference
-from ..contours.presets import build_contour, contour_names, contour_set
+from ..contours.presets import contour_names, contour_preset, contour_set
 from ..control.gains import Gains
 from ..control.registry import GAINS, SMC_MODEL_KEYS, law, smc_model_vector
 from ..errors import ConfigError, InvalidInputError, MissingGainsError
@@ -289,6 +289,15 @@ def preset_gains(robot: str, contour: str, controller: str) -> Gains:
         raise MissingGainsError(f"config/gains.yaml has no {controller} gains for {robot} ({group} contours); "
                           "give the gains, or let `pdsmc tune` propose them")
     return Gains.from_mapping(table, model.n, controller)
+
+
+def build_contour(robot: str, name: str, *, ellipse_error: str = DEFAULT["ellipse_error"],
+                  waypoints_file: str | None = None,
+                  segment_duration: float = DEFAULT["segment_duration"]) -> Contour:
+    """The contour ``name`` (a preset, ``csv`` or ``joints``) for ``robot``, the settings not given at
+    the run table's defaults (:func:`pdsmc_ros.contours.presets.contour_preset`)."""
+    return contour_preset(robot, name, ellipse_error=ellipse_error, waypoints_file=waypoints_file,
+                          segment_duration=segment_duration)
 
 
 @functools.lru_cache(maxsize=64)
