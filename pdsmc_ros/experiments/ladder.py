@@ -249,11 +249,17 @@ def verdicts(summary: Mapping[str, Mapping[str, Any]], rows: Sequence[Mapping[st
 
 
 def undecided_rungs(found: Sequence[Verdict]) -> list[str]:
-    """The rungs where a claim is undecided (the ones more draws may decide), in order of first mention."""
+    """The rungs where a claim is undecided (the ones more draws may decide), in order of first mention;
+    with an undecided ``robust`` claim, the ideal rung too: that claim pairs each draw with the same
+    draw at the ideal rung (:func:`degradation`), so more draws at its rung alone would add no pair."""
+    robust = {claim.name for claim in CLAIMS if claim.kind == "robust"}
     out: list[str] = []
     for v in found:
-        if v.verdict == UNDECIDED and v.rung not in out:
-            out.append(v.rung)
+        if v.verdict != UNDECIDED:
+            continue
+        for rung in (v.rung, "ideal") if v.claim in robust else (v.rung,):
+            if rung not in out:
+                out.append(rung)
     return out
 
 

@@ -182,3 +182,16 @@ def test_the_help_names_the_defaults_the_module_declares(capsys: pytest.CaptureF
         cli.main(["ladder", "--help"])
     text = " ".join(capsys.readouterr().out.split())
     assert ",".join(LAWS) in text and ",".join(RUNG_NAMES) in text
+
+
+def test_more_draws_go_where_a_claim_is_undecided_and_to_the_ideal_rung_a_robust_claim_pairs_with() -> None:
+    from pdsmc_ros.experiments.ladder import FAILS, HOLDS, UNDECIDED, Verdict, undecided_rungs
+
+    def v(claim: str, rung: str, verdict: str) -> Verdict:
+        return Verdict(claim, rung, verdict, None, None, "")
+
+    assert undecided_rungs([v("contour", "bench", UNDECIDED), v("tracking", "delay", HOLDS)]) == ["bench"]
+    # the robust claim compares each draw with the same draw on the ideal rung: both get the new draws
+    assert undecided_rungs([v("contour", "ideal", HOLDS), v("robust", "payload", UNDECIDED),
+                            v("contour", "bench", UNDECIDED), v("robust", "bench", FAILS)]) == ["payload", "ideal",
+                                                                                                  "bench"]
