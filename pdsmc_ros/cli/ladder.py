@@ -37,7 +37,8 @@ def add_parser(sub: argparse._SubParsersAction, commands: dict) -> None:  # type
                    help="comma-separated rungs (default all: ideal,friction,sensing,delay,payload,bench)")
     p.add_argument("--draws", type=run_count, required=True, help="seeded draws a rung (every law on each)")
     p.add_argument("--more-draws", type=run_count, default=None,
-                   help="this many more draws on the rungs where a claim is undecided after --draws")
+                   help="this many more draws on the rungs where a claim is undecided after --draws (and on "
+                        "the ideal rung, which the robustness claim pairs its draws with)")
     p.add_argument("--seed", type=seed_value, default=0, help="draw i: default_rng([seed, i]) (default 0)")
     p.add_argument("--uncertainty", default=None,
                    help="YAML of the plant's spreads (default config/ladder_uncertainty.yaml)")
