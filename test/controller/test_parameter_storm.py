@@ -163,6 +163,8 @@ def test_every_type_to_every_parameter_leaves_the_node_answering_and_commanding(
                    for e in client.events for p in e.changed_parameters]
         assert ("/controller", "kp", [60.0, 60.0]) in changes, changes
         assert "/controller_parameters" not in {e.node for e in client.events}  # the stand-in's own name
+        # a client that calls before its endpoints are matched loses the request: wait for the service first
+        assert client.state.wait_for_service(timeout_sec=30), "the controller's /controller/get_state never appeared"
         state = client.call(client.state, GetState.Request())
         assert state.current_state.label == "active"  # type: ignore[attr-defined]
         client.commands.clear()
