@@ -69,7 +69,6 @@ class LostResults:
         self.lock = threading.Lock()
         self.waiting: collections.OrderedDict[bytes, list[Any]] = collections.OrderedDict()  # goal id: headers
         self.lost: collections.OrderedDict[bytes, Outcome] = collections.OrderedDict()
-        self.answered = 0
 
     def lose(self, key: bytes, outcome: Outcome) -> None:
         """The goal ``key`` (its id's bytes) ended with ``outcome`` because its process was lost (the
@@ -104,7 +103,6 @@ class LostResults:
             due = [(self.lost[key], self.waiting.pop(key)) for key in list(self.waiting) if key in self.lost]
         for outcome, headers in due:
             answered += self._answer(outcome, headers)
-        self.answered += answered
         return answered
 
     def _answer(self, outcome: Outcome, headers: list[Any]) -> int:
