@@ -15,6 +15,10 @@ from ..robots.base import FloatArray, as_vector
 from .polynomials import quintic
 from .samples import TaskSample
 
+ELLIPSE_ERRORS = ("nearest", "osculating")
+"""The contour errors of a non-circular ellipse (:class:`EllipseContour`'s ``ellipse_error``, the run's
+``ellipse_error``): the exact nearest point, or the local circle the thesis says it used."""
+
 
 def _require_positive(label: str, value: float | FloatArray) -> None:
     """A contour's durations and radii: finite and > 0 (InvalidInputError naming them)."""
@@ -181,7 +185,7 @@ class EllipseContour(Contour):
         c = as_vector(center, 2, "center")
         for label, value in (("rx", rx), ("ry", ry), ("duration", duration)):
             _require_positive(label, value)
-        _require_choice("ellipse_error", ellipse_error, ("nearest", "osculating"))
+        _require_choice("ellipse_error", ellipse_error, ELLIPSE_ERRORS)
         self.name = name
         self.center = c
         self.rx = float(rx)

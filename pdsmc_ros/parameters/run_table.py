@@ -34,6 +34,12 @@ def _modes() -> tuple[str, ...]:
     return MODES
 
 
+def _ellipse_errors() -> tuple[str, ...]:
+    from ..contours.shapes import ELLIPSE_ERRORS  # the contours load numba: read when asked
+
+    return ELLIPSE_ERRORS
+
+
 def _scenarios() -> tuple[str, ...]:
     return tuple(load_config("scenarios"))
 
@@ -50,9 +56,6 @@ PAYLOAD_READINGS = {
 }
 """Readings of Section 4.5.2's "a simulated load of 1.5 kg was added at the end-effector"
 (``payload_reading``); ``tip`` is the physical one and the default."""
-ELLIPSE_ERRORS = ("nearest", "osculating")
-"""The contour errors of a non-circular ellipse (``ellipse_error``): the exact nearest point, or the
-local circle the thesis says it used."""
 
 RUN = (
     P("robot", "string", "serial_3r", "the arm: serial_3r, parallel_5r, an arm of example-robot-data (ur5, "
@@ -76,7 +79,7 @@ RUN = (
       "end-effector) or link_com (on the last link's centre of mass, the SMC's model rebuilt for it)",
       choices=tuple(PAYLOAD_READINGS), flag="--payload-reading", node=False),
     P("ellipse_error", "string", "nearest", "contour error of ellipses: the exact nearest point or the osculating "
-      "circle", choices=ELLIPSE_ERRORS, flag="--ellipse-error"),
+      "circle", choices=_ellipse_errors, flag="--ellipse-error"),
     P("waypoints_file", "string", "", "CSV of task-space waypoints for contour csv", flag="--waypoints"),
     P("segment_duration", "double", 2.0, "seconds per segment of a CSV contour", lo=0.001, hi=1000.0,
       flag="--segment-duration"),
