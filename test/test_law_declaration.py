@@ -110,7 +110,8 @@ def test_the_controller_node_declares_and_takes_it(pd_g: None) -> None:  # noqa:
     from rclpy.parameter import Parameter
 
     from pdsmc_ros.controller.parameters import GainUpdates
-    from pdsmc_ros.ros.node_run import declare_run_parameters, run_spec_from_parameters
+    from pdsmc_ros.parameters.ros import declare_run_parameters
+    from pdsmc_ros.ros.node_run import run_spec_from_parameters
 
     context = rclpy.context.Context()
     rclpy.init(context=context)

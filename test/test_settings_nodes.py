@@ -19,7 +19,8 @@ rclpy = pytest.importorskip("rclpy")
 from rclpy.parameter import Parameter  # noqa: E402
 
 from pdsmc_ros.control import Gains  # noqa: E402
-from pdsmc_ros.ros.node_run import declare_run_parameters, run_spec_from_parameters  # noqa: E402
+from pdsmc_ros.parameters.ros import declare_run_parameters  # noqa: E402
+from pdsmc_ros.ros.node_run import run_spec_from_parameters  # noqa: E402
 
 GIVEN = {"kp": [300.0, 200.0], "kd": [20.0, 30.0], "ks": [1.5, 2.0], "lam": [10.0, 12.0], "phi": [0.4, 0.5]}
 

@@ -46,11 +46,11 @@ from ..control.soft_limits import effort_only_table, robot_soft_limits
 from ..errors import ConfigError, InvalidInputError, PdsmcError
 from ..parameters import BUSY_WAIT, CONTROLLER, OUTPUT_LIMITS
 from ..parameters.joint_map import JointMap
-from ..parameters.ros import declare, value_of
+from ..parameters.ros import declare, declare_run_parameters, value_of
 from ..robots import make_robot
 from ..robots.base import FloatArray, Manipulator
 from ..robots.catalog import resolve_robot
-from ..ros.node_run import declare_run_parameters, take_robot_description
+from ..ros.node_run import take_robot_description
 from ..runs.builder import RunSpec, resolve_gains, run_from_parameters
 from .commanding import RunawayGuard
 from .goals import GoalSettings, Tolerances

@@ -7,6 +7,8 @@ the parameter if it cannot be), so a node never starts on a value its table refu
 dies in rclpy's own type check. :func:`guard` is the on-set callback: rclpy refuses a read-only
 parameter and a value of another type before it runs; it refuses what the table refuses and
 what the node's own check refuses, and it returns a refusal, never raises, whatever arrives.
+:func:`declare_run_parameters` declares and guards the table every node of a run shares: the run's
+settings and every gain (:func:`guard_run_parameters` guards it alone, on the goal process's stand-in).
 """
 
 from __future__ import annotations
@@ -19,9 +21,12 @@ from rclpy.exceptions import ParameterException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
+from ..control.registry import law
 from ..errors import ConfigError
 from ..rclpy_internals import declared_value, parameter_overrides
 from .declaration import ParameterSpec
+from .run_table import run_parameters
+from .tables import STABILITY, gain_parameters
 
 ROS_TYPES = {
     "bool": Parameter.Type.BOOL,
@@ -163,3 +168,37 @@ def guard(node: Node, specs: Sequence[ParameterSpec], *, check: Check | None = N
 
 def _refused(reason: str) -> SetParametersResult:
     return SetParametersResult(successful=False, reason=" ".join(str(reason).split()))
+
+
+def declare_run_parameters(node: Node, *, gains: bool = False) -> dict[str, Any]:
+    """Declare the run's parameters and the gains (every node: one params file or ``-p kp:=``
+    serves all; only the controller uses them, ``gains``, and it also declares
+    :data:`~pdsmc_ros.parameters.STABILITY`), guard them (:func:`guard`:
+    the gains are the controller's to check, :class:`~pdsmc_ros.controller.parameters.GainUpdates`)
+    and return their values."""
+    values = declare(node, run_parameters())
+    gain_specs = gain_parameters(applied=gains and _law_gains(values["type"]))
+    values.update(declare(node, gain_specs, checked=False))  # the resolver's messages name the law
+    if gains:
+        values.update(declare(node, STABILITY))
+    guard_run_parameters(node, values["type"], gains=gains)
+    return values
+
+
+def guard_run_parameters(node: Node, controller: str, *, gains: bool = False) -> None:
+    """Guard the run's parameters, the gains of law ``controller`` and (``gains``: the controller)
+    the stability parameters on ``node`` (:func:`guard`); the gains are
+    the controller's to check (:class:`~pdsmc_ros.controller.parameters.GainUpdates`). Also the
+    goal process's stand-in of the controller's parameters, declared as the controller's."""
+    gain_specs = gain_parameters(applied=gains and _law_gains(controller))
+    specs = (*run_parameters(), *gain_specs, *(STABILITY if gains else ()))
+    guard(node, specs, checked_by_node=[g.name for g in gain_specs])
+
+
+def _law_gains(controller: str) -> tuple[str, ...]:
+    """The gains ``controller`` needs (the controller applies those at run time); none for an
+    unknown law (the run's check names it)."""
+    try:
+        return law(controller).gain_names
+    except ConfigError:
+        return ()

@@ -1,5 +1,7 @@
-"""Run parameters of the nodes: declared from the tables (:mod:`pdsmc_ros.parameters`), turned
-into a :class:`~pdsmc_ros.runs.builder.RunSpec`; nothing here computes physics, control or metrics."""
+"""The nodes' start-up: the run their parameters name (declared from the tables by
+:func:`~pdsmc_ros.parameters.ros.declare_run_parameters`) as a
+:class:`~pdsmc_ros.runs.builder.RunSpec`, the arm of ``/robot_description``; nothing here computes
+physics, control or metrics."""
 
 from __future__ import annotations
 
@@ -10,10 +12,9 @@ from typing import Any
 
 from rclpy.node import Node
 
-from ..control import law
 from ..errors import ConfigError
-from ..parameters import BUSY_WAIT, STABILITY, gain_parameters, run_parameters
-from ..parameters.ros import declare, guard, value_of
+from ..parameters import BUSY_WAIT, gain_parameters, run_parameters
+from ..parameters.ros import declare, declare_run_parameters, value_of
 from ..robots.catalog import ROBOT_DESCRIPTION, register_description
 from ..runs.builder import RunSpec, run_from_parameters
 from .robot_description import receive_robot_description
@@ -50,40 +51,6 @@ def take_robot_description(node: Node, robot: str) -> None:
             register_description(receive_robot_description(node))
         except ConfigError as exc:
             raise ConfigError(f"parameter robot: {exc}") from None
-
-
-def declare_run_parameters(node: Node, *, gains: bool = False) -> dict[str, Any]:
-    """Declare the run's parameters and the gains (every node: one params file or ``-p kp:=``
-    serves all; only the controller uses them, ``gains``, and it also declares
-    :data:`~pdsmc_ros.parameters.STABILITY`), guard them (:func:`~pdsmc_ros.parameters.ros.guard`:
-    the gains are the controller's to check, :class:`~pdsmc_ros.controller.parameters.GainUpdates`)
-    and return their values."""
-    values = declare(node, run_parameters())
-    gain_specs = gain_parameters(applied=gains and _law_gains(values["type"]))
-    values.update(declare(node, gain_specs, checked=False))  # the resolver's messages name the law
-    if gains:
-        values.update(declare(node, STABILITY))
-    guard_run_parameters(node, values["type"], gains=gains)
-    return values
-
-
-def guard_run_parameters(node: Node, controller: str, *, gains: bool = False) -> None:
-    """Guard the run's parameters, the gains of law ``controller`` and (``gains``: the controller)
-    the stability parameters on ``node`` (:func:`~pdsmc_ros.parameters.ros.guard`); the gains are
-    the controller's to check (:class:`~pdsmc_ros.controller.parameters.GainUpdates`). Also the
-    goal process's stand-in of the controller's parameters, declared as the controller's."""
-    gain_specs = gain_parameters(applied=gains and _law_gains(controller))
-    specs = (*run_parameters(), *gain_specs, *(STABILITY if gains else ()))
-    guard(node, specs, checked_by_node=[g.name for g in gain_specs])
-
-
-def _law_gains(controller: str) -> tuple[str, ...]:
-    """The gains ``controller`` needs (the controller applies those at run time); none for an
-    unknown law (the run's check names it)."""
-    try:
-        return law(controller).gain_names
-    except ConfigError:
-        return ()
 
 
 def run_spec_from_parameters(node: Node, *, needs_gains: bool = True) -> RunSpec:

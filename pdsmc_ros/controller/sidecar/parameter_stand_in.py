@@ -10,7 +10,7 @@ class ParameterStandIn:
     """The controller's parameter services (``/<controller>/get_parameters``, ``set_parameters``,
     ...), served in the goal process on a node of its own that declares the controller's
     parameters as they are (:func:`~.goal_process.parameter_table`) and guards them with the controller's own
-    callbacks: the tables' checks (:func:`~pdsmc_ros.ros.node_run.guard_run_parameters`; rclpy
+    callbacks: the tables' checks (:func:`~pdsmc_ros.parameters.ros.guard_run_parameters`; rclpy
     refuses read-only ones and wrong types from their descriptors) and the gains' resolver and
     stability check (:class:`~pdsmc_ros.controller.parameters.GainUpdates`, here in this process). Gains it accepts
     are sent to the loop's process (``("gains", gains, given)``), which applies them in its spare
@@ -28,8 +28,8 @@ class ParameterStandIn:
         from rclpy.serialization import deserialize_message
 
         from ...control.stability import check_rate
+        from ...parameters.ros import guard_run_parameters
         from ...rclpy_internals import announce, node_announcing_as
-        from ...ros.node_run import guard_run_parameters
         from ..parameters import GainUpdates
 
         table = [(Parameter.from_parameter_msg(deserialize_message(value, ParameterMsg)),
