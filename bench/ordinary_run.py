@@ -196,8 +196,8 @@ class Goals(SpunNode):
 def offline_error(q0: np.ndarray, t: np.ndarray) -> float:
     """Mean |e| (rad, over the joints and ``t``: s after the trajectory's start) of the same PD against
     the same MuJoCo arm in lockstep from rest at ``q0``."""
-    from pdsmc_ros.control.gains import Gains
     from pdsmc_ros.control.law import ControlLaw
+    from pdsmc_ros.control.registry import Gains
     from pdsmc_ros.runs.builder import make_run
     from pdsmc_ros.sim.mujoco_lockstep import StandIn
 

@@ -12,7 +12,7 @@ import pytest
 import yaml
 
 from pdsmc_ros.cli import main as pdsmc
-from pdsmc_ros.control.gains import Gains
+from pdsmc_ros.control.registry import Gains
 from pdsmc_ros.control.stability import RK4_REAL_LIMIT, plant_step
 from pdsmc_ros.errors import ConfigError
 from pdsmc_ros.experiments.tuning import tune

@@ -21,8 +21,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from pdsmc_ros.control.gains import Gains
-from pdsmc_ros.control.registry import law
+from pdsmc_ros.control.registry import Gains, law
 from pdsmc_ros.control.stability import check_gains
 from pdsmc_ros.experiments.tuning import Requirement
 from pdsmc_ros.runs.builder import make_run

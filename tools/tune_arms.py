@@ -15,7 +15,7 @@ import sys
 
 import yaml
 
-from pdsmc_ros.control.gains import Gains
+from pdsmc_ros.control.registry import Gains
 from pdsmc_ros.control.stability import check_gains, tolerated_delay
 from pdsmc_ros.experiments.tuning import tune
 from pdsmc_ros.runs.builder import make_run

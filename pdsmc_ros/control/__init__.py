@@ -11,13 +11,13 @@ the built-in ones in this package, a user's in a package of its own) or register
 :func:`register_law`; preset gains in ``config/gains.yaml`` are optional.
 """
 
-from .gains import Gains
 from .law import ControlLaw, compiled_torque
 from .laws import PD, PDSMC, SMC
 from .registry import (
     GAINS,
     LAWS,
     SMC_MODEL_KEYS,
+    Gains,
     GainSpec,
     LawEntry,
     LawSetup,

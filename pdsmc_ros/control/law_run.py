@@ -12,7 +12,7 @@ from ..robots.base import FloatArray, Manipulator
 
 if TYPE_CHECKING:
     from ..contours import JointReference
-    from .gains import Gains
+    from .registry import Gains
 
 
 class LawRun(Protocol):

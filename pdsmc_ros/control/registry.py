@@ -1,4 +1,4 @@
-"""Control laws by name: what a law declares and the registry.
+"""Control laws by name: what a law declares, the gains validated against it, and the registry.
 
 A law module builds a :class:`LawEntry` -- its name, its gains (:class:`GainSpec`: name,
 shape, units, bounds, description, the scenario factor that scales it), its compiled form's
@@ -7,7 +7,8 @@ and is an entry point of the group ``pdsmc_ros.laws`` (:mod:`pdsmc_ros.plugins`:
 laws' in this package, a user's in a package of its own), or registers it in-process with
 :func:`register_law`. Everything that handles gains reads these declarations, plugins' included:
 the CLI's gain flags, the nodes' gain parameters and their descriptors, the params files of
-``pdsmc tune`` and the reports (:func:`gain_specs`, :func:`law`). A law's preset gains, if any,
+``pdsmc tune`` and the reports (:func:`gain_specs`, :func:`law`); a run holds its law's gains as
+:class:`Gains`, validated against the law's :class:`GainSpec` rows. A law's preset gains, if any,
 live in ``config/gains.yaml``; a law written in Python runs behind
 :mod:`pdsmc_ros.control.python_form`, in the same loop as the compiled ones.
 """
@@ -15,8 +16,9 @@ live in ``config/gains.yaml``; a law written in Python runs behind
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -41,7 +43,7 @@ class GainSpec:
     ----------
     name : str
         The ROS parameter, the CLI flag (``--name``), the params-file key and the key of
-        :class:`~pdsmc_ros.control.gains.Gains`.
+        :class:`Gains`.
     description : str
         What it is (the parameter's descriptor, ``--help``).
     units : str
@@ -104,6 +106,89 @@ class GainSpec:
         if not np.all(np.isfinite(values)) or not np.all(low_ok) or np.any(values > self.upper):
             raise ConfigError(f"gain {self.name} of {controller} must be finite and {self.bounds}, "
                               f"got {values.tolist()}")
+
+
+@dataclass(frozen=True)
+class Gains(Mapping[str, tuple[float, ...]]):
+    """A law's gains by name, in the order of its gain matrix's rows (:attr:`LawEntry.rows`).
+
+    A per-joint gain holds ``n`` values, a scalar one value. Read one as ``gains["kp"]``.
+
+    Attributes
+    ----------
+    n : int
+        Joints.
+    rows : tuple of (str, tuple of float)
+        Each row's gain name and values.
+    """
+
+    n: int
+    rows: tuple[tuple[str, tuple[float, ...]], ...]
+
+    def __getitem__(self, name: str) -> tuple[float, ...]:
+        for key, values in self.rows:
+            if key == name:
+                return values
+        raise KeyError(name)
+
+    def __iter__(self) -> Iterator[str]:
+        return (key for key, _ in self.rows)
+
+    def __len__(self) -> int:
+        return len(self.rows)
+
+    @classmethod
+    def from_mapping(cls, data: Mapping[str, Any], n: int, controller: str, *, partial: bool = False) -> Gains:
+        """Build from a ``{kp: [...], ...}`` mapping, validated against ``controller``'s declaration.
+
+        Names must be rows of the law, every gain it needs must be given, a per-joint gain needs
+        ``n`` values (one value stands for all), a scalar one value, each within its bounds.
+        Rows not given hold their neutral value (``partial``: needed ones too, to check one layer
+        of a run's gains on its own).
+        """
+        entry = law(controller)
+        names = [spec.name for spec in entry.row_specs]
+        unknown = set(data) - set(names)
+        if unknown:
+            raise ConfigError(f"unknown gain(s) {sorted(unknown)} for {controller}; allowed: {', '.join(names)}")
+        missing = [] if partial else [g for g in entry.gain_names if g not in data]
+        if missing:
+            raise ConfigError(f"{controller} needs gains {', '.join(missing)}")
+        rows = []
+        for spec in entry.row_specs:
+            size = n if spec.per_joint else 1
+            raw = data.get(spec.name, [spec.neutral] * size)
+            what = f"{n} values (one per joint)" if spec.per_joint else "one value (for every joint)"
+            try:
+                arr = np.asarray(raw, dtype=float).reshape(-1)
+            except (TypeError, ValueError):
+                raise ConfigError(f"gain {spec.name} must be numbers, {what}, got {raw!r}") from None
+            if arr.size == 1:
+                arr = np.full(size, arr[0])
+            if arr.size != size:
+                raise ConfigError(f"gain {spec.name} needs {what}, got {arr.size}")
+            spec.check(arr, controller)
+            rows.append((spec.name, tuple(float(v) for v in arr)))
+        return cls(n, tuple(rows))
+
+    def scaled(self, factors: Mapping[str, float]) -> Gains:
+        """Gains with some multiplied (Section 4.5.3): ``factors`` by gain name."""
+        return Gains(self.n, tuple(
+            (key, tuple(v * float(factors[key]) for v in values) if key in factors else values)
+            for key, values in self.rows
+        ))
+
+    def replaced(self, changes: Mapping[str, Any], controller: str) -> Gains:
+        """These gains with some given anew, validated as :meth:`from_mapping` validates."""
+        return Gains.from_mapping({**self.as_dict(), **changes}, self.n, controller)
+
+    def matrix(self) -> np.ndarray:
+        """``(rows, n)`` array (:attr:`LawSetup.gains`); a scalar gain fills its row."""
+        return np.array([np.broadcast_to(np.asarray(values, dtype=float), (self.n,)) for _, values in self.rows],
+                        dtype=float)
+
+    def as_dict(self) -> dict[str, list[float]]:
+        return {key: list(values) for key, values in self.rows}
 
 
 @dataclass(frozen=True)

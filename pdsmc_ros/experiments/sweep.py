@@ -17,8 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..control.gains import Gains
-from ..control.registry import law
+from ..control.registry import Gains, law
 from ..control.stability import rate_margin
 from ..errors import InvalidInputError
 from ..robots import make_robot

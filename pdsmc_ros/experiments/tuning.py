@@ -24,8 +24,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..control.gains import Gains
-from ..control.registry import law
+from ..control.registry import Gains, law
 from ..control.stability import THEOREM_LAWS, check_gains, loop_delay, plant_step
 from ..errors import ConfigError, PdsmcError
 from ..robots import make_robot

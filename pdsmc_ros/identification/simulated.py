@@ -21,9 +21,8 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ..control.gains import Gains
 from ..control.law import ControlLaw
-from ..control.registry import smc_model_vector
+from ..control.registry import Gains, smc_model_vector
 from ..control.soft_limits import effort_only_table
 from ..errors import InvalidInputError
 from ..robots.base import FloatArray, Manipulator

@@ -23,8 +23,7 @@ from typing import Any
 import yaml
 
 from ..config import read_yaml
-from ..control.gains import Gains
-from ..control.registry import gain_names, law
+from ..control.registry import Gains, gain_names, law
 from ..errors import ConfigError
 from ..robots.options import robot_key
 from .declaration import JOINT, check_values, joint_name_matches

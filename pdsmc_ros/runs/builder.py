@@ -18,8 +18,7 @@ from .. import __version__
 from ..config import choice, load_config
 from ..contours import Contour, JointReference
 from ..contours.presets import contour_names, contour_preset, contour_set
-from ..control.gains import Gains
-from ..control.registry import GAINS, SMC_MODEL_KEYS, law, smc_model_vector
+from ..control.registry import GAINS, SMC_MODEL_KEYS, Gains, law, smc_model_vector
 from ..errors import ConfigError, InvalidInputError, MissingGainsError
 from ..parameters.run_table import PAYLOAD_READINGS, RUN_DEFAULTS, run_parameters
 from ..robots import ROBOTS, Manipulator, RobotParams, make_robot, robot_settings

@@ -113,9 +113,8 @@ def test_a_bad_nuisance_is_one_line_and_exit_2(flags: list[str], message: str,
 def _drive_record(given: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """A short computed-torque run of the serial 3R on the stand-in with ``given`` nuisances: the
     true positions, the law's torques and the drive's record at every step."""
-    from pdsmc_ros.control.gains import Gains
     from pdsmc_ros.control.law import ControlLaw
-    from pdsmc_ros.control.registry import smc_model_vector
+    from pdsmc_ros.control.registry import Gains, smc_model_vector
     from pdsmc_ros.identification.simulated import EXACT_MODEL
     from pdsmc_ros.robots.registry import make_robot
 
