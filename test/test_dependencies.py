@@ -64,7 +64,7 @@ that compiles the kernels by running every robot and law through a run."""
 ROS_LAYER = (*COMPONENTS, "loop", "ros", "parameters")
 """The components and the plumbing they share (the loop, topics and publishers, parameters)."""
 ROS_FREE = tuple(f"pdsmc_ros.controller.{m}" for m in ("core", "commanding", "goals", "joint_trajectory", "hold",
-                                                       "joints", "limits", "warm",
+                                                       "joints", "limits",
                                                        "sidecar.framing", "sidecar.process", "sidecar.gain_check")) + (
     "pdsmc_ros.parameters.joint_map",
     "pdsmc_ros.trajectory.reference_windows", "pdsmc_ros.loop.realtime", "pdsmc_ros.loop.statistics",

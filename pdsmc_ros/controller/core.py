@@ -6,7 +6,8 @@ decides is here: which state meets which reference (lockstep:
 where a hold holds (:class:`~.hold.Hold`), where a ``~/joint_trajectory`` starts, whether an
 action goal is valid and with which tolerances (:mod:`.goals`), and the torque of the running
 law (:class:`~pdsmc_ros.control.ControlLaw`, its formulas in :mod:`pdsmc_ros.control`), the
-active goal checked against its tolerances first. ROS-free.
+active goal checked against its tolerances first; each of these steps is run once at configure
+(:func:`warm_up`), so none is first run on a real tick. ROS-free.
 """
 
 from __future__ import annotations
@@ -29,6 +30,7 @@ from .goals import (
     GoalSettings,
     GoalSlot,
     Outcome,
+    Tolerances,
     prepare_trajectory,
     resolve_tolerances,
 )
@@ -36,7 +38,6 @@ from .hold import Hold
 from .joint_trajectory import JointTrajectoryReference, RawPoint
 from .joints import JointSelector
 from .limits import JointLimits
-from .warm import warm_up
 
 CONTINUITY_TOLERANCE = 0.05
 """rad: a hold keeps the commanded position while every joint is this close to it
@@ -106,6 +107,39 @@ def check_goal(settings: GoalSettings, limits: JointLimits | None, joints: tuple
     tolerances, warning = resolve_tolerances(settings.tolerances(len(joints)), joints, path, goal, goal_time)
     return GoalStart(GoalExecution(reference, tolerances, tuple(joints), cmd_timeout=settings.timeout(),
                                    wrap=settings.wrap), warning)
+
+
+def warm_up(law: ControlLaw, selector: JointSelector, limits: JointLimits | None, q: np.ndarray,
+            guard: TorqueGuard, joint_map: JointMap) -> None:
+    """Run once, on made-up inputs at position ``q``, every step of the path from a message to
+    a command: a quintic three-point trajectory parsed and sampled, its limit check, a goal's
+    tolerance check, a hold, the law, the torque guard and the joint order of the output; the
+    results are discarded.
+
+    A real-time controller must not stall on its first command: numba loads a compiled law on
+    its first call, and numpy's first use of a function (searchsorted, polynomial segments, the
+    limit check's broadcasting) costs more than later ones (:meth:`ControllerCore.configure`
+    calls this)."""
+    q = np.asarray(q, dtype=float)
+    n = len(q)
+    zeros = [0.0] * n
+    points = [(list(q + 0.01 * k), zeros, zeros, k, 0) for k in (1, 2, 3)]
+    reference, _ = JointTrajectoryReference.from_message(selector, 0.0, selector.joints, points, 0.0,
+                                                         q, np.zeros(n))
+    if reference is None:  # pragma: no cover - the made-up trajectory is valid
+        return
+    if limits is not None:
+        limits.trajectory_problem(reference)
+    goal = GoalExecution(reference, Tolerances.defaults(n), selector.joints)
+    for t in (0.5, 1.5, 2.5, 3.5):
+        desired = reference.sample(t)
+        goal.update(t, q, np.zeros(n), desired)
+        tau = law.torque(q, np.zeros(n), *desired)
+    tau = law.torque(q, np.zeros(n), *Hold(q, "warm-up").sample(0.0))
+    # a torque inside the limits: the guard's counters stay at zero
+    zero = np.zeros_like(tau)
+    guard.limit(zero, q, np.zeros(n))
+    guard.check(joint_map.to_user(zero))
 
 
 class ControllerCore:
