@@ -18,7 +18,7 @@ CORE = ["pdsmc_ros/bag", "pdsmc_ros/robots", "pdsmc_ros/control", "pdsmc_ros/sim
         "pdsmc_ros/parameters/joint_map.py",
         # the components' ROS-free decisions
         *(f"pdsmc_ros/controller/{m}.py" for m in ("core", "commanding", "goals", "joint_trajectory", "hold",
-                                                   "joints", "limits", "warm",
+                                                   "joints", "limits",
                                                    "sidecar/framing", "sidecar/process", "sidecar/gain_check")),
         "pdsmc_ros/trajectory/reference_windows.py", "pdsmc_ros/loop/realtime.py", "pdsmc_ros/loop/statistics.py",
         "pdsmc_ros/resources.py", "pdsmc_ros/metrics/scores.py", "pdsmc_ros/experiments",
