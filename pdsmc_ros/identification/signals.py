@@ -42,9 +42,10 @@ on the viscous ones: test/identification/test_identify.py). So:
    its sign flips at random between ``+1`` and ``-1``;
 8. for the prediction of a held-out run with static friction as the set it is at rest
    (:meth:`Prepared.static_friction_set`): where each joint is at rest (:attr:`Prepared.rest`: the
-   slope of a local line fit of the recorded positions within the band ``v_s``, a test that reaches
-   no farther than its window, where the Butterworth's ringing reaches a period of its cut-off
-   before each breakaway), and that set carried through the same filters as the efforts.
+   slope of a line fitted to the recorded positions on one side of the instant within the band
+   ``v_s``, a test that reaches no farther than its window, where the filtered velocity's ringing
+   reaches most of a period of the cut-off before each breakaway), and that set carried through
+   the same filters as the efforts.
 """
 
 from __future__ import annotations
@@ -58,8 +59,8 @@ from numpy.typing import ArrayLike
 from ..errors import InvalidInputError
 from ..robots.base import FloatArray
 
-__all__ = ["BANDWIDTH_ENERGY", "CUTOFF_FACTOR", "STICK_SIGMAS", "Prepared", "motion_bandwidth", "prepare", "rest_window",
-           "uniform"]
+__all__ = ["BANDWIDTH_ENERGY", "CUTOFF_FACTOR", "STICK_SIGMAS", "Prepared", "motion_bandwidth", "prepare",
+           "rest_window", "uniform"]
 
 BANDWIDTH_ENERGY = 0.999
 """Share of the velocities' energy below the motion's bandwidth."""
@@ -194,10 +195,11 @@ class Prepared:
     stick_band : ndarray, shape (n,)
         Each joint's Coulomb band ``v_s`` (rad/s or m/s, :data:`STICK_SIGMAS`; or given).
     rest : ndarray of bool, shape (len(grid), n)
-        Whether each joint is at rest at each time of :attr:`grid`: the slope of a local line fit of
-        its recorded positions (:func:`rest_window`) within its :attr:`stick_band`.
+        Whether each joint is at rest at each time of :attr:`grid`: the slope of a line fitted to
+        its recorded positions (:func:`rest_window` of them) ending or starting there within its
+        :attr:`stick_band` (:func:`_rest`).
     rest_slope : ndarray, shape (len(grid), n)
-        That slope (rad/s or m/s).
+        The slope of the line fitted to the positions centred on each time (rad/s or m/s).
     """
 
     grid: FloatArray
@@ -276,12 +278,14 @@ class Prepared:
         radius through ``|h|``, the chain's impulse response at the recording's rate (the anti-alias
         low-pass and the cut-off's, both ways; the model grid's decimation left out: below the
         anti-alias it changes nothing the cut-off keeps). Away from every stretch at rest, by more
-        than the filter's reach, the radius is 0 and the set the point ``sign(qd)``."""
+        than the filter's reach, the radius is 0 and the set the point ``sign(qd)``; within a stretch at
+        rest it is up to ``sum |h|`` (1.38 for the cut-off's Butterworth both ways), not 1: the
+        filter's negative lobes take a torque that flips within ``+/- fc`` past ``fc``."""
         centre = self.stepped(np.where(self.rest, 0.0, np.sign(self.rest_slope)))
         reach = np.abs(_chain_response(self.cutoff, self.rate, self.model_rate))
         radius = np.stack([scipy.signal.fftconvolve(self.rest[:, j].astype(float), reach, mode="same")
                            for j in range(self.rest.shape[1])], axis=1)[self.model_grid[self.keep]]
-        return centre, np.clip(radius, 0.0, 1.0)
+        return centre, radius
 
     def describe(self) -> str:
         how = "given" if self.cutoff_given else (f"{CUTOFF_FACTOR:g} x the motion's bandwidth {self.bandwidth:.3g} Hz "
@@ -313,10 +317,33 @@ def rest_window(sigma_q: FloatArray, band: FloatArray, rate: float) -> int:
     with white noise ``sigma_q``, has a slope of standard deviation
     ``sigma_q rate / sqrt(N (N^2 - 1) / 12)``."""
     needed = np.where(band > 0.0, STICK_SIGMAS * np.asarray(sigma_q, dtype=float) * rate / band, 0.0)
-    # N (N^2 - 1) / 12 >= needed^2: N^3 >= 12 needed^2 is within one sample of it
-    count = int(np.ceil(np.cbrt(12.0 * float(np.max(needed)) ** 2))) + 1
-    count = max(count, 3)
-    return count if count % 2 else count + 1
+    target = float(np.max(needed)) ** 2
+
+    def enough(count: int) -> bool:
+        return count * (count * count - 1) / 12.0 >= target
+
+    count = max(3, int(np.cbrt(12.0 * target)) - 2)  # N^3 ~ 12 needed^2: within a few samples
+    count += 1 - count % 2
+    while not enough(count):
+        count += 2
+    while count > 3 and enough(count - 2):
+        count -= 2
+    return count
+
+
+def _rest(q: FloatArray, band: FloatArray, window: int, rate: float) -> tuple[FloatArray, np.ndarray]:
+    """``(slope, rest)`` at every sample: the slope of a line fitted to the ``window`` positions
+    centred on it (Savitzky-Golay, degree 1), and whether the joint is at rest there -- the slope
+    of the window that ends at the sample, or of the one that starts there, within ``band``. One
+    side suffices: at the first instants of a stuck stretch the centred window still holds the
+    motion before it (and at the last, the breakaway after it), and its slope is the motion's."""
+    window = min(window, len(q) - (1 - len(q) % 2))
+    slope: FloatArray = scipy.signal.savgol_filter(q, window, 1, deriv=1, delta=1.0 / rate, axis=0, mode="nearest")
+    half = window // 2
+    still = np.abs(slope) < band
+    ending = np.vstack([np.repeat(still[:1], half, axis=0), still[:len(still) - half]])
+    starting = np.vstack([still[half:], np.repeat(still[-1:], half, axis=0)])
+    return slope, ending | starting
 
 
 def _to_model_grid(signal: FloatArray, rate: float, model_rate: float, cutoff: float, model_grid: np.ndarray
@@ -382,11 +409,9 @@ def prepare(t: ArrayLike, q: ArrayLike, tau: ArrayLike, *, cutoff: float | None 
     moving = (_away_from_reversals(qd, int(np.ceil(REVERSAL_PERIODS / chosen * rate)))
               & _away_from(np.abs(qd) < SLOW_SHARE * peak, int(np.ceil(SLOW_GUARD_PERIODS / chosen * rate))))
     moving = moving[model_grid[keep]]
-    window = min(rest_window(sigma_q, band, rate), len(grid) - (1 - len(grid) % 2))
-    slope = (scipy.signal.savgol_filter(q_u, window, 1, deriv=1, delta=dt, axis=0) if window >= 3
-             else np.gradient(q_u, dt, axis=0))
+    slope, rest = _rest(q_u, band, rest_window(sigma_q, band, rate), rate)
     return Prepared(grid, q_f, qd, qdd, model_grid, keep, tau_f, moving, rate, model_rate, bandwidth, chosen,
-                    cutoff is not None, band, np.abs(slope) < band, slope)
+                    cutoff is not None, band, rest, slope)
 
 
 def position_noise(q: FloatArray, filtered: FloatArray, cutoff: float, rate: float) -> FloatArray:
