@@ -159,7 +159,7 @@ def validate(identification: Identification, t: ArrayLike, q: ArrayLike, tau: Ar
     """The fitted and the nominal model's NRMSE per joint on another run (held out), filtered
     with the identification's cut-off and Coulomb band; the fitted model's outside each joint's
     dead zone (:func:`prediction_nrmse`'s ``moving_only``); and the fitted model's with static
-    friction as the interval it is at rest (:func:`prediction_nrmse`'s ``static``)."""
+    friction the set it is at rest (:func:`prediction_nrmse`'s ``static``)."""
     prepared = prepare(t, q, tau, cutoff=identification.prepared.cutoff,
                        stick_band=identification.prepared.stick_band)
     dynamics = identification.dynamics
