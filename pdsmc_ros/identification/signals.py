@@ -257,12 +257,6 @@ class Prepared:
         out: FloatArray = np.clip(self.qd / self.stick_band, -1.0, 1.0)
         return out
 
-    def at_rest(self) -> np.ndarray:
-        """Per kept sample and joint: at rest (:attr:`rest`), where Coulomb friction holds the joint
-        with any torque within ``+/- fc``."""
-        out: np.ndarray = self.rest[self.model_grid[self.keep]]
-        return out
-
     def static_friction_set(self) -> tuple[FloatArray, FloatArray]:
         """Coulomb friction over ``fc``, set-valued, through the efforts' filters: ``(centre, radius)``
         at the kept samples, each ``(len(keep), n)``.
