@@ -91,18 +91,19 @@ def prediction_nrmse(regressor: FloatArray, parameters: FloatArray, prepared: Pr
     dead zone, :attr:`~.signals.Prepared.moving`), the range still the whole run's.
 
     ``static`` (the Coulomb frictions' slice of ``parameters``): Coulomb friction as the set-valued
-    law it is at rest (Karnopp's model, ASME J. Dyn. Syst. 1985; Leine & Nijmeijer 2004): where a
-    joint is slower than its band (:meth:`~.signals.Prepared.at_rest`) the model predicts the
-    interval ``rest +/- fc`` -- whatever torque within it, static friction holds the joint -- and
-    the error there is the measured effort's distance from that interval; a model whose ``fc`` or
-    rigid-body torque is wrong still misses it."""
+    law it is (Olsson et al. 1998; Brogliato 1999): any value within ``+/- fc`` where a joint is at
+    rest, ``fc sign(qd)`` where it moves, that set carried through the efforts' filters
+    (:meth:`~.signals.Prepared.static_friction_set`); the prediction is the rigid body's torque,
+    the motor inertia's and the viscous friction's plus that set, and the error the measured
+    effort's distance from it. Whatever torque within ``+/- fc`` holds a stuck joint, it is in the
+    set; a model whose ``fc`` or rigid-body torque is wrong still misses it."""
     predicted = (regressor @ parameters).reshape(prepared.tau.shape)
     if static is not None:
         fc = parameters[static]
         friction = (regressor[:, static] @ fc).reshape(prepared.tau.shape)
-        rest = predicted - friction
-        held = np.clip(prepared.tau, rest - fc, rest + fc)
-        predicted = np.where(prepared.at_rest(), held, predicted)
+        centre, radius = prepared.static_friction_set()
+        middle = predicted - friction + fc * centre
+        predicted = np.clip(prepared.tau, middle - fc * radius, middle + fc * radius)
     if not moving_only:
         return nrmse(prepared.tau, predicted)
     spread = prepared.tau.max(axis=0) - prepared.tau.min(axis=0)
@@ -158,7 +159,7 @@ def validate(identification: Identification, t: ArrayLike, q: ArrayLike, tau: Ar
     """The fitted and the nominal model's NRMSE per joint on another run (held out), filtered
     with the identification's cut-off and Coulomb band; the fitted model's outside each joint's
     dead zone (:func:`prediction_nrmse`'s ``moving_only``); and the fitted model's with static
-    friction as the interval it is at rest (:func:`prediction_nrmse`'s ``static``)."""
+    friction the set it is at rest (:func:`prediction_nrmse`'s ``static``)."""
     prepared = prepare(t, q, tau, cutoff=identification.prepared.cutoff,
                        stick_band=identification.prepared.stick_band)
     dynamics = identification.dynamics

@@ -47,6 +47,7 @@ def report_data(result: Identification, *, robot: str, bag: str,
             "kept_rate_hz": prepared.kept_rate,
             "samples": int(len(prepared.keep)),
             "equations": int(result.equations),
+            "coulomb_band": _per_joint(names, prepared.stick_band),
         },
         "condition_number": result.condition,
         "consistency": {"method": CONSISTENCY_METHOD, "projected": fit.projected, "shift": fit.shift},
@@ -74,7 +75,7 @@ def report_data(result: Identification, *, robot: str, bag: str,
         data["nrmse"]["validation"] = _per_joint(names, fitted)
         data["nrmse"]["nominal_on_validation"] = _per_joint(names, nominal)
         data["nrmse"]["validation_outside_dead_zone"] = _per_joint(names, moving)
-        data["nrmse"]["validation_static_friction_at_rest"] = _per_joint(names, static)
+        data["nrmse"]["validation_static_friction_set"] = _per_joint(names, static)
     return data
 
 
@@ -94,7 +95,7 @@ def report_lines(data: dict[str, Any]) -> list[str]:
                            if data["consistency"]["projected"] else ("the least-squares estimate, made consistent "
                                                                      "with the URDF where the data do not decide")),
         (f"{'joint':24s} {'armature (kg m^2)':>22s} {'coulomb (N m)':>20s} {'viscous (N m s)':>20s} "
-         f"{'NRMSE fit':>10s}") + (" held-out (moving) [at rest: +/- fc]" if "validation" in data["nrmse"] else "")
+         f"{'NRMSE fit':>10s}") + (" held-out (moving) [friction a set]" if "validation" in data["nrmse"] else "")
         + "  (URDF)",
     ]
     for name in names:
@@ -103,7 +104,7 @@ def report_lines(data: dict[str, Any]) -> list[str]:
         line = f"{name:24s} {cells[0]:>22s} {cells[1]:>20s} {cells[2]:>20s} {nrmse['fit'][name]:9.2%}"
         if "validation" in nrmse:
             line += (f" {nrmse['validation'][name]:8.2%} ({nrmse['validation_outside_dead_zone'][name]:6.2%}) "
-                     f"[{nrmse['validation_static_friction_at_rest'][name]:6.2%}]  "
+                     f"[{nrmse['validation_static_friction_set'][name]:6.2%}]  "
                      f"({nrmse['nominal_on_validation'][name]:.1%})")
         else:
             line += f"  ({nrmse['nominal_on_fit'][name]:.1%})"

@@ -39,7 +39,13 @@ on the viscous ones: test/identification/test_identify.py). So:
 7. Coulomb friction's ``sign(qd)`` is taken as ``sat(qd / v_s)`` (:meth:`Prepared.coulomb_sign`),
    linear through zero within a band ``v_s`` of :data:`STICK_SIGMAS` times the filtered velocity's
    noise (:attr:`Prepared.stick_band`): at rest the filtered velocity is the encoder's noise, and
-   its sign flips at random between ``+1`` and ``-1``.
+   its sign flips at random between ``+1`` and ``-1``;
+8. for the prediction of a held-out run with static friction as the set it is at rest
+   (:meth:`Prepared.static_friction_set`): where each joint is at rest (:attr:`Prepared.rest`: the
+   slope of a line fitted to the recorded positions on one side of the instant within the band
+   ``v_s``, a test that reaches no farther than its window, where the filtered velocity's ringing
+   reaches most of a period of the cut-off before each breakaway), and that set carried through
+   the same filters as the efforts.
 """
 
 from __future__ import annotations
@@ -53,7 +59,8 @@ from numpy.typing import ArrayLike
 from ..errors import InvalidInputError
 from ..robots.base import FloatArray
 
-__all__ = ["BANDWIDTH_ENERGY", "CUTOFF_FACTOR", "STICK_SIGMAS", "Prepared", "motion_bandwidth", "prepare", "uniform"]
+__all__ = ["BANDWIDTH_ENERGY", "CUTOFF_FACTOR", "STICK_SIGMAS", "Prepared", "motion_bandwidth", "prepare",
+           "rest_window", "uniform"]
 
 BANDWIDTH_ENERGY = 0.999
 """Share of the velocities' energy below the motion's bandwidth."""
@@ -187,6 +194,12 @@ class Prepared:
         The cut-off was given, not chosen from the bandwidth.
     stick_band : ndarray, shape (n,)
         Each joint's Coulomb band ``v_s`` (rad/s or m/s, :data:`STICK_SIGMAS`; or given).
+    rest : ndarray of bool, shape (len(grid), n)
+        Whether each joint is at rest at each time of :attr:`grid`: the slope of a line fitted to
+        its recorded positions (:func:`rest_window` of them) ending or starting there within its
+        :attr:`stick_band` (:func:`_rest`).
+    rest_slope : ndarray, shape (len(grid), n)
+        The slope of the line fitted to the positions centred on each time (rad/s or m/s).
     """
 
     grid: FloatArray
@@ -203,6 +216,8 @@ class Prepared:
     cutoff: float
     cutoff_given: bool
     stick_band: FloatArray
+    rest: np.ndarray
+    rest_slope: FloatArray
 
     @property
     def kept_rate(self) -> float:
@@ -242,12 +257,29 @@ class Prepared:
         out: FloatArray = np.clip(self.qd / self.stick_band, -1.0, 1.0)
         return out
 
-    def at_rest(self) -> np.ndarray:
-        """Per kept sample and joint: slower than its :attr:`stick_band`, where Coulomb friction
-        holds the joint with any torque within ``+/- fc`` (:func:`~.identify.prediction_nrmse`'s
-        ``static``)."""
-        out: np.ndarray = np.abs(self.kept_motion()[1]) < self.stick_band
-        return out
+    def static_friction_set(self) -> tuple[FloatArray, FloatArray]:
+        """Coulomb friction over ``fc``, set-valued, through the efforts' filters: ``(centre, radius)``
+        at the kept samples, each ``(len(keep), n)``.
+
+        The law is ``sign(qd)`` while a joint moves and any value in ``[-1, 1]`` while it is at rest
+        (the set-valued Coulomb law: Olsson, Astrom, Canudas de Wit, Gafvert & Lischinsky, "Friction
+        models and friction compensation", Eur. J. Control 4(3), 1998, section 2; Brogliato,
+        *Nonsmooth Mechanics*, 1999); at rest is :attr:`rest`, the sign the fitted slope's. The
+        efforts are filtered (:meth:`stepped`), so the model's prediction is that set filtered: a
+        linear filter ``h`` takes a signal pointwise within ``c(t) +/- r(t)`` to one within
+        ``(h * c) +/- (|h| * r)`` at each sample, and the bound is reached (each instant's value
+        chosen by the sign of ``h`` there). The centre goes through the efforts' own filters; the
+        radius through ``|h|``, the chain's impulse response at the recording's rate (the anti-alias
+        low-pass and the cut-off's, both ways; the model grid's decimation left out: below the
+        anti-alias it changes nothing the cut-off keeps). Away from every stretch at rest, by more
+        than the filter's reach, the radius is 0 and the set the point ``sign(qd)``; within a stretch at
+        rest it is up to ``sum |h|`` (1.38 for the cut-off's Butterworth both ways), not 1: the
+        filter's negative lobes take a torque that flips within ``+/- fc`` past ``fc``."""
+        centre = self.stepped(np.where(self.rest, 0.0, np.sign(self.rest_slope)))
+        reach = np.abs(_chain_response(self.cutoff, self.rate, self.model_rate))
+        radius = np.stack([scipy.signal.fftconvolve(self.rest[:, j].astype(float), reach, mode="same")
+                           for j in range(self.rest.shape[1])], axis=1)[self.model_grid[self.keep]]
+        return centre, radius
 
     def describe(self) -> str:
         how = "given" if self.cutoff_given else (f"{CUTOFF_FACTOR:g} x the motion's bandwidth {self.bandwidth:.3g} Hz "
@@ -256,6 +288,57 @@ class Prepared:
                 f"the positions, and on the efforts and the model's columns alike (parallel filtering); central "
                 f"differences; {len(self.keep)} samples kept at {self.kept_rate:.3g} Hz of {self.rate:.4g} Hz; Coulomb "
                 f"friction's sign linear within {', '.join(f'{v:.3g}' for v in self.stick_band)} (rad/s or m/s)")
+
+
+def _chain_response(cutoff: float, rate: float, model_rate: float) -> FloatArray:
+    """The impulse response of the efforts' filters at the recording's rate (:meth:`Prepared.stepped`,
+    the decimation left out), over :data:`EDGE_PERIODS` periods of the cut-off either side: the
+    length the filter's edges are dropped for. Beyond it lies 4e-4 of ``sum |h|`` (the Butterworth
+    of order 4 both ways, at any cut-off): a set that much narrower, never wider."""
+    half = int(np.ceil(EDGE_PERIODS / cutoff * rate))
+    impulse = np.zeros(2 * half + 1)
+    impulse[half] = 1.0
+    if model_rate < rate:
+        impulse = scipy.signal.sosfiltfilt(_lowpass(min(ANTI_ALIAS_PER_CUTOFF * cutoff, 0.45 * model_rate), rate),
+                                           impulse)
+    out: FloatArray = scipy.signal.sosfiltfilt(_lowpass(cutoff, rate), impulse)
+    return out
+
+
+def rest_window(sigma_q: FloatArray, band: FloatArray, rate: float) -> int:
+    """The samples (odd, >= 3) of the local line fit that tells a joint at rest (:attr:`Prepared.rest`):
+    the fewest whose slope's noise is at most ``band / STICK_SIGMAS`` on every joint, as the filtered
+    velocity's is (:data:`STICK_SIGMAS`). A line fitted to ``N`` samples ``1 / rate`` apart, each
+    with white noise ``sigma_q``, has a slope of standard deviation
+    ``sigma_q rate / sqrt(N (N^2 - 1) / 12)``."""
+    needed = np.where(band > 0.0, STICK_SIGMAS * np.asarray(sigma_q, dtype=float) * rate / band, 0.0)
+    target = float(np.max(needed)) ** 2
+
+    def enough(count: int) -> bool:
+        return count * (count * count - 1) / 12.0 >= target
+
+    count = max(3, int(np.cbrt(12.0 * target)) - 2)  # N^3 ~ 12 needed^2: within a few samples
+    count += 1 - count % 2
+    while not enough(count):
+        count += 2
+    while count > 3 and enough(count - 2):
+        count -= 2
+    return count
+
+
+def _rest(q: FloatArray, band: FloatArray, window: int, rate: float) -> tuple[FloatArray, np.ndarray]:
+    """``(slope, rest)`` at every sample: the slope of a line fitted to the ``window`` positions
+    centred on it (Savitzky-Golay, degree 1), and whether the joint is at rest there -- the slope
+    of the window that ends at the sample, or of the one that starts there, within ``band``. One
+    side suffices: at the first instants of a stuck stretch the centred window still holds the
+    motion before it (and at the last, the breakaway after it), and its slope is the motion's."""
+    window = min(window, len(q) - (1 - len(q) % 2))
+    slope: FloatArray = scipy.signal.savgol_filter(q, window, 1, deriv=1, delta=1.0 / rate, axis=0, mode="nearest")
+    half = window // 2
+    still = np.abs(slope) < band
+    ending = np.vstack([np.repeat(still[:1], half, axis=0), still[:len(still) - half]])
+    starting = np.vstack([still[half:], np.repeat(still[-1:], half, axis=0)])
+    return slope, ending | starting
 
 
 def _to_model_grid(signal: FloatArray, rate: float, model_rate: float, cutoff: float, model_grid: np.ndarray
@@ -311,8 +394,9 @@ def prepare(t: ArrayLike, q: ArrayLike, tau: ArrayLike, *, cutoff: float | None 
                                 f"({2 * edge / model_rate:.3g} s at a {chosen:.3g} Hz cut-off)")
     tau_f = scipy.signal.sosfiltfilt(_lowpass(chosen, model_rate), tau_m, axis=0)[keep]
     peak = np.max(np.abs(qd[model_grid[keep]]), axis=0)
+    sigma_q = position_noise(q_u, q_f, chosen, rate)
     if stick_band is None:
-        band = np.minimum(STICK_SIGMAS * velocity_noise(q_u, q_f, chosen, rate), SLOW_SHARE * peak)
+        band = np.minimum(STICK_SIGMAS * velocity_noise(sigma_q, chosen, rate), SLOW_SHARE * peak)
         # a joint that never moved: a band of 1, its sign column then zero, as sign(0) is
         band = np.where(band > 0.0, band, 1.0)
     else:
@@ -320,20 +404,27 @@ def prepare(t: ArrayLike, q: ArrayLike, tau: ArrayLike, *, cutoff: float | None 
     moving = (_away_from_reversals(qd, int(np.ceil(REVERSAL_PERIODS / chosen * rate)))
               & _away_from(np.abs(qd) < SLOW_SHARE * peak, int(np.ceil(SLOW_GUARD_PERIODS / chosen * rate))))
     moving = moving[model_grid[keep]]
+    slope, rest = _rest(q_u, band, rest_window(sigma_q, band, rate), rate)
     return Prepared(grid, q_f, qd, qdd, model_grid, keep, tau_f, moving, rate, model_rate, bandwidth, chosen,
-                    cutoff is not None, band)
+                    cutoff is not None, band, rest, slope)
 
 
-def velocity_noise(q: FloatArray, filtered: FloatArray, cutoff: float, rate: float) -> FloatArray:
-    """Per joint, the standard deviation of the filtered velocity's noise: the positions' noise
-    ``sigma_q`` is what the low-pass took out (the motion has nothing above the cut-off), white over
-    the recording's band ``rate / 2``; differentiated and low-passed at ``f_c`` its variance is
-    ``sigma_q^2 / (rate / 2) * integral_0^f_c (2 pi f)^2 df = sigma_q^2 (2 pi)^2 f_c^3 / (3 rate / 2)``.
-    The ends (:data:`EDGE_PERIODS`), where the filter's start-up transient is not noise, are left out."""
+def position_noise(q: FloatArray, filtered: FloatArray, cutoff: float, rate: float) -> FloatArray:
+    """Per joint, the standard deviation ``sigma_q`` of the positions' noise: what the low-pass took
+    out (the motion has nothing above the cut-off). The ends (:data:`EDGE_PERIODS`), where the
+    filter's start-up transient is not noise, are left out."""
     edge = int(np.ceil(EDGE_PERIODS / cutoff * rate))
     inside = slice(edge, len(q) - edge) if len(q) > 4 * edge else slice(None)
-    sigma_q = np.std((q - filtered)[inside], axis=0)
-    out: FloatArray = sigma_q * 2.0 * np.pi * np.sqrt(cutoff**3 / (3.0 * rate / 2.0))
+    out: FloatArray = np.std((q - filtered)[inside], axis=0)
+    return out
+
+
+def velocity_noise(sigma_q: FloatArray, cutoff: float, rate: float) -> FloatArray:
+    """Per joint, the standard deviation of the filtered velocity's noise, from the positions'
+    (:func:`position_noise`), white over the recording's band ``rate / 2``: differentiated and
+    low-passed at ``f_c`` its variance is
+    ``sigma_q^2 / (rate / 2) * integral_0^f_c (2 pi f)^2 df = sigma_q^2 (2 pi)^2 f_c^3 / (3 rate / 2)``."""
+    out: FloatArray = np.asarray(sigma_q, dtype=float) * 2.0 * np.pi * np.sqrt(cutoff**3 / (3.0 * rate / 2.0))
     return out
 
 

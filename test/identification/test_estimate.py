@@ -230,3 +230,63 @@ def test_a_slow_joint_is_in_the_dead_zone() -> None:
     far = distance > 1.1 * guard
     assert np.count_nonzero(far) >= 10
     assert np.mean(prepared.moving[far]) > 0.9
+
+
+def test_static_friction_at_rest_is_a_set_through_the_filters() -> None:
+    """A joint that sticks and breaks away, read by an 18-bit encoder with half a count of noise, its
+    effort Coulomb friction alone: ``fc sign(qd)`` while it moves, and while it is stuck whatever
+    torque within ``+/- fc`` (here a random level per stretch, ramping to ``fc`` before breakaway).
+    Filtered as the efforts are, that effort lies within the set ``fc (centre +/- radius)`` of
+    Prepared.static_friction_set at every kept sample; the point ``fc sign(qd)`` misses it by a
+    tenth of ``fc`` and more, and a torque of 1.5 fc while stuck (outside the law) falls outside the set."""
+    from pdsmc_ros.identification.signals import prepare
+
+    rate, fc = 1000.0, 6.0
+    rng = np.random.default_rng(5)
+    pieces_v, pieces_f = [], []
+    direction = 1.0
+    for _ in range(12):
+        rest = int(rng.uniform(0.4, 1.2) * rate)
+        level = rng.uniform(-1.0, 1.0)
+        ramp = np.clip(np.linspace(-1.0, 1.0, rest) * 4.0, 0.0, 1.0)  # to fc * direction in the last quarter
+        pieces_f.append(fc * (level + (direction - level) * ramp))
+        pieces_v.append(np.zeros(rest))
+        move = int(rng.uniform(0.8, 1.6) * rate)
+        pieces_v.append(direction * 0.3 * np.sin(np.pi * np.arange(1, move + 1) / (move + 1)) ** 2)
+        pieces_f.append(np.full(move, fc * direction))
+        direction = -direction
+    velocity, friction = np.concatenate(pieces_v), np.concatenate(pieces_f)
+    t = np.arange(len(velocity)) / rate
+    q = np.cumsum(velocity) / rate
+    grid = 2.0 * np.pi / 2**18
+    read = np.round((q + 0.5 * grid * rng.standard_normal(q.shape)) / grid) * grid
+    prepared = prepare(t, read[:, None], friction[:, None], cutoff=13.0)
+    centre, radius = prepared.static_friction_set()
+    assert 0.2 < np.mean(prepared.rest) < 0.6
+    outside = np.abs(prepared.tau - np.clip(prepared.tau, fc * (centre - radius), fc * (centre + radius)))
+    assert np.max(outside) < 1e-3 * fc
+    point = fc * prepared.stepped(np.sign(prepared.qd))
+    assert np.max(np.abs(prepared.tau - point)) > 0.1 * fc
+    held_too_hard = np.where(velocity == 0.0, 1.5 * fc * np.sign(friction + 1e-9), friction)
+    wrong = prepare(t, read[:, None], held_too_hard[:, None], cutoff=13.0)
+    outside = np.abs(wrong.tau - np.clip(wrong.tau, fc * (centre - radius), fc * (centre + radius)))
+    assert np.max(outside) > 0.2 * fc
+
+
+def test_the_rest_windows_slope_noise_is_the_band_over_stick_sigmas() -> None:
+    """rest_window's line fit has a slope noise of at most band / STICK_SIGMAS, and one sample fewer
+    on each side would exceed it (measured on white noise, 4,000 windows)."""
+    from pdsmc_ros.identification.signals import STICK_SIGMAS, rest_window
+
+    rate, sigma, band = 1000.0, 1.5e-5, 5.5e-4
+    count = rest_window(np.array([sigma]), np.array([band]), rate)
+    assert count % 2 == 1
+
+    def slope_std(n: int) -> float:
+        return sigma * rate / np.sqrt(n * (n * n - 1) / 12.0)
+
+    assert slope_std(count) <= band / STICK_SIGMAS < slope_std(count - 2)
+    rng = np.random.default_rng(2)
+    x = (np.arange(count) - (count - 1) / 2) / rate
+    slopes = (sigma * rng.standard_normal((4000, count))) @ x / (x @ x)
+    assert np.std(slopes) == pytest.approx(slope_std(count), rel=0.05)
