@@ -37,6 +37,8 @@ PROGRESS_EVERY_S = 1.0
 """Seconds between two progress lines."""
 CANCEL_WAIT_S = 10.0
 """How long a canceled goal's result is waited for."""
+SERVER_CHECK_S = 0.5
+"""Seconds between two looks, during a goal, at whether its server is still there."""
 
 
 def _duration(value: Mapping[str, Any]) -> Duration:
@@ -107,6 +109,36 @@ def _seconds(d: Duration) -> float:
     return float(d.sec) + 1e-9 * float(d.nanosec)
 
 
+class ServerWatch:
+    """Whether an action server has been gone for ``patience`` seconds (``ready``: the client's
+    ``server_is_ready``, asked every :data:`SERVER_CHECK_S`).
+
+    A result is requested once; if the server's process ends, nothing will ever answer it, and a
+    client that waits only for the result waits forever. Brief absences are tolerated: a server
+    restarting its goal process is away for a second or two.
+    """
+
+    def __init__(self, ready: Callable[[], bool], patience: float, *,
+                 clock: Callable[[], float] = time.monotonic) -> None:
+        self.ready = ready
+        self.patience = float(patience)
+        self.clock = clock
+        self.next_check = clock()
+        self.away_since: float | None = None
+
+    def gone(self) -> bool:
+        now = self.clock()
+        if now < self.next_check:
+            return False
+        self.next_check = now + SERVER_CHECK_S
+        if self.ready():
+            self.away_since = None
+            return False
+        if self.away_since is None:
+            self.away_since = now
+        return now - self.away_since >= self.patience
+
+
 def send_goal(goal: FollowJointTrajectory.Goal, action: str, *, server_timeout: float = 10.0,
               progress: Callable[[str], None] | None = None, domain: int | None = None) -> GoalOutcome:
     """Send ``goal`` to the FollowJointTrajectory server ``action`` and wait for its result; Ctrl-C
@@ -114,6 +146,8 @@ def send_goal(goal: FollowJointTrajectory.Goal, action: str, *, server_timeout: 
 
     ``progress`` receives a line per :data:`PROGRESS_EVERY_S` from the feedback: the goal's time
     and the largest position error. ``domain``: the ROS domain (default ``ROS_DOMAIN_ID``, else 0).
+    A server that goes away during the goal and stays away ``server_timeout`` seconds ends the wait
+    with ``NO_RESULT`` (:class:`ServerWatch`).
     """
     from rclpy.action import ActionClient
 
@@ -151,9 +185,13 @@ def send_goal(goal: FollowJointTrajectory.Goal, action: str, *, server_timeout: 
         say(f"goal accepted by {action}: {len(goal.trajectory.points)} points over {end:.3g} s")
         result_future = handle.get_result_async()
         canceled = False
+        lost = ServerWatch(action_client.server_is_ready, server_timeout)
         try:
             while not result_future.done():
                 time.sleep(0.02)
+                if lost.gone():
+                    return GoalOutcome(True, "NO_RESULT", None, f"the server on {action} went away during the goal "
+                                       f"and sent no result (gone for {server_timeout:g} s)")
         except KeyboardInterrupt:
             canceled = True
             say("Ctrl-C: canceling the goal")

@@ -164,6 +164,79 @@ def test_ctrl_c_cancels_the_goal(ros_env: dict, plain) -> None:  # noqa: ANN001
     assert "result: CANCELED" in out and "canceling the goal" in err
 
 
+HOLDING_SERVER = """
+import sys, time
+import rclpy, rclpy.executors
+from control_msgs.action import FollowJointTrajectory
+from rclpy.action import ActionServer, GoalResponse
+
+rclpy.init()
+node = rclpy.create_node("holding_server")
+
+def execute(handle):
+    print("executing", flush=True)
+    while True:
+        time.sleep(1.0)
+
+server = ActionServer(node, FollowJointTrajectory, sys.argv[1], execute,
+                      goal_callback=lambda goal: GoalResponse.ACCEPT)
+rclpy.spin(node, executor=rclpy.executors.MultiThreadedExecutor())
+"""
+
+
+@pytest.mark.timeout(180)
+def test_a_server_killed_during_the_goal_ends_the_wait(ros_env: dict, tmp_path: Path) -> None:
+    """The server's process is SIGKILLed while it executes the goal: nothing will ever send the result,
+    so the command must give up once the server has been gone ``--server-timeout`` seconds (exit 1,
+    ``NO_RESULT``), not wait forever."""
+    domain = next_domain()
+    goal = tmp_path / "goal.yaml"
+    write_goal(goal, goal_data(["a", "b"], [1.0, 2.0], [[0.1, 0.2], [0.3, 0.4]]))
+    server = subprocess.Popen([sys.executable, "-c", HOLDING_SERVER, ACTION],
+                              env=dict(ros_env, ROS_DOMAIN_ID=str(domain)), stdout=subprocess.PIPE,
+                              stderr=subprocess.STDOUT, text=True, start_new_session=True)
+    proc = None
+    try:
+        proc = send_goal(ros_env, domain, goal, "--action", ACTION, "--server-timeout", "10")
+        assert server.stdout is not None
+        line = server.stdout.readline()  # blocks until the goal executes (the test's timeout bounds it)
+        assert line.strip() == "executing", line
+        os.kill(server.pid, signal.SIGKILL)
+        server.wait(timeout=10)
+        code, out, err = finish(proc, seconds=120)
+        assert code == 1, out + err
+        assert "result: NO_RESULT" in out and "went away during the goal" in out, out
+    finally:
+        if proc is not None and proc.poll() is None:
+            stop_process(proc)
+        if server.poll() is None:
+            stop_process(server)
+
+
+def test_server_watch_waits_out_brief_absences() -> None:
+    from pdsmc_ros.ros.goal_client import SERVER_CHECK_S, ServerWatch
+
+    now = [0.0]
+    present = [True]
+    watch = ServerWatch(lambda: present[0], 2.0, clock=lambda: now[0])
+
+    def run_for(seconds: float) -> bool:
+        gone = False
+        for _ in range(int(round(seconds / SERVER_CHECK_S))):
+            now[0] += SERVER_CHECK_S
+            gone = watch.gone()
+        return gone
+
+    assert not run_for(5.0)
+    present[0] = False
+    assert not run_for(1.5)  # away, not yet for 2 s
+    present[0] = True
+    assert not run_for(1.0)  # back: the count starts again
+    present[0] = False
+    assert not run_for(1.5)
+    assert run_for(1.0)
+
+
 def test_a_bad_goal_file_is_refused_before_ros_starts(tmp_path: Path) -> None:
     from pdsmc_ros.cli import main
 
