@@ -26,30 +26,25 @@ differenced encoder) under 25 % of its URDF velocity limit over the second that 
 
 from __future__ import annotations
 
-import subprocess
-import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import next_domain, stop_process
 
 pytest.importorskip("rclpy")
 pytest.importorskip("mujoco")
 pytest.importorskip("control_msgs")
 from action_msgs.msg import GoalStatus  # noqa: E402
-from builtin_interfaces.msg import Duration  # noqa: E402
 from control_msgs.action import FollowJointTrajectory  # noqa: E402
-from control_msgs.msg import JointTolerance, JointTrajectoryControllerState  # noqa: E402
-from rclpy.action import ActionClient  # noqa: E402
+from control_msgs.msg import JointTolerance  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
+from stand_in_arm import StandInArm, duration  # noqa: E402
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint  # noqa: E402
 
 from pdsmc_ros.robots import make_robot  # noqa: E402
 from pdsmc_ros.robots.catalog import resolve_robot  # noqa: E402
-from pdsmc_ros.ros.spun_node import SpunNode  # noqa: E402
 
 UR5 = make_robot(resolve_robot("ur5"))
 JOINTS = list(UR5.joint_names)
@@ -60,61 +55,25 @@ CONFIG = Path(__file__).resolve().parents[2] / "config"
 SUCCESSFUL = FollowJointTrajectory.Result.SUCCESSFUL
 INVALID_GOAL = FollowJointTrajectory.Result.INVALID_GOAL
 PATH_TOLERANCE_VIOLATED = FollowJointTrajectory.Result.PATH_TOLERANCE_VIOLATED
-COMMON = ["--ros-args", "-p", "thread_priority:=0"]  # a shared 2-core machine: no SCHED_FIFO spinning
 
 
-def duration(seconds: float) -> Duration:
-    return Duration(sec=int(seconds), nanosec=int(round((seconds % 1.0) * 1e9)) % 1_000_000_000)
-
-
-class Arm(SpunNode):
-    """The bench stand-in and the controller (processes), and a plain rclpy client of them."""
+class Arm(StandInArm):
+    """The bench stand-in and the controller of ``law`` (``params``: more of its parameters), and a client
+    that also records the true velocity."""
 
     def __init__(self, ros_env: dict, log_dir: Path, law: str, params: tuple[str, ...] = ()) -> None:
-        self.domain = next_domain()
-        self.log_dir = log_dir
-        env = dict(ros_env, ROS_DOMAIN_ID=str(self.domain))
-        self.procs = [
-            subprocess.Popen(["ros2", "run", "pdsmc_ros", "mujoco_driver", *COMMON, "-p", "robot:=ur5",
-                              "-p", "realism:=bench"],
-                             env=env, stdout=(log_dir / "driver.log").open("w"), stderr=subprocess.STDOUT,
-                             start_new_session=True),
-            subprocess.Popen(["ros2", "run", "pdsmc_ros", "controller", *COMMON, "-p", "robot:=ur5",
-                              "-p", f"type:={law}", "-p", "mode:=realtime", "-p", "stale_periods:=200", *params],
-                             env=env, stdout=(log_dir / "controller.log").open("w"), stderr=subprocess.STDOUT,
-                             start_new_session=True)]
-        super().__init__(self.domain, "bench_client")
-        self.lock = threading.Lock()
-        self.states: list[tuple[float, np.ndarray]] = []  # what the drive publishes: the encoder's position
-        self.truth: list[tuple[float, np.ndarray]] = []  # the true velocity
-        self.node.create_subscription(JointState, "/joint_states", self.on_state, 1)
+        super().__init__(ros_env, log_dir, "bench_client", JOINTS,
+                         driver=["-p", "robot:=ur5", "-p", "realism:=bench"],
+                         controller=["-p", "robot:=ur5", "-p", f"type:={law}", "-p", "mode:=realtime",
+                                     "-p", "stale_periods:=200", *params])
+        self.truth: list[tuple[float, np.ndarray]] = []  # the true velocity (the states: the encoder's position)
         self.node.create_subscription(JointState, "/mujoco_driver/true_joint_states", self.on_truth, 1)
-        self.controller_states = 0  # the controller publishes its state once it commands
-        self.node.create_subscription(JointTrajectoryControllerState, "/controller/controller_state",
-                                      self.on_controller_state, 1)
-        self.action = ActionClient(self.node, FollowJointTrajectory, "/controller/follow_joint_trajectory")
-
-    def on_state(self, msg: JointState) -> None:
-        index = [list(msg.name).index(j) for j in JOINTS]
-        with self.lock:
-            self.states.append((time.monotonic(), np.asarray(msg.position)[index]))
-            del self.states[:-5000]
 
     def on_truth(self, msg: JointState) -> None:
-        index = [list(msg.name).index(j) for j in JOINTS]
+        qd = self.in_order(msg, "velocity")
         with self.lock:
-            self.truth.append((time.monotonic(), np.asarray(msg.velocity)[index]))
+            self.truth.append((time.monotonic(), qd))
             del self.truth[:-20000]
-
-    def on_controller_state(self, _msg: JointTrajectoryControllerState) -> None:
-        self.controller_states += 1
-
-    def q(self) -> np.ndarray:
-        with self.lock:
-            return self.states[-1][1].copy()
-
-    def logs(self) -> str:
-        return "\n".join(f"--- {p.name}\n{p.read_text()[-4000:]}" for p in sorted(self.log_dir.glob("*.log")))
 
     def send(self, goal: FollowJointTrajectory.Goal, feedback: list | None = None) -> object:
         callback = None if feedback is None else (lambda f: feedback.append(f.feedback))
@@ -147,11 +106,6 @@ class Arm(SpunNode):
         # a loaded 2-core machine can starve this client for a moment: wait for a state rather than fail
         assert self.wait(lambda: len(window()) > 0, 10.0), ("no joint states", self.logs())
         return np.max(np.abs(np.array(window()) - q), axis=0)
-
-    def close(self) -> None:
-        super().close()
-        for proc in reversed(self.procs):
-            stop_process(proc)
 
 
 def goal(points: list[tuple[np.ndarray, float]], *, path: float | None = None,
@@ -229,18 +183,27 @@ def each_goal(arm: Arm, shares: dict[str, list[float]], tolerance: np.ndarray | 
     assert np.all(arm.held_near(at_rest) < HOLD), arm.logs()
 
 
+GAINS = {"shipped": (), **{f"bench {law}": ("--params-file", str(CONFIG / f"ur5_bench_{law}.yaml"))
+                            for law in ("pd", "pdsmc")}}
+"""The controller's gains: the shipped UR5 defaults (config/gains.yaml, no params file: what a user starts
+with), and the bench gain files (tools/bench_gains.py)."""
+
+
 @pytest.mark.timeout(240)
-@pytest.mark.parametrize("law", ["pd", "pdsmc"])
-def test_the_ur5_bench_gains_end_every_goal_calm_on_the_bench_arm(ros_env: dict, tmp_path: Path, law: str) -> None:
-    arm = Arm(ros_env, tmp_path, law, ("--params-file", str(CONFIG / f"ur5_bench_{law}.yaml")))
+@pytest.mark.parametrize(("law", "gains"), [("pd", "shipped"), ("pdsmc", "shipped"),
+                                            ("pd", "bench pd"), ("pdsmc", "bench pdsmc")])
+def test_the_ur5_gains_end_every_goal_calm_on_the_bench_arm(ros_env: dict, tmp_path: Path, law: str,
+                                                            gains: str) -> None:
+    arm = Arm(ros_env, tmp_path, law, GAINS[gains])
     shares: dict[str, list[float]] = {}
     try:
-        assert arm.wait(lambda: len(arm.states) > 100, 90), arm.logs()
-        assert arm.action.wait_for_server(timeout_sec=120), arm.logs()
-        assert arm.wait(lambda: arm.controller_states > 5, 180), arm.logs()  # active, commanding
+        assert arm.up(), arm.logs()
         time.sleep(1.5)  # settled in the hold of activation (the arm sags until the delay line fills)
         each_goal(arm, shares, None, np.full(len(JOINTS), HELD_WITHIN))
     finally:
         for what, share in shares.items():
-            print(f"{law} {what}: after the end, peak true |qd| / limit per joint {share}")
+            print(f"{law} ({gains} gains) {what}: after the end, peak true |qd| / limit per joint {share}")
+        if shares:
+            worst = max(max(v) for k, v in shares.items() if not k.startswith("held"))
+            print(f"{law} ({gains} gains): worst joint after a goal end {100 * worst:.1f} % of its velocity limit")
         arm.close()
