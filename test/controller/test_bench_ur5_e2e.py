@@ -1,16 +1,17 @@
-"""The UR5's bench gains of pd and pdsmc on the bench arm in real time: calm goal ends, JTC's outcomes.
+"""The UR5's shipped gains of pd and pdsmc, and their bench gain files, on the bench arm in real time.
 
 The UR5 of example-robot-data in the MuJoCo stand-in with ``realism:=bench`` (Coulomb and viscous
 friction, an 18-bit encoder with noise, the velocity differenced and filtered at 100 Hz, a 2 ms
 command delay, a 100 Hz torque lag, the torque-speed line, an unknown 0.925 kg tool:
-docs/how-to/mujoco.md) and the controller in real time at 1 kHz with the params file a user of that
-arm starts from, ``config/ur5_bench_<law>.yaml``: the shipped UR5 gains slowed until ``pdsmc
-check-gains --realism bench`` passes (tools/bench_gains.py). The shipped gains themselves fail that
-check (margin x0.81 and x0.79) and, on this shared machine, ran away now and then (the runaway guard
-stopped the elbow or a wrist at 1.25 x its velocity limit in 3 of 10 runs by hand, and two more goal ends
-reached 83 % and 106 % of a velocity limit): the reasons and
-figures are in docs/explanation/ladder.md ("What each law needs to stay calm"). In a DDS domain of
-their own, stopped by PID; one pair per law.
+docs/how-to/mujoco.md) and the controller in real time at 1 kHz with the gains a user starts from:
+the shipped UR5 defaults (no params file), and the bench files ``config/ur5_bench_<law>.yaml``
+(tools/bench_gains.py: the shipped gains slowed until ``pdsmc check-gains --realism bench`` without
+the arm's viscous friction passes at x2). The shipped gains fail that check (x0.95 and x0.91 with the
+viscous friction counted): their goal ends are calm while the loop has a core to itself, not
+reliably when it shares one (one core kept busy by a spinning process, 19 runs of a law: two bursts, one
+runaway stop, one goal lost to a stall), so under a loaded machine this test fails, as the requirement it states does; the
+figures are in docs/explanation/ladder.md ("What each law needs to stay calm"). In a DDS domain of their own
+(stand_in_arm.py), stopped by PID; one pair per law and gains.
 
 On each, the peer ``FollowJointTrajectory`` cases of joint_trajectory_controller
 (``test/test_trajectory_actions.cpp``, restated on the serial 3R in test_jtc_conformance.py) with
@@ -19,9 +20,10 @@ by a second is ABORTED with JTC's string and the second SUCCEEDED; a cancelled g
 an empty string and the position at the cancel held; a path tolerance of 0.5 mrad is
 PATH_TOLERANCE_VIOLATED and the arm held. The goals give no goal tolerance (JTC's default: none):
 the bench arm's Coulomb friction leaves each joint up to its friction over its Kp short of the goal
-(the last wrist 0.06 rad), so "held" is within HELD_WITHIN of the goal's end and then still. After
-every goal end, calm: every joint's true speed (the stand-in's ``~/true_joint_states``, not the
-differenced encoder) under 25 % of its URDF velocity limit over the second that follows.
+(the last wrist 0.02 rad with the shipped gains, 0.06 rad with the bench files), so "held" is within
+HELD_WITHIN of the goal's end and then still. After every goal end, calm: every joint's true speed
+(the stand-in's ``~/true_joint_states``, not the differenced encoder) under 25 % of its URDF
+velocity limit over the second that follows; the worst joint's share is printed (``-s``).
 """
 
 from __future__ import annotations
@@ -49,7 +51,7 @@ from pdsmc_ros.robots.catalog import resolve_robot  # noqa: E402
 UR5 = make_robot(resolve_robot("ur5"))
 JOINTS = list(UR5.joint_names)
 CALM = 0.25  # of each joint's URDF velocity limit, over the second after a goal has ended
-HELD_WITHIN = 0.1  # rad: the last wrist stops 0.06 rad short (its 1.12 N m of friction over its Kp of 18-21 N m/rad)
+HELD_WITHIN = 0.1  # rad: the last wrist stops up to 0.06 rad short (1.12 N m of friction over a Kp of 18-60 N m/rad)
 HOLD = 0.03  # rad: a hold keeps the arm this close to where it settled
 CONFIG = Path(__file__).resolve().parents[2] / "config"
 SUCCESSFUL = FollowJointTrajectory.Result.SUCCESSFUL
@@ -165,7 +167,8 @@ def each_goal(arm: Arm, shares: dict[str, list[float]], tolerance: np.ndarray | 
     handle = arm.send(goal([(q - step, 3.0)]))
     assert handle.accepted, arm.logs()  # type: ignore[attr-defined]
     time.sleep(1.0)
-    assert arm.call(handle.cancel_goal_async, 30, arm.logs).goals_canceling  # type: ignore[attr-defined]
+    assert arm.call(handle.cancel_goal_async, 30, arm.logs).goals_canceling, \
+        (arm.result(handle), arm.logs())  # type: ignore[attr-defined]  # not ended before the cancel
     status, code, text, ended = arm.result(handle)
     assert (status, code, text) == (GoalStatus.STATUS_CANCELED, SUCCESSFUL, ""), arm.logs()
     assert np.all(calm(ended, "cancelled goal") < CALM), (shares, arm.logs())
