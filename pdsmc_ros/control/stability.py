@@ -564,7 +564,8 @@ def arm_damping(robot: Manipulator, friction_viscous: FloatArray | None) -> Floa
     if f.ndim != 1 or f.size not in (1, robot.n) or not np.all(np.isfinite(f)) or np.any(f < 0):
         raise InvalidInputError(f"viscous friction must be 1 or {robot.n} finite numbers >= 0 (N m s/rad), got "
                                 f"{np.asarray(friction_viscous).tolist()!r}")
-    return np.asarray(robot.B, dtype=float) + np.broadcast_to(f, (robot.n,))
+    damping: FloatArray = np.asarray(robot.B, dtype=float) + np.broadcast_to(f, (robot.n,))
+    return damping
 
 
 ENTRY_POINTS = ("cli", "node")
