@@ -8,7 +8,7 @@ the shipped UR5 defaults (no params file), and the bench files ``config/ur5_benc
 (tools/bench_gains.py: the shipped gains slowed until ``pdsmc check-gains --realism bench`` without
 the arm's viscous friction passes at x2). The shipped gains fail that check (x0.95 and x0.91 with the
 viscous friction counted): their goal ends are calm while the loop has a core to itself, not
-reliably when it shares one (one core kept busy by a spinning process, 19 runs of a law: two
+reliably when it shares one (one core kept busy by a spinning process, 23 runs of a law: two
 bursts, one runaway stop, one goal lost to a stall), so on a loaded machine this test fails, as the
 requirement it states does; the figures are in docs/explanation/ladder.md ("What each law needs to
 stay calm"). In a DDS domain of their own
