@@ -29,11 +29,12 @@ def run(args: argparse.Namespace) -> int:
     from ..experiments.tuning import Requirement
 
     spec = spec_from_args(args)
-    delay, filter_hz = Requirement(args.mode, args.delay_periods, args.margin, args.realism).loop_terms(
+    delay, filter_hz, viscous = Requirement(args.mode, args.delay_periods, args.margin, args.realism).loop_terms(
         spec.robot, spec.rate)
     print(f"{spec.robot} / {spec.contour} / {spec.controller} / {spec.scenario}: gains "
           + ", ".join(f"{k}={list(spec.gains[k])}" for k in law(spec.controller).gain_names))
-    result = check_gains(spec, mode=args.mode, delay_periods=delay, margin=args.margin, filter_hz=filter_hz)
+    result = check_gains(spec, mode=args.mode, delay_periods=delay, margin=args.margin, filter_hz=filter_hz,
+                         friction_viscous=viscous)
     if result.conditions:
         print("Lyapunov conditions of Eq. 3.19 along the desired motion (worst instant):")
     else:
@@ -60,7 +61,7 @@ def run(args: argparse.Namespace) -> int:
             f"x{check.margin:.2f} (x{check.required_margin:g} required, --margin)"
         )
         if check.stable:
-            most = tolerated_delay(spec, spec.reference(), filter_hz=filter_hz)
+            most = tolerated_delay(spec, spec.reference(), filter_hz=filter_hz, friction_viscous=viscous)
             print(f"stable at {spec.rate:g} Hz with a constant delay of up to {most} periods "
                   f"({most / spec.rate * 1e3:.3g} ms): what a loop's stalls may reach at most")
     return 0 if result.passes else EXIT_FAILURE

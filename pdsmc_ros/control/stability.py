@@ -24,6 +24,16 @@ previous error and the filter's state too (``filter_hz`` of :func:`loop_matrix`)
 phase lag counts against the rate as the delay does. The torque's own lag (the drive's current
 loop, ``torque_bandwidth_hz``) is not modelled.
 
+The arm's own viscous damping ``B`` (N m s/rad a joint) is left out by default, as the map above
+has it. Given (``damping`` of :func:`loop_matrix`; ``pdsmc check-gains --realism PRESET``, which
+names the arm the check describes: the description's damping plus the preset's ``friction_viscous``),
+it enters the plant: ``Mbar edd = -B ed + Mbar a`` integrated exactly over the period with the
+held ``a`` (the zero-order hold of the damped double integrator, :func:`held_plant`). It is linear,
+it acts on the arm's true velocity at every instant and not through the drive's delay or filter,
+so it belongs to the plant the map describes; on the bench arm it is what damps the mode the
+undamped map finds unstable (docs/explanation/ladder.md). Coulomb friction stays out: it is not
+linear, and leaving it out errs on the safe side (it only takes energy out).
+
 The plant itself is integrated explicitly (RK4 at the control period: the in-process plant
 and the MuJoCo stand-in): a joint whose damping over inertia times the period exceeds RK4's
 real-axis limit diverges whatever the gains. :func:`plant_step` names that joint and the
@@ -75,8 +85,46 @@ def effective_gains(spec: LawRun, mass: FloatArray, qd_ref: FloatArray | None = 
     return kp @ e_map + kd @ g_map, kd @ e_map
 
 
+TAYLOR_TERMS = 12
+"""Terms of the exponential's series in :func:`held_plant`, on a matrix scaled to norm <= 1/4
+(the remainder below 1e-17 of it), then squared back."""
+
+
+def held_plant(mass: FloatArray, damping: FloatArray, h: float | FloatArray) -> tuple[FloatArray, FloatArray]:
+    """``(Ad, Bd)`` of the damped double integrator ``edd = -Mbar^{-1} B ed + a`` with ``a`` held over ``h``.
+
+    The exact zero-order-hold discretisation: the exponential of ``h [[0, I, 0], [0, -Mbar^{-1} B, I],
+    [0, 0, 0]]`` (scaling and squaring of its Taylor series, :data:`TAYLOR_TERMS`), whose first ``2n``
+    rows are ``[Ad, Bd]``; ``B = 0`` gives the undamped ``Ad = [[I, hI], [0, I]]``, ``Bd = [h^2/2 I;
+    h I]`` of :func:`loop_matrix`. ``damping``: ``B``'s diagonal (shape ``(n,)``, N m s/rad).
+    """
+    mass = np.asarray(mass, dtype=float)
+    n = mass.shape[-1]
+    b = np.broadcast_to(np.asarray(damping, dtype=float), (n,))
+    h = np.asarray(h, dtype=float)[..., None, None]
+    stack = np.broadcast_shapes(mass.shape[:-2], h.shape[:-2])
+    z = np.zeros((*stack, 3 * n, 3 * n))
+    eye = np.eye(n)
+    z[..., :n, n:2 * n] = eye
+    z[..., n:2 * n, n:2 * n] = -np.linalg.solve(mass, np.broadcast_to(np.diag(b), mass.shape))
+    z[..., n:2 * n, 2 * n:] = eye
+    z = z * h
+    norm = float(np.max(np.sum(np.abs(z), axis=-1))) if z.size else 0.0  # the largest row sum
+    squarings = max(0, int(np.ceil(np.log2(norm / 0.25)))) if norm > 0.25 else 0
+    z = z / 2.0 ** squarings
+    term = np.broadcast_to(np.eye(3 * n), z.shape).copy()
+    total = term.copy()
+    for k in range(1, TAYLOR_TERMS + 1):
+        term = term @ z / k
+        total += term
+    for _ in range(squarings):
+        total = total @ total
+    return total[..., :2 * n, :2 * n], total[..., :2 * n, 2 * n:]
+
+
 def loop_matrix(mass: FloatArray, kp: FloatArray, kd: FloatArray, h: float | FloatArray,
-                delay: int = 0, filter_hz: FloatArray | None = None) -> FloatArray:
+                delay: int = 0, filter_hz: FloatArray | None = None,
+                damping: FloatArray | None = None) -> FloatArray:
     """The error map of a held input applied ``delay`` periods after the state it was computed from.
 
     With ``a_k = -Mbar^{-1} (Kp e_k + Kd ed_k)`` the acceleration commanded from the state of
@@ -94,6 +142,9 @@ def loop_matrix(mass: FloatArray, kp: FloatArray, kd: FloatArray, h: float | Flo
     (:func:`~pdsmc_ros.control.lowpass.lowpass_gain`) and ``a_k = -Mbar^{-1} (Kp e_k + Kd v_k)``. The
     state then also holds ``e_{k-1}`` and ``v_{k-1}``: ``X_k = (x_k, e_{k-1}, v_{k-1}, a_{k-1}, ...,
     a_{k-d})``, of dimension ``(4 + d) n``. None: the exact velocity.
+
+    ``damping`` (shape ``(n,)``, N m s/rad): the arm's viscous damping ``B``, in the plant between two
+    instants (``Ad``, ``Bd`` of :func:`held_plant`); None: left out (``B = 0``, the map above).
     """
     if not is_whole(delay) or delay < 0:
         raise InvalidInputError(f"delay must be a whole number of periods >= 0, got {delay!r}")
@@ -106,9 +157,13 @@ def loop_matrix(mass: FloatArray, kp: FloatArray, kd: FloatArray, h: float | Flo
     extra = 0 if filter_hz is None else 2  # e_{k-1} and v_{k-1}
     size = (2 + extra + delay) * n
     a = np.zeros((*gain.shape[:-2], size, size))
-    a[..., :n, :n] = eye
-    a[..., :n, n:2 * n] = h * eye
-    a[..., n:2 * n, n:2 * n] = eye
+    if damping is None:
+        a[..., :n, :n] = eye
+        a[..., :n, n:2 * n] = h * eye
+        a[..., n:2 * n, n:2 * n] = eye
+    else:
+        ad, bd = held_plant(mass, damping, h[..., 0, 0])
+        a[..., :2 * n, :2 * n] = ad
     if filter_hz is None:
         command = gain  # a_k from (e_k, ed_k)
     else:
@@ -138,10 +193,10 @@ def loop_matrix(mass: FloatArray, kp: FloatArray, kd: FloatArray, h: float | Flo
 
 def spectral_radius(
     mass: FloatArray, kp: FloatArray, kd: FloatArray, h: float | FloatArray, delay: int = 0,
-    filter_hz: FloatArray | None = None,
+    filter_hz: FloatArray | None = None, damping: FloatArray | None = None,
 ) -> tuple[FloatArray, FloatArray]:
-    """Spectral radius of :func:`loop_matrix` (``filter_hz``: its velocity filter) and the joint
-    dominating its mode.
+    """Spectral radius of :func:`loop_matrix` (``filter_hz``: its velocity filter; ``damping``: the
+    arm's viscous damping) and the joint dominating its mode.
 
     Works on one configuration (``mass``, ``kp``, ``kd`` of shape ``(n, n)``,
     scalar ``h``) or on a stack of them (leading axis ``m``, ``h`` scalar or of
@@ -155,7 +210,7 @@ def spectral_radius(
     """
     n = np.shape(mass)[-1]
     with np.errstate(over="ignore", invalid="ignore"):
-        a = loop_matrix(mass, kp, kd, h, delay, filter_hz)
+        a = loop_matrix(mass, kp, kd, h, delay, filter_hz, damping)
     if not np.all(np.isfinite(a)):
         raise InvalidInputError("the loop matrix is not finite (gains, inertia or period infinite, NaN or so large "
                                 "that it overflows): no stability to analyse")
@@ -207,16 +262,16 @@ def analysable_gains(spec: LawRun, masses: FloatArray, kp: FloatArray, kd: Float
 
 
 def _lowest_rates(mass: FloatArray, kp: FloatArray, kd: FloatArray, delay: int,
-                  filter_hz: FloatArray | None = None) -> FloatArray:
+                  filter_hz: FloatArray | None = None, damping: FloatArray | None = None) -> FloatArray:
     """Lowest stable rate (Hz) of each configuration of a stack, by bisection (the loop is
     stable above it: a faster loop is closer to the continuous one, stable for positive gains)."""
     m = mass.shape[0]
     lo = np.full(m, 1.0)  # Hz
     hi = np.full(m, 1e8)  # stable at 1e8 Hz for any positive gains
-    stable_at_lo = spectral_radius(mass, kp, kd, 1.0 / lo, delay, filter_hz)[0] < 1.0
+    stable_at_lo = spectral_radius(mass, kp, kd, 1.0 / lo, delay, filter_hz, damping)[0] < 1.0
     for _ in range(24):  # bracket ratio 1e8 -> about 0.1 % resolution
         mid = np.sqrt(lo * hi)
-        stable = spectral_radius(mass, kp, kd, 1.0 / mid, delay, filter_hz)[0] < 1.0
+        stable = spectral_radius(mass, kp, kd, 1.0 / mid, delay, filter_hz, damping)[0] < 1.0
         hi = np.where(stable, mid, hi)
         lo = np.where(stable, lo, mid)
     return np.where(stable_at_lo, 1.0, hi)
@@ -307,12 +362,14 @@ def _round_up(value: float) -> float:
 
 
 def tolerated_delay(spec: LawRun, reference: JointReference, *, points: int = 13, most: int = 1000,
-                    filter_hz: FloatArray | None = None) -> int | None:
+                    filter_hz: FloatArray | None = None, friction_viscous: FloatArray | None = None) -> int | None:
     """The largest whole delay (periods) at ``spec.rate`` with which the loop stays stable at every
     one of ``points`` configurations (``filter_hz``: with the velocity differenced and filtered,
-    :func:`loop_matrix`): None for a law without linear gains, -1 if unstable even without delay,
-    ``most`` if stable up to it (the search stops there)."""
+    :func:`loop_matrix`; ``friction_viscous``: with the arm's damping, :func:`arm_damping`): None for a
+    law without linear gains, -1 if unstable even without delay, ``most`` if stable up to it (the
+    search stops there)."""
     robot = spec.robot_model()
+    damping = arm_damping(robot, friction_viscous)
     sample = reference.sample(np.linspace(0.0, reference.duration, points))
     masses = robot._mass_matrix(sample.q)
     with np.errstate(over="ignore", invalid="ignore"):  # overflows: refused by analysable_gains
@@ -325,7 +382,7 @@ def tolerated_delay(spec: LawRun, reference: JointReference, *, points: int = 13
     analysable_gains(spec, masses, kp, kd)
 
     def stable(d: int) -> bool:
-        return bool(np.all(spectral_radius(masses, kp, kd, 1.0 / spec.rate, d, filter_hz)[0] < 1.0))
+        return bool(np.all(spectral_radius(masses, kp, kd, 1.0 / spec.rate, d, filter_hz, damping)[0] < 1.0))
 
     if not stable(0):
         return -1
@@ -404,6 +461,7 @@ class RateCheck:
     plant: PlantStep | None = None  # the plant's integration of its damping (None: not checked)
     joint_names: tuple[str, ...] = ()
     filter_hz: tuple[float, ...] | None = None  # the velocity's filter modelled (None: the exact velocity)
+    damping: tuple[float, ...] | None = None  # the arm's viscous damping modelled, N m s/rad (None: left out)
 
     @property
     def worst_joint_label(self) -> str:
@@ -427,18 +485,19 @@ class RateCheck:
 
 def rate_margin(spec: LawRun, reference: JointReference, *, points: int = 13, mode: str = "lockstep",
                 delay_periods: int = 0, margin: float | None = None,
-                filter_hz: FloatArray | None = None) -> RateCheck:
+                filter_hz: FloatArray | None = None, friction_viscous: FloatArray | None = None) -> RateCheck:
     """Lowest stable rate over the motion and the radius at ``spec.rate``, for the loop of ``mode``
     with ``delay_periods`` more periods of delay (:func:`loop_delay`); ``margin`` is the required
     margin (default :data:`REQUIRED_MARGIN` of the mode); ``filter_hz``: the law sees the velocity
     differenced and low-pass filtered at these cut-offs (Hz per joint, 0: unfiltered), as a drive
-    estimates it (:func:`loop_matrix`), instead of the exact one.
+    estimates it (:func:`loop_matrix`), instead of the exact one; ``friction_viscous``: the arm's
+    viscous friction beyond its description's damping, both in the plant (:func:`arm_damping`).
 
     Raises
     ------
     InvalidInputError
-        An unknown mode, a negative delay or margin, a cut-off that is negative, not finite or not one
-        per joint.
+        An unknown mode, a negative delay or margin, a cut-off or a friction that is negative, not finite
+        or not one per joint.
     """
     delay = loop_delay(mode, delay_periods)
     required = REQUIRED_MARGIN[mode] if margin is None else float(margin)
@@ -446,6 +505,8 @@ def rate_margin(spec: LawRun, reference: JointReference, *, points: int = 13, mo
         raise InvalidInputError(f"margin must be a positive number, got {margin!r}")
     robot = spec.robot_model()
     cutoffs = velocity_filter(filter_hz, robot.n)
+    damping = arm_damping(robot, friction_viscous)
+    modelled = None if damping is None else tuple(damping.tolist())
     t = np.linspace(0.0, reference.duration, points)
     sample = reference.sample(t)
     q = sample.q
@@ -458,16 +519,16 @@ def rate_margin(spec: LawRun, reference: JointReference, *, points: int = 13, mo
     pairs = [pair for pair in linear if pair is not None]
     if len(pairs) < len(linear):  # a law without linear gains: not checked
         return RateCheck(spec.rate, float("nan"), float("nan"), 0, True, mode, delay, required, plant, names,
-                         None if cutoffs is None else tuple(cutoffs.tolist()))
+                         None if cutoffs is None else tuple(cutoffs.tolist()), modelled)
     kp = np.stack([p[0] for p in pairs])
     kd = np.stack([p[1] for p in pairs])
     analysable_gains(spec, masses, kp, kd)
-    lowest = float(np.max(_lowest_rates(masses, kp, kd, delay, cutoffs)))
-    radii, joints = spectral_radius(masses, kp, kd, 1.0 / spec.rate, delay, cutoffs)
+    lowest = float(np.max(_lowest_rates(masses, kp, kd, delay, cutoffs, damping)))
+    radii, joints = spectral_radius(masses, kp, kd, 1.0 / spec.rate, delay, cutoffs, damping)
     worst = int(np.argmax(radii))
     radius = float(radii[worst])
     return RateCheck(spec.rate, lowest, radius, int(joints[worst]), radius < 1.0, mode, delay, required, plant, names,
-                     None if cutoffs is None else tuple(cutoffs.tolist()))
+                     None if cutoffs is None else tuple(cutoffs.tolist()), modelled)
 
 
 def velocity_filter(filter_hz: FloatArray | None, n: int) -> FloatArray | None:
@@ -487,6 +548,26 @@ def velocity_filter(filter_hz: FloatArray | None, n: int) -> FloatArray | None:
     return np.broadcast_to(f, (n,)).copy()
 
 
+def arm_damping(robot: Manipulator, friction_viscous: FloatArray | None) -> FloatArray | None:
+    """The viscous damping the check gives the plant: the description's ``B`` plus ``friction_viscous``
+    (N m s/rad, one per joint or one for all: the stand-in's, added to the description's as the
+    stand-in adds it); None (``friction_viscous`` None): left out.
+
+    Raises
+    ------
+    InvalidInputError
+        A friction that is negative or not finite, or a count other than 1 or ``n``.
+    """
+    if friction_viscous is None:
+        return None
+    f = np.atleast_1d(np.asarray(friction_viscous, dtype=float))
+    if f.ndim != 1 or f.size not in (1, robot.n) or not np.all(np.isfinite(f)) or np.any(f < 0):
+        raise InvalidInputError(f"viscous friction must be 1 or {robot.n} finite numbers >= 0 (N m s/rad), got "
+                                f"{np.asarray(friction_viscous).tolist()!r}")
+    damping: FloatArray = np.asarray(robot.B, dtype=float) + np.broadcast_to(f, (robot.n,))
+    return damping
+
+
 ENTRY_POINTS = ("cli", "node")
 """How an error names the settings: the ``pdsmc`` command's flags or a node's parameters."""
 
@@ -501,6 +582,8 @@ def describe_loop(check: RateCheck) -> str:
         f = check.filter_hz
         shown = f"{f[0]:g}" if all(x == f[0] for x in f) else ", ".join(f"{x:g}" for x in f)
         parts.append("velocity differenced" + (f", filtered at {shown} Hz" if any(f) else ""))
+    if check.damping is not None:
+        parts.append("the arm's viscous damping [" + ", ".join(f"{b:.3g}" for b in check.damping) + "] N m s/rad")
     return f"{check.mode} ({' + '.join(parts)})"
 
 
@@ -587,14 +670,15 @@ class GainCheck:
 
 def check_gains(spec: LawRun, reference: JointReference | None = None, *, mode: str = "realtime",
                 delay_periods: int = 0, margin: float | None = None, points: int = 401,
-                filter_hz: FloatArray | None = None) -> GainCheck:
+                filter_hz: FloatArray | None = None, friction_viscous: FloatArray | None = None) -> GainCheck:
     """Eq. (3.19) where the law has it (:data:`THEOREM_LAWS`) and :func:`rate_margin` in ``mode``
-    (``filter_hz``: with the velocity a drive differences and filters, :func:`loop_matrix`).
+    (``filter_hz``: with the velocity a drive differences and filters, :func:`loop_matrix`;
+    ``friction_viscous``: with the arm's viscous damping, :func:`arm_damping`).
 
     The default mode is the real-time loop's (:data:`REALTIME_DELAY_PERIODS`): gains that pass it
     run on a robot, and pass in lockstep too (no delay, a lower required margin).
     """
     rate = rate_margin(spec, reference or spec.reference(), mode=mode, delay_periods=delay_periods, margin=margin,
-                       filter_hz=filter_hz)
+                       filter_hz=filter_hz, friction_viscous=friction_viscous)
     conditions = tuple(theorem_conditions(spec, points=points)) if spec.controller in THEOREM_LAWS else ()
     return GainCheck(conditions, rate)

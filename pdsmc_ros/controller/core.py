@@ -371,6 +371,9 @@ class ControllerCore:
             self.goals.end("inputs stale: the controller stopped commanding")
         elif change == "fresh":  # after an outage the arm is where it is now, not where the trajectory went
             self.commanded = None
+            # a goal started during the outage: the hold replaces its trajectory, so it cannot go on (left
+            # active, it would be SUCCEEDED at its end time with the arm never having followed it)
+            self.goals.end("inputs stale: the controller stopped commanding")
             self.hold("inputs fresh again after an outage", measured=True)
             inputs, _ = self.latest.take(now, clock)
         if inputs is None:

@@ -83,16 +83,18 @@ class Requirement:
 
         return StandIn(preset=self.realism)
 
-    def loop_terms(self, robot: str, rate: float) -> tuple[int, FloatArray | None]:
-        """The delay (periods, beyond the mode's) and the velocity filter (Hz per joint, or None) the
+    def loop_terms(self, robot: str, rate: float) -> tuple[int, FloatArray | None, FloatArray | None]:
+        """The delay (periods, beyond the mode's), the velocity filter (Hz per joint, or None) and the
+        viscous friction (N m s/rad per joint beyond the description's damping, or None: no damping) the
         check models for ``robot`` at ``rate``: ``delay_periods`` plus, with ``realism``, the stand-in's
-        command delay and its velocity filter (:meth:`pdsmc_ros.sim.realism.Realism.loop_terms`)."""
+        command delay, its velocity filter and its viscous friction
+        (:meth:`pdsmc_ros.sim.realism.Realism.loop_terms`)."""
         stand_in = self.stand_in()
         if stand_in is None:
-            return self.delay_periods, None
+            return self.delay_periods, None, None
         _, realism, _ = stand_in.resolve(robot, rate)
-        delay, filter_hz = realism.loop_terms()
-        return self.delay_periods + delay, filter_hz
+        delay, filter_hz, viscous = realism.loop_terms()
+        return self.delay_periods + delay, filter_hz, viscous
 
     def command(self) -> str:
         """The ``pdsmc check-gains`` that accepts the gains kept (a tuned params file's header)."""
@@ -210,10 +212,10 @@ def evaluate(spec: RunSpec, gains: Gains, torque_limit: np.ndarray,
     trial = dataclasses.replace(spec, gains=gains, enforce_limits=False)
     requirement = requirement or Requirement()
     try:
-        delay, filter_hz = requirement.loop_terms(spec.robot, spec.rate)
+        delay, filter_hz, viscous = requirement.loop_terms(spec.robot, spec.rate)
         for run in (trial, *(dataclasses.replace(other, gains=gains) for other in also)):
             check = check_gains(run, mode=requirement.mode, delay_periods=delay, margin=requirement.margin,
-                                filter_hz=filter_hz)
+                                filter_hz=filter_hz, friction_viscous=viscous)
             if not check.passes:
                 where = "" if run is trial else f" on {run.contour}"
                 return Candidate(gains, None, (), f"refused{where}: {check.failure()}")

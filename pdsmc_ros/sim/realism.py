@@ -140,12 +140,14 @@ class Realism:
         """Every nuisance off: the stand-in as a perfect arm (the same steps as before there were any)."""
         return not (self.has_physics or self.has_drive)
 
-    def loop_terms(self) -> tuple[int, FloatArray | None]:
+    def loop_terms(self) -> tuple[int, FloatArray | None, FloatArray]:
         """What the stability check models of these nuisances (:func:`pdsmc_ros.control.stability.check_gains`):
-        the command's delay (ticks) and the velocity filter's cut-offs (Hz per joint) when the velocity
-        is differenced, else None (the exact velocity). The torque's lag and the others are not modelled."""
+        the command's delay (ticks), the velocity filter's cut-offs (Hz per joint) when the velocity
+        is differenced, else None (the exact velocity), and the viscous friction (N m s/rad per joint,
+        which the check adds to the description's damping: linear damping the arm has). The Coulomb
+        friction, the torque's lag and the others are not modelled."""
         filtered = self.velocity_filter_hz if self.velocity_source == "difference" else None
-        return int(self.command_delay), filtered
+        return int(self.command_delay), filtered, self.friction_viscous
 
     def value(self, name: str) -> Any:
         """A nuisance's value as plain data (lists for arrays)."""

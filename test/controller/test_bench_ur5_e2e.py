@@ -1,16 +1,18 @@
-"""The UR5's bench gains of pd and pdsmc on the bench arm in real time: calm goal ends, JTC's outcomes.
+"""The UR5's shipped gains of pd and pdsmc, and their bench gain files, on the bench arm in real time.
 
 The UR5 of example-robot-data in the MuJoCo stand-in with ``realism:=bench`` (Coulomb and viscous
 friction, an 18-bit encoder with noise, the velocity differenced and filtered at 100 Hz, a 2 ms
 command delay, a 100 Hz torque lag, the torque-speed line, an unknown 0.925 kg tool:
-docs/how-to/mujoco.md) and the controller in real time at 1 kHz with the params file a user of that
-arm starts from, ``config/ur5_bench_<law>.yaml``: the shipped UR5 gains slowed until ``pdsmc
-check-gains --realism bench`` passes (tools/bench_gains.py). The shipped gains themselves fail that
-check (margin x0.81 and x0.79) and, on this shared machine, ran away now and then (the runaway guard
-stopped the elbow or a wrist at 1.25 x its velocity limit in 3 of 10 runs by hand, and two more goal ends
-reached 83 % and 106 % of a velocity limit): the reasons and
-figures are in docs/explanation/ladder.md ("What each law needs to stay calm"). In a DDS domain of
-their own, stopped by PID; one pair per law.
+docs/how-to/mujoco.md) and the controller in real time at 1 kHz with the gains a user starts from:
+the shipped UR5 defaults (no params file), and the bench files ``config/ur5_bench_<law>.yaml``
+(tools/bench_gains.py: the shipped gains slowed until ``pdsmc check-gains --realism bench`` without
+the arm's viscous friction passes at x2). The shipped gains fail that check (x0.95 and x0.91 with the
+viscous friction counted): their goal ends are calm while the loop has a core to itself, not
+reliably when it shares one (one core kept busy by a spinning process, 23 runs of a law: two
+bursts, one runaway stop, one goal lost to a stall), so on a loaded machine this test fails, as the
+requirement it states does; the figures are in docs/explanation/ladder.md ("What each law needs to
+stay calm"). In a DDS domain of their own
+(stand_in_arm.py), stopped by PID; one pair per law and gains.
 
 On each, the peer ``FollowJointTrajectory`` cases of joint_trajectory_controller
 (``test/test_trajectory_actions.cpp``, restated on the serial 3R in test_jtc_conformance.py) with
@@ -19,102 +21,62 @@ by a second is ABORTED with JTC's string and the second SUCCEEDED; a cancelled g
 an empty string and the position at the cancel held; a path tolerance of 0.5 mrad is
 PATH_TOLERANCE_VIOLATED and the arm held. The goals give no goal tolerance (JTC's default: none):
 the bench arm's Coulomb friction leaves each joint up to its friction over its Kp short of the goal
-(the last wrist 0.06 rad), so "held" is within HELD_WITHIN of the goal's end and then still. After
-every goal end, calm: every joint's true speed (the stand-in's ``~/true_joint_states``, not the
-differenced encoder) under 25 % of its URDF velocity limit over the second that follows.
+(the last wrist 0.02 rad with the shipped gains, 0.06 rad with the bench files), so "held" is within
+HELD_WITHIN of the goal's end and then still. After every goal end, calm: every joint's true speed
+(the stand-in's ``~/true_joint_states``, not the differenced encoder) under 25 % of its URDF
+velocity limit over the second that follows; the worst joint's share is printed (``-s``).
 """
 
 from __future__ import annotations
 
-import subprocess
-import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import next_domain, stop_process
 
 pytest.importorskip("rclpy")
 pytest.importorskip("mujoco")
 pytest.importorskip("control_msgs")
 from action_msgs.msg import GoalStatus  # noqa: E402
-from builtin_interfaces.msg import Duration  # noqa: E402
 from control_msgs.action import FollowJointTrajectory  # noqa: E402
-from control_msgs.msg import JointTolerance, JointTrajectoryControllerState  # noqa: E402
-from rclpy.action import ActionClient  # noqa: E402
+from control_msgs.msg import JointTolerance  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
+from stand_in_arm import StandInArm, duration  # noqa: E402
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint  # noqa: E402
 
 from pdsmc_ros.robots import make_robot  # noqa: E402
 from pdsmc_ros.robots.catalog import resolve_robot  # noqa: E402
-from pdsmc_ros.ros.spun_node import SpunNode  # noqa: E402
 
 UR5 = make_robot(resolve_robot("ur5"))
 JOINTS = list(UR5.joint_names)
 CALM = 0.25  # of each joint's URDF velocity limit, over the second after a goal has ended
-HELD_WITHIN = 0.1  # rad: the last wrist stops 0.06 rad short (its 1.12 N m of friction over its Kp of 18-21 N m/rad)
+HELD_WITHIN = 0.1  # rad: the last wrist stops up to 0.06 rad short (1.12 N m of friction over a Kp of 18-60 N m/rad)
 HOLD = 0.03  # rad: a hold keeps the arm this close to where it settled
 CONFIG = Path(__file__).resolve().parents[2] / "config"
 SUCCESSFUL = FollowJointTrajectory.Result.SUCCESSFUL
 INVALID_GOAL = FollowJointTrajectory.Result.INVALID_GOAL
 PATH_TOLERANCE_VIOLATED = FollowJointTrajectory.Result.PATH_TOLERANCE_VIOLATED
-COMMON = ["--ros-args", "-p", "thread_priority:=0"]  # a shared 2-core machine: no SCHED_FIFO spinning
 
 
-def duration(seconds: float) -> Duration:
-    return Duration(sec=int(seconds), nanosec=int(round((seconds % 1.0) * 1e9)) % 1_000_000_000)
-
-
-class Arm(SpunNode):
-    """The bench stand-in and the controller (processes), and a plain rclpy client of them."""
+class Arm(StandInArm):
+    """The bench stand-in and the controller of ``law`` (``params``: more of its parameters), and a client
+    that also records the true velocity."""
 
     def __init__(self, ros_env: dict, log_dir: Path, law: str, params: tuple[str, ...] = ()) -> None:
-        self.domain = next_domain()
-        self.log_dir = log_dir
-        env = dict(ros_env, ROS_DOMAIN_ID=str(self.domain))
-        self.procs = [
-            subprocess.Popen(["ros2", "run", "pdsmc_ros", "mujoco_driver", *COMMON, "-p", "robot:=ur5",
-                              "-p", "realism:=bench"],
-                             env=env, stdout=(log_dir / "driver.log").open("w"), stderr=subprocess.STDOUT,
-                             start_new_session=True),
-            subprocess.Popen(["ros2", "run", "pdsmc_ros", "controller", *COMMON, "-p", "robot:=ur5",
-                              "-p", f"type:={law}", "-p", "mode:=realtime", "-p", "stale_periods:=200", *params],
-                             env=env, stdout=(log_dir / "controller.log").open("w"), stderr=subprocess.STDOUT,
-                             start_new_session=True)]
-        super().__init__(self.domain, "bench_client")
-        self.lock = threading.Lock()
-        self.states: list[tuple[float, np.ndarray]] = []  # what the drive publishes: the encoder's position
-        self.truth: list[tuple[float, np.ndarray]] = []  # the true velocity
-        self.node.create_subscription(JointState, "/joint_states", self.on_state, 1)
+        super().__init__(ros_env, log_dir, "bench_client", JOINTS,
+                         driver=["-p", "robot:=ur5", "-p", "realism:=bench"],
+                         controller=["-p", "robot:=ur5", "-p", f"type:={law}", "-p", "mode:=realtime",
+                                     "-p", "stale_periods:=200", *params])
+        self.truth: list[tuple[float, np.ndarray]] = []  # the true velocity (the states: the encoder's position)
         self.node.create_subscription(JointState, "/mujoco_driver/true_joint_states", self.on_truth, 1)
-        self.controller_states = 0  # the controller publishes its state once it commands
-        self.node.create_subscription(JointTrajectoryControllerState, "/controller/controller_state",
-                                      self.on_controller_state, 1)
-        self.action = ActionClient(self.node, FollowJointTrajectory, "/controller/follow_joint_trajectory")
-
-    def on_state(self, msg: JointState) -> None:
-        index = [list(msg.name).index(j) for j in JOINTS]
-        with self.lock:
-            self.states.append((time.monotonic(), np.asarray(msg.position)[index]))
-            del self.states[:-5000]
 
     def on_truth(self, msg: JointState) -> None:
-        index = [list(msg.name).index(j) for j in JOINTS]
+        qd = self.in_order(msg, "velocity")
         with self.lock:
-            self.truth.append((time.monotonic(), np.asarray(msg.velocity)[index]))
+            self.truth.append((time.monotonic(), qd))
             del self.truth[:-20000]
-
-    def on_controller_state(self, _msg: JointTrajectoryControllerState) -> None:
-        self.controller_states += 1
-
-    def q(self) -> np.ndarray:
-        with self.lock:
-            return self.states[-1][1].copy()
-
-    def logs(self) -> str:
-        return "\n".join(f"--- {p.name}\n{p.read_text()[-4000:]}" for p in sorted(self.log_dir.glob("*.log")))
 
     def send(self, goal: FollowJointTrajectory.Goal, feedback: list | None = None) -> object:
         callback = None if feedback is None else (lambda f: feedback.append(f.feedback))
@@ -147,11 +109,6 @@ class Arm(SpunNode):
         # a loaded 2-core machine can starve this client for a moment: wait for a state rather than fail
         assert self.wait(lambda: len(window()) > 0, 10.0), ("no joint states", self.logs())
         return np.max(np.abs(np.array(window()) - q), axis=0)
-
-    def close(self) -> None:
-        super().close()
-        for proc in reversed(self.procs):
-            stop_process(proc)
 
 
 def goal(points: list[tuple[np.ndarray, float]], *, path: float | None = None,
@@ -211,7 +168,8 @@ def each_goal(arm: Arm, shares: dict[str, list[float]], tolerance: np.ndarray | 
     handle = arm.send(goal([(q - step, 3.0)]))
     assert handle.accepted, arm.logs()  # type: ignore[attr-defined]
     time.sleep(1.0)
-    assert arm.call(handle.cancel_goal_async, 30, arm.logs).goals_canceling  # type: ignore[attr-defined]
+    assert arm.call(handle.cancel_goal_async, 30, arm.logs).goals_canceling, \
+        (arm.result(handle), arm.logs())  # type: ignore[attr-defined]  # not ended before the cancel
     status, code, text, ended = arm.result(handle)
     assert (status, code, text) == (GoalStatus.STATUS_CANCELED, SUCCESSFUL, ""), arm.logs()
     assert np.all(calm(ended, "cancelled goal") < CALM), (shares, arm.logs())
@@ -229,18 +187,27 @@ def each_goal(arm: Arm, shares: dict[str, list[float]], tolerance: np.ndarray | 
     assert np.all(arm.held_near(at_rest) < HOLD), arm.logs()
 
 
+GAINS = {"shipped": (), **{f"bench {law}": ("--params-file", str(CONFIG / f"ur5_bench_{law}.yaml"))
+                            for law in ("pd", "pdsmc")}}
+"""The controller's gains: the shipped UR5 defaults (config/gains.yaml, no params file: what a user starts
+with), and the bench gain files (tools/bench_gains.py)."""
+
+
 @pytest.mark.timeout(240)
-@pytest.mark.parametrize("law", ["pd", "pdsmc"])
-def test_the_ur5_bench_gains_end_every_goal_calm_on_the_bench_arm(ros_env: dict, tmp_path: Path, law: str) -> None:
-    arm = Arm(ros_env, tmp_path, law, ("--params-file", str(CONFIG / f"ur5_bench_{law}.yaml")))
+@pytest.mark.parametrize(("law", "gains"), [("pd", "shipped"), ("pdsmc", "shipped"),
+                                            ("pd", "bench pd"), ("pdsmc", "bench pdsmc")])
+def test_the_ur5_gains_end_every_goal_calm_on_the_bench_arm(ros_env: dict, tmp_path: Path, law: str,
+                                                            gains: str) -> None:
+    arm = Arm(ros_env, tmp_path, law, GAINS[gains])
     shares: dict[str, list[float]] = {}
     try:
-        assert arm.wait(lambda: len(arm.states) > 100, 90), arm.logs()
-        assert arm.action.wait_for_server(timeout_sec=120), arm.logs()
-        assert arm.wait(lambda: arm.controller_states > 5, 180), arm.logs()  # active, commanding
+        assert arm.up(), arm.logs()
         time.sleep(1.5)  # settled in the hold of activation (the arm sags until the delay line fills)
         each_goal(arm, shares, None, np.full(len(JOINTS), HELD_WITHIN))
     finally:
         for what, share in shares.items():
-            print(f"{law} {what}: after the end, peak true |qd| / limit per joint {share}")
+            print(f"{law} ({gains} gains) {what}: after the end, peak true |qd| / limit per joint {share}")
+        if shares:
+            worst = max(max(v) for k, v in shares.items() if not k.startswith("held"))
+            print(f"{law} ({gains} gains): worst joint after a goal end {100 * worst:.1f} % of its velocity limit")
         arm.close()

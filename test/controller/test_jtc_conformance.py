@@ -14,31 +14,25 @@ scope), in a DDS domain of its own, stopped by PID.
 
 from __future__ import annotations
 
-import subprocess
-import threading
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import next_domain, stop_process
 
 pytest.importorskip("rclpy")
 pytest.importorskip("mujoco")
 pytest.importorskip("control_msgs")
 from action_msgs.msg import GoalStatus  # noqa: E402
-from builtin_interfaces.msg import Duration, Time  # noqa: E402
+from builtin_interfaces.msg import Time  # noqa: E402
 from control_msgs.action import FollowJointTrajectory  # noqa: E402
-from control_msgs.msg import JointTolerance, JointTrajectoryControllerState  # noqa: E402
+from control_msgs.msg import JointTolerance  # noqa: E402
 from control_msgs.srv import QueryTrajectoryState  # noqa: E402
 from lifecycle_msgs.msg import Transition  # noqa: E402
 from lifecycle_msgs.srv import ChangeState  # noqa: E402
-from rclpy.action import ActionClient  # noqa: E402
-from sensor_msgs.msg import JointState  # noqa: E402
+from stand_in_arm import StandInArm, duration  # noqa: E402
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint  # noqa: E402
-
-from pdsmc_ros.ros.spun_node import SpunNode  # noqa: E402
 
 JOINTS = ["joint1", "joint2", "joint3"]
 # PD gains stable at 1 kHz with the real-time loop's two periods of delay (test_controller_mujoco.py)
@@ -53,64 +47,21 @@ GOAL_TOL = 0.05
 GOAL_VEL_TOL = 0.2
 
 
-def duration(seconds: float) -> Duration:
-    return Duration(sec=int(seconds // 1), nanosec=int(round((seconds % 1.0) * 1e9)) % 1_000_000_000)
-
-
 def stamp(seconds: float) -> Time:
     return Time(sec=int(seconds), nanosec=int((seconds % 1.0) * 1e9))
 
 
-class Arm(SpunNode):
+class Arm(StandInArm):
     """The driver and the controller (processes) and a plain rclpy client of them."""
 
     def __init__(self, ros_env: dict, log_dir: Path, params: tuple[str, ...]) -> None:
-        self.domain = next_domain()
-        self.log_dir = log_dir
-        env = dict(ros_env, ROS_DOMAIN_ID=str(self.domain))
-        common = ["--ros-args", "-p", "thread_priority:=0"]
-        self.procs = [
-            subprocess.Popen(["ros2", "run", "pdsmc_ros", "mujoco_driver", *common, "-p", "robot:=serial_3r"],
-                             env=env, stdout=(log_dir / "driver.log").open("w"), stderr=subprocess.STDOUT,
-                             start_new_session=True),
-            subprocess.Popen(["ros2", "run", "pdsmc_ros", "controller", *common, "-p", "robot:=serial_3r",
-                              "-p", "type:=pd", "-p", "mode:=realtime", "-p", "rate:=1000.0",
-                              "-p", "sample_rate:=1000.0",
-                              "-p", "stale_periods:=200", *GAINS, *params],
-                             env=env, stdout=(log_dir / "controller.log").open("w"), stderr=subprocess.STDOUT,
-                             start_new_session=True)]
-        super().__init__(self.domain, "jtc_client")
-        self.lock = threading.Lock()
-        self.states: list[tuple[float, np.ndarray]] = []
-        self.node.create_subscription(JointState, "/joint_states", self.on_state, 1)
-        self.controller_states = 0  # the controller publishes its state once it commands
-        self.node.create_subscription(JointTrajectoryControllerState, "/controller/controller_state",
-                                      self.on_controller_state, 1)
+        super().__init__(ros_env, log_dir, "jtc_client", JOINTS, driver=["-p", "robot:=serial_3r"],
+                         controller=["-p", "robot:=serial_3r", "-p", "type:=pd", "-p", "mode:=realtime",
+                                     "-p", "rate:=1000.0", "-p", "sample_rate:=1000.0", "-p", "stale_periods:=200",
+                                     *GAINS, *params])
         self.topic = self.node.create_publisher(JointTrajectory, "/controller/joint_trajectory", 10)
-        self.action = ActionClient(self.node, FollowJointTrajectory, "/controller/follow_joint_trajectory")
         self.query = self.node.create_client(QueryTrajectoryState, "/controller/query_state")
         self.lifecycle = self.node.create_client(ChangeState, "/controller/change_state")
-
-    def on_state(self, msg: JointState) -> None:
-        names = list(msg.name)
-        q = np.array([msg.position[names.index(j)] for j in JOINTS])
-        with self.lock:
-            self.states.append((time.monotonic(), q))
-            del self.states[:-5000]
-
-    def on_controller_state(self, _msg: JointTrajectoryControllerState) -> None:
-        self.controller_states += 1
-
-    def q(self) -> np.ndarray:
-        with self.lock:
-            return self.states[-1][1].copy()
-
-    def logs(self) -> str:
-        return "\n".join(f"--- {p.name}\n{p.read_text()[-4000:]}" for p in sorted(self.log_dir.glob("*.log")))
-
-    def call(self, make: Callable[[], object], seconds: float = 30.0, why: Callable[[], str] | None = None) -> object:
-        """A request sent while the spin thread is paused; no answer fails with the nodes' logs."""
-        return super().call(make, seconds, why or self.logs)
 
     def send(self, goal: FollowJointTrajectory.Goal, feedback: list | None = None) -> object:
         """The goal handle (``accepted`` False for a rejected goal)."""
@@ -135,11 +86,6 @@ class Arm(SpunNode):
         assert self.lifecycle.wait_for_service(timeout_sec=30)
         answer = self.call(lambda: self.lifecycle.call_async(ChangeState.Request(transition=Transition(id=transition))))
         assert answer.success  # type: ignore[attr-defined]
-
-    def close(self) -> None:
-        super().close()
-        for proc in reversed(self.procs):
-            stop_process(proc)
 
 
 CONFIGS = {
@@ -170,9 +116,7 @@ def arms(ros_env: dict, tmp_path_factory: pytest.TempPathFactory) -> Iterator[Ca
                 old.close()
             current.clear()
             arm = Arm(ros_env, tmp_path_factory.mktemp(config), CONFIGS[config])
-            ready = (arm.wait(lambda: len(arm.states) > 100, 90) and arm.action.wait_for_server(timeout_sec=90)
-                     and arm.wait(lambda: arm.controller_states > 5, 180))  # active, commanding
-            if not ready:
+            if not arm.up(server_s=90):  # publishing, serving, commanding
                 logs = arm.logs()
                 arm.close()  # the next case starts a pair again rather than use a broken one
                 pytest.fail(f"the driver and controller did not come up\n{logs}")

@@ -162,3 +162,26 @@ def test_after_an_outage_the_controller_holds_where_the_arm_is() -> None:
     tau, change = ctl.realtime_command(clock(), lambda: 5.0)  # the old goal would be at its end by now
     assert change == "fresh"
     np.testing.assert_array_equal(ctl.latest.trajectory.sample(5.0)[0], moved)
+
+
+def test_a_goal_that_arrives_while_the_inputs_are_stale_does_not_succeed_unfollowed() -> None:
+    """A goal started during an outage: the hold taken when the inputs are fresh again replaces its
+    trajectory (the arm is where it is), so the goal ends aborted then, not SUCCEEDED at its end time
+    with the arm never having followed it (seen on the UR5 bench arm with a starved machine)."""
+    ctl = core()
+    q = SPEC.reference().sample([0.0]).q[0]
+    clock = time.perf_counter
+    ctl.add_state(state(q, ZERO), "joint_states")
+    tau, _ = ctl.realtime_command(clock(), lambda: 0.1)
+    assert tau is not None
+    tau, change = ctl.realtime_command(clock() + 1.0, lambda: 1.1)  # no state for 1 s: stale
+    assert change == "stale" and tau is None
+    points = [((q + 0.5).tolist(), [0.0] * N, [0.0] * N, 1, 0)]
+    execution = ctl.check_goal(1.1, NAMES, points, [0] * len(points), 0.0, [], [], 0.0).goal
+    assert isinstance(execution, g.GoalExecution)
+    ctl.start_goal(execution)  # accepted while no state comes
+    ctl.add_state(state(q, ZERO), "joint_states")
+    tau, change = ctl.realtime_command(clock(), lambda: 1.2)
+    assert change == "fresh"
+    np.testing.assert_array_equal(ctl.latest.trajectory.sample(5.0)[0], q)  # held where the arm is
+    assert execution.outcome is not None and execution.outcome.status == "aborted", execution.outcome

@@ -15,71 +15,34 @@ velocity limit once it has ended.
 
 from __future__ import annotations
 
-import subprocess
-import threading
 import time
 from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import next_domain, stop_process
 
 pytest.importorskip("rclpy")
 pytest.importorskip("mujoco")
 pytest.importorskip("control_msgs")
 from action_msgs.msg import GoalStatus  # noqa: E402
-from builtin_interfaces.msg import Duration  # noqa: E402
 from control_msgs.action import FollowJointTrajectory  # noqa: E402
-from control_msgs.msg import JointTolerance, JointTrajectoryControllerState  # noqa: E402
-from rclpy.action import ActionClient  # noqa: E402
-from sensor_msgs.msg import JointState  # noqa: E402
+from control_msgs.msg import JointTolerance  # noqa: E402
+from stand_in_arm import StandInArm, duration  # noqa: E402
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint  # noqa: E402
 
 from pdsmc_ros.robots import make_robot  # noqa: E402
 from pdsmc_ros.robots.catalog import resolve_robot  # noqa: E402
-from pdsmc_ros.ros.spun_node import SpunNode  # noqa: E402
 
 UR5 = make_robot(resolve_robot("ur5"))
 JOINTS = list(UR5.joint_names)
 CALM = 0.25  # of each joint's velocity limit, once a goal has ended
 PATH_TOL = 0.05  # rad
 GOAL_TOL = 0.03  # rad
-COMMON = ["--ros-args", "-p", "thread_priority:=0"]  # a shared 2-core machine: no SCHED_FIFO spinning
 
 
-def duration(seconds: float) -> Duration:
-    return Duration(sec=int(seconds), nanosec=int(round((seconds % 1.0) * 1e9)) % 1_000_000_000)
-
-
-class Client(SpunNode):
-    """Joint states (position, velocity) and the controller's action."""
-
-    def __init__(self, domain: int) -> None:
-        super().__init__(domain, "position_domain_client")
-        self.lock = threading.Lock()
-        self.states: list[tuple[float, np.ndarray, np.ndarray]] = []
-        self.node.create_subscription(JointState, "/joint_states", self.on_state, 1)
-        self.controller_states = 0  # the controller publishes its state once it commands
-        self.node.create_subscription(JointTrajectoryControllerState, "/controller/controller_state",
-                                      self.on_controller_state, 1)
-        self.action = ActionClient(self.node, FollowJointTrajectory, "/controller/follow_joint_trajectory")
-
-    def on_state(self, msg: JointState) -> None:
-        index = [list(msg.name).index(j) for j in JOINTS]
-        with self.lock:
-            self.states.append((time.monotonic(), np.asarray(msg.position)[index], np.asarray(msg.velocity)[index]))
-            del self.states[:-20000]
-
-    def on_controller_state(self, _msg: JointTrajectoryControllerState) -> None:
-        self.controller_states += 1
-
-    def q(self) -> np.ndarray:
-        with self.lock:
-            return self.states[-1][1].copy()
-
-    def velocities_since(self, start: float) -> np.ndarray:
-        with self.lock:
-            return np.array([s[2] for s in self.states if s[0] >= start])
+def velocities_since(client: StandInArm, start: float) -> np.ndarray:
+    with client.lock:
+        return np.array([s[2] for s in client.states if s[0] >= start])
 
 
 def goal(points: list[tuple[np.ndarray, float]]) -> FollowJointTrajectory.Goal:
@@ -96,26 +59,14 @@ def goal(points: list[tuple[np.ndarray, float]]) -> FollowJointTrajectory.Goal:
 
 @pytest.mark.timeout(300)
 def test_goals_that_turn_back_and_leave_the_master_at_rest_end_calm(ros_env: dict, tmp_path: Path) -> None:
-    domain = next_domain()
-    env = dict(ros_env, ROS_DOMAIN_ID=str(domain))
-    procs = [subprocess.Popen(["ros2", "run", "pdsmc_ros", "mujoco_driver", *COMMON, "-p", "robot:=ur5"], env=env,
-                              stdout=(tmp_path / "driver.log").open("w"), stderr=subprocess.STDOUT,
-                              start_new_session=True),
-             subprocess.Popen(["ros2", "run", "pdsmc_ros", "controller", *COMMON, "-p", "robot:=ur5",
-                               "-p", "contour:=circle", "-p", "type:=pdsmc_pos", "-p", "v_rest:=0.7",
-                               "-p", "mode:=realtime", "-p", "rate:=1000.0", "-p", "sample_rate:=500.0",
-                               "-p", "stale_periods:=200"],
-                              env=env, stdout=(tmp_path / "controller.log").open("w"), stderr=subprocess.STDOUT,
-                              start_new_session=True)]
-    client = Client(domain)
-
-    def logs() -> str:
-        return "\n".join(f"--- {p.name}\n{p.read_text()[-4000:]}" for p in sorted(tmp_path.glob("*.log")))
-
+    client = StandInArm(ros_env, tmp_path, "position_domain_client", JOINTS, keep=20000,
+                        driver=["-p", "robot:=ur5"],
+                        controller=["-p", "robot:=ur5", "-p", "contour:=circle", "-p", "type:=pdsmc_pos",
+                                    "-p", "v_rest:=0.7", "-p", "mode:=realtime", "-p", "rate:=1000.0",
+                                    "-p", "sample_rate:=500.0", "-p", "stale_periods:=200"])
+    logs = client.logs
     try:
-        assert client.wait(lambda: len(client.states) > 100, 90), logs()
-        assert client.action.wait_for_server(timeout_sec=120), logs()
-        assert client.wait(lambda: client.controller_states > 5, 180), logs()  # active, commanding
+        assert client.up(), logs()
         time.sleep(2.0)  # settled in the hold of activation
         q0 = client.q()
         lift = q0 + [0.3, 0.05, -0.05, 0.0, 0.0, 0.0]  # the pan leads: the master
@@ -132,12 +83,10 @@ def test_goals_that_turn_back_and_leave_the_master_at_rest_end_calm(ros_env: dic
             assert (status, code) == (GoalStatus.STATUS_SUCCEEDED, FollowJointTrajectory.Result.SUCCESSFUL), \
                 (name, text, logs())
             time.sleep(1.0)
-            speeds = np.max(np.abs(client.velocities_since(ended)), axis=0)
+            speeds = np.max(np.abs(velocities_since(client, ended)), axis=0)
             share = speeds / UR5.velocity_limits
             print(f"{name}: after the end, peak |qd| / limit per joint {np.round(share, 4).tolist()}")
             assert np.all(share < CALM), (name, share, logs())
         assert np.max(np.abs(client.q() - q0)) < GOAL_TOL + 0.01, logs()
     finally:
         client.close()
-        for proc in reversed(procs):
-            stop_process(proc)
