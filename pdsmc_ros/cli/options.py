@@ -109,8 +109,9 @@ def add_loop_arguments(p: argparse.ArgumentParser) -> None:
                    help="required rate / lowest stable rate (default 2 in realtime, 1 in lockstep)")
     p.add_argument("--realism", choices=REALISM_PRESETS, default=None,
                    help="the arm is the MuJoCo stand-in under this preset of its nuisances (docs/how-to/mujoco.md): "
-                   "the check adds its command delay to the loop's and sees the velocity as its drive estimates it "
-                   "(differenced, low-pass filtered); pdsmc tune also runs each candidate against it")
+                   "the check adds its command delay to the loop's, sees the velocity as its drive estimates it "
+                   "(differenced, low-pass filtered) and gives the plant the arm's viscous damping (the description's "
+                   "plus the preset's friction_viscous); pdsmc tune also runs each candidate against it")
 
 
 def add_model_argument(p: argparse.ArgumentParser) -> None:

@@ -237,8 +237,9 @@ def test_static_friction_at_rest_is_a_set_through_the_filters() -> None:
     effort Coulomb friction alone: ``fc sign(qd)`` while it moves, and while it is stuck whatever
     torque within ``+/- fc`` (here a random level per stretch, ramping to ``fc`` before breakaway).
     Filtered as the efforts are, that effort lies within the set ``fc (centre +/- radius)`` of
-    Prepared.static_friction_set at every kept sample; the point ``fc sign(qd)`` misses it by a
-    tenth of ``fc`` and more, and a torque of 1.5 fc while stuck (outside the law) falls outside the set."""
+    Prepared.static_friction_set at every kept sample, and not within that set's radius held to 1; the
+    point ``fc sign(qd)`` misses it by a tenth of ``fc`` and more, and a torque of 1.5 fc while stuck
+    (outside the law) falls outside the set."""
     from pdsmc_ros.identification.signals import prepare
 
     rate, fc = 1000.0, 6.0
@@ -265,6 +266,10 @@ def test_static_friction_at_rest_is_a_set_through_the_filters() -> None:
     assert 0.2 < np.mean(prepared.rest) < 0.6
     outside = np.abs(prepared.tau - np.clip(prepared.tau, fc * (centre - radius), fc * (centre + radius)))
     assert np.max(outside) < 1e-3 * fc
+    # the filter's negative lobes: a set held within +/- fc (its radius clipped to 1) misses by 6 % of fc
+    narrow = np.minimum(radius, 1.0)
+    missed = np.abs(prepared.tau - np.clip(prepared.tau, fc * (centre - narrow), fc * (centre + narrow)))
+    assert np.max(missed) > 0.03 * fc
     point = fc * prepared.stepped(np.sign(prepared.qd))
     assert np.max(np.abs(prepared.tau - point)) > 0.1 * fc
     held_too_hard = np.where(velocity == 0.0, 1.5 * fc * np.sign(friction + 1e-9), friction)

@@ -30,7 +30,7 @@ def main() -> None:
     from trajectory_msgs.msg import JointTrajectory
 
     from ...control import stability  # noqa: F401 - the parameter stand-in's gain check
-    from ...ros import node_run  # noqa: F401 - the parameter stand-in's guards
+    from ...parameters import ros as _guards  # noqa: F401 - the parameter stand-in's guards
     from ...ros.topics import TOPIC_JOINT_TRAJECTORY
     from .. import parameters as _gain_parameters  # noqa: F401 - the parameter stand-in's gains
     from ..action import FollowJointTrajectoryServer, topic_trajectory
