@@ -34,7 +34,7 @@ from .goals import (
     prepare_trajectory,
     resolve_tolerances,
 )
-from .hold import Hold
+from .hold import Hold, Stop
 from .joint_trajectory import JointTrajectoryReference, RawPoint
 from .joints import JointSelector
 from .limits import JointLimits
@@ -239,9 +239,16 @@ class ControllerCore:
 
     def hold(self, why: str, *, measured: bool = False) -> None:
         """Hold from now on (a cancel, an abort): the commanded position while the arm is close to
-        it (:meth:`start_state`), else -- or with ``measured`` -- the measured position."""
+        it (:meth:`start_state`), else -- or with ``measured`` -- the measured position. With
+        ``constraints.decelerate_on_cancel`` a cancel or an abort first brakes from that state's
+        velocity (:class:`~pdsmc_ros.controller.hold.Stop`; JTC brakes from the measured state,
+        this from the state the hold would keep, for the same reason)."""
         start = None if measured else self.start_state()
-        if self.lockstep:
+        decelerations = self.goal_settings.stop_deceleration
+        if decelerations is not None and start is not None:
+            drive = self.pairing.drive if self.lockstep else self.latest.drive
+            drive(Stop(start[0], start[1], decelerations, why))
+        elif self.lockstep:
             if self.last_state is None:
                 return
             self.pairing.drive(Hold(self.last_state[1] if start is None else start[0], why))

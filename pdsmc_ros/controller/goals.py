@@ -160,6 +160,10 @@ class GoalSettings:
         Beyond JTC: refuse trajectories that leave the arm's limits or start with a step.
     wrap : ndarray of bool, optional
         Continuous joints (robot order): their position errors are angles wrapped to (-pi, pi].
+    stop_deceleration : ndarray, optional
+        ``constraints.decelerate_on_cancel``: each joint's deceleration (robot order, rad/s^2) to
+        brake at before a cancel's or an abort's hold (:class:`~pdsmc_ros.controller.hold.Stop`);
+        None: hold at once.
     """
 
     rules: TrajectoryRules = field(default_factory=TrajectoryRules)
@@ -168,6 +172,7 @@ class GoalSettings:
     start_tolerance: float = START_TOLERANCE
     reject_beyond_limits: bool = True
     wrap: FloatArray | None = None
+    stop_deceleration: FloatArray | None = None
 
     def __post_init__(self) -> None:
         for name in ("cmd_timeout", "start_tolerance"):

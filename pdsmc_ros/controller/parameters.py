@@ -150,9 +150,18 @@ def declare_controller_parameters(node: Node, robot: Manipulator) -> ControllerP
                                    goal_time=values["constraints.goal_time"], trajectory=per_joint["trajectory"],
                                    goal=per_joint["goal"])
     rules = TrajectoryRules(values["allow_partial_joints_goal"], values["allow_nonzero_velocity_at_trajectory_end"])
+    stop = None
+    if values["constraints.decelerate_on_cancel"]:
+        decelerations = [values[f"constraints.{joint}.max_deceleration_on_cancel"] for joint in joint_map.joints]
+        if all(a > 0.0 for a in decelerations):
+            stop = np.asarray(joint_map.to_robot(decelerations), dtype=float)
+        else:  # as JTC: a joint without a deceleration turns the feature off, with a warning
+            slow = [j for j, a in zip(joint_map.joints, decelerations, strict=True) if not a > 0.0]
+            node.get_logger().warn(f"constraints.decelerate_on_cancel is true but {', '.join(slow)} "
+                                   "ha(s) no constraints.<joint>.max_deceleration_on_cancel > 0: holding at once")
     try:
         settings = GoalSettings(rules, defaults, values["cmd_timeout"], values["allowed_start_tolerance"],
-                                values["reject_beyond_limits"])
+                                values["reject_beyond_limits"], stop_deceleration=stop)
     except ValueError as exc:
         raise ConfigError(f"parameter {exc}") from None
     return ControllerParameters(joint_map, values["autostart"], limit, values["enforce_limits"],

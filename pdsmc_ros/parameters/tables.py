@@ -142,6 +142,12 @@ CONTROLLER = (
       lo=0.0, map_joints=True),
     P(f"constraints.{JOINT}.goal", "double", 0.0, f"default goal position tolerance of {JOINT} in rad", lo=0.0,
       map_joints=True),
+    P("constraints.decelerate_on_cancel", "bool", False,
+      "on a cancel or an abort, brake each joint at constraints.<joint>.max_deceleration_on_cancel to rest before "
+      "holding (JTC's decelerate_on_cancel; false: hold at once)"),
+    P(f"constraints.{JOINT}.max_deceleration_on_cancel", "double", 0.0,
+      f"rad/s^2: {JOINT}'s deceleration when constraints.decelerate_on_cancel brakes (0 on any joint: hold at once)",
+      lo=0.0, map_joints=True),
     P("cmd_timeout", "double", 0.0, "hold the measured position this long (s) after a trajectory's last point "
       "(0: never; ignored unless above constraints.goal_time)", lo=0.0),
     P("allowed_start_tolerance", "double", START_TOLERANCE, "beyond JTC: a trajectory whose reference at receipt "

@@ -167,3 +167,57 @@ def test_an_action_goal_stamped_zero_starts_at_the_loops_first_sample(stamp: flo
     assert reference.end_time == pytest.approx(stamp + 2.0 if stamp else 102.3, abs=1e-12)
     ctl.realtime_command(ctl.latest.state_time, lambda: 100.4)  # later samples move it no more
     assert reference.start_time == start
+
+
+def test_stop_brakes_each_joint_at_its_deceleration_as_jtcs_decelerate_to_hold_position() -> None:
+    from pdsmc_ros.controller.hold import Stop
+
+    q0, qd0, a = np.array([0.1, -0.2, 0.3]), np.array([0.8, -0.5, 0.0]), np.array([4.0, 1.0, 2.0])
+    stop = Stop(q0, qd0, a, "goal canceled")
+    stop.begin(10.0)
+    stop.begin(10.5)  # only the first sample starts it
+    # integrate the sampled velocity on a fine grid: it must land where the positions say (no formula reused)
+    times = np.linspace(10.0, 11.0, 100_001)
+    samples = [stop.sample(t) for t in times]
+    positions = np.array([s[0] for s in samples])
+    velocities = np.array([s[1] for s in samples])
+    integrated = q0 + np.concatenate([np.zeros((1, 3)), np.cumsum(0.5 * (velocities[1:] + velocities[:-1]), axis=0)
+                                      * (times[1] - times[0])])
+    np.testing.assert_allclose(positions, integrated, atol=1e-8)
+    np.testing.assert_allclose(positions[0], q0) and np.testing.assert_allclose(velocities[0], qd0)
+    # each joint at rest after |qd0| / a (0.2 s, 0.5 s), at q0 + sign(qd0) qd0^2 / (2 a); the resting one holds
+    np.testing.assert_allclose(stop.sample(10.2)[1][0], 0.0, atol=1e-12)
+    assert stop.sample(10.19)[1][0] > 0.0 and stop.sample(10.49)[1][1] < 0.0
+    np.testing.assert_allclose(stop.sample(11.0)[0], [0.1 + 0.08, -0.2 - 0.125, 0.3])
+    np.testing.assert_allclose(stop.sample(11.0)[1], 0.0)
+    np.testing.assert_allclose(stop.sample(10.1)[2], [-4.0, 1.0, 0.0])  # braking; the resting joint: nothing
+    with pytest.raises(ValueError, match="deceleration > 0 per joint"):
+        Stop(q0, qd0, [4.0, 0.0, 2.0], "x")
+
+
+def test_with_decelerate_on_cancel_a_canceled_goal_brakes_from_where_the_hold_would_start() -> None:
+    from pdsmc_ros.controller.hold import Hold, Stop
+
+    decel = np.array([2.0, 2.0, 2.0])
+    holds: list[str] = []
+    ctl = ControllerCore(SPEC, JointSelector(NAMES), JointMap(NAMES, list(NAMES)), JointLimits.of(ROBOT, NAMES),
+                         TorqueGuard(None), 20 / SPEC.rate, False, holds.append,
+                         goal_settings=g.GoalSettings(stop_deceleration=decel))
+    ctl.configure()
+    ctl.activate()
+    q0 = ctl.reference.sample([0.0]).q[0]
+    qd = np.array([0.4, -0.2, 0.0])
+    ctl.add_state(state(0, q0, qd), "joint_states")
+    started = ctl.check_goal(0.0, NAMES, [((q0 + 0.1).tolist(), [], [], 2, 0)], (), 100.0, [], [], 0.0)
+    ctl.start_goal(started.goal)
+    assert ctl.goals.cancel(started.goal) and holds == ["goal canceled"]
+    source = ctl.latest.trajectory
+    assert isinstance(source, Stop)  # nothing commanded yet: from the measured state
+    np.testing.assert_allclose(source.q0, q0) and np.testing.assert_allclose(source.qd0, qd)
+    np.testing.assert_allclose(source.q, q0 + np.sign(qd) * qd ** 2 / (2 * decel))
+    # without the setting the same cancel holds at once
+    plain = core(lockstep=False)
+    plain.add_state(state(0, q0, qd), "joint_states")
+    started = plain.check_goal(0.0, NAMES, [((q0 + 0.1).tolist(), [], [], 2, 0)], (), 100.0, [], [], 0.0)
+    plain.start_goal(started.goal)
+    assert plain.goals.cancel(started.goal) and isinstance(plain.latest.trajectory, Hold)

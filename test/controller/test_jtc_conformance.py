@@ -42,6 +42,7 @@ INVALID_GOAL = FollowJointTrajectory.Result.INVALID_GOAL
 PATH_TOLERANCE_VIOLATED = FollowJointTrajectory.Result.PATH_TOLERANCE_VIOLATED
 GOAL_TOLERANCE_VIOLATED = FollowJointTrajectory.Result.GOAL_TOLERANCE_VIOLATED
 HOLD = 0.05  # rad: a hold keeps the arm this close once settled
+DECELERATION = 0.25  # rad/s^2: slow enough that braking from a goal's speed goes well past a hold's HOLD
 # a loaded 2-core machine shakes a 1 kHz Python loop now and then: goals end within these
 GOAL_TOL = 0.05
 GOAL_VEL_TOL = 0.2
@@ -97,6 +98,10 @@ CONFIGS = {
     # weighted master couples joints 1 and 2 here; bench/position_domain.py's equal-margin rule): the cases at the
     # end of this module
     "position_domain": ("-p", "type:=pd_pos", "-p", "kp:=[1044.0, 1044.0, 208.8]", "-p", "kd:=[52.2, 52.2, 10.44]"),
+    # JTC's constraints.decelerate_on_cancel, every joint braking at DECELERATION
+    "decelerate": ("-p", "constraints.decelerate_on_cancel:=true",
+                   *(arg for j in JOINTS
+                     for arg in ("-p", f"constraints.{j}.max_deceleration_on_cancel:={DECELERATION}"))),
     "options": ("-p", "allow_partial_joints_goal:=true", "-p", "allow_nonzero_velocity_at_trajectory_end:=true",
                 "-p", "constraints.stopped_velocity_tolerance:=0.0",
                 "-p", "reject_beyond_limits:=false", "-p", "cmd_timeout:=0.5",
@@ -457,3 +462,29 @@ def test_position_domain_preempted_goal_receives_aborted_result(arms) -> None:  
 @pytest.mark.timeout(120)
 def test_position_domain_cancel_holds_the_position(arms) -> None:  # noqa: ANN001
     cancel_holds(arms("position_domain"))
+
+
+# ----------------------------------------------------------------------------- decelerate on cancel
+
+
+@pytest.mark.timeout(180)
+def test_cancel_with_decelerate_on_cancel_brakes_then_holds_at_rest(arms) -> None:  # noqa: ANN001
+    """JTC test_cancel_decelerate_to_hold_position: CANCELED, SUCCESSFUL, empty error string; the arm brakes
+    from its velocity at the cancel at the joints' max_deceleration_on_cancel, v^2 / (2 a) further on, and
+    holds there at rest (without the option the cancel holds where the arm is: the default case above)."""
+    arm = arms("decelerate")
+    q1, g = move(arm, [0.4, 0.0, 0.0], span=1.5)
+    handle = arm.send(g)
+    assert arm.wait(lambda: abs(arm.q()[0] - q1[0]) < 0.25, 10), arm.logs()  # past the middle, moving fast
+    with arm.lock:
+        _, q_cancel, qd_cancel = arm.states[-1]
+    assert arm.call(handle.cancel_goal_async).goals_canceling  # type: ignore[attr-defined]
+    assert arm.result(handle) == (GoalStatus.STATUS_CANCELED, SUCCESSFUL, "")
+    time.sleep(abs(qd_cancel[0]) / DECELERATION + 0.3)  # braked
+    rest = arm.q()
+    assert arm.held_near(rest) < HOLD
+    travel, expected = rest[0] - q_cancel[0], qd_cancel[0] * abs(qd_cancel[0]) / (2 * DECELERATION)
+    print(f"velocity at the cancel {qd_cancel[0]:.3f} rad/s: braked {travel:.4f} rad, v^2 / (2 a) {expected:.4f}")
+    assert expected > 2 * HOLD, f"the goal was too slow to tell a brake from a hold ({qd_cancel[0]:.3f} rad/s)"
+    # the cancel reaches the loop a few periods after the client read the state: a little further on
+    assert 0.8 * expected < travel < expected + 0.05 * abs(qd_cancel[0]) + HOLD, (travel, expected, arm.logs())
