@@ -297,8 +297,11 @@ class LatestInputs:
         self.state_time = self.reference_time = 0.0
 
     def activate(self) -> None:
-        """Forget what drove before: hold the first complete state that comes from now on."""
+        """Forget what drove before: hold the first complete state that comes from now on (an
+        outage before the deactivation is over: its first state is not "fresh again", which would
+        end a goal accepted meanwhile)."""
         self.source, self.trajectory, self.state, self.state_time = None, None, None, 0.0
+        self.staleness.stale = False
 
     def add_state(self, q: FloatArray, qd: FloatArray, now: float) -> None:
         self.state, self.state_time, self.last_q = (q, qd), now, q

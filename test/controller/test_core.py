@@ -221,3 +221,18 @@ def test_with_decelerate_on_cancel_a_canceled_goal_brakes_from_where_the_hold_wo
     started = plain.check_goal(0.0, NAMES, [((q0 + 0.1).tolist(), [], [], 2, 0)], (), 100.0, [], [], 0.0)
     plain.start_goal(started.goal)
     assert plain.goals.cancel(started.goal) and isinstance(plain.latest.trajectory, Hold)
+
+
+def test_an_outage_before_a_deactivation_does_not_end_a_goal_after_the_next_activation() -> None:
+    ctl = core(lockstep=False)
+    q0 = ctl.reference.sample([0.0]).q[0]
+    zero = np.zeros(len(NAMES))
+    ctl.add_state(state(0, q0, zero), "joint_states")
+    assert ctl.realtime_command(ctl.latest.state_time + 1.0, lambda: 0.0)[1] == "stale"
+    ctl.activate()
+    ctl.add_state(state(1, q0, zero), "joint_states")
+    started = ctl.check_goal(0.0, NAMES, [((q0 + 0.1).tolist(), [], [], 2, 0)], (), 100.0, [], [], 0.0)
+    ctl.start_goal(started.goal)
+    tau, change = ctl.realtime_command(ctl.latest.state_time, lambda: 100.0)
+    assert change == "" and tau is not None
+    assert started.goal.outcome is None and ctl.goals.active is started.goal
