@@ -1,7 +1,7 @@
 """Benchmark: the identification checked against the truth on the MuJoCo stand-in with the bench nuisances.
 
 ``python bench/identification_stand_in.py [--robot ur5|serial_3r] [--payload KG] [--out DIR]
-[--excitation DIR] [--periods N] [--cutoff HZ] [--realtime BAG --realtime-held-out BAG]``
+[--excitation DIR] [--periods N] [--cutoff HZ] [--sensitivity] [--realtime BAG --realtime-held-out BAG]``
 
 1. ``pdsmc excite --robot ARM`` (or the excitation of ``--excitation DIR``, an earlier ``excite``'s);
 2. the excitation on the stand-in in lockstep, in-process (``excite_stand_in`` of
@@ -33,12 +33,13 @@ friction the set-valued law it is, any torque within ``+/- fc`` where a joint is
 through the efforts' filters (pdsmc_ros.identification.identify.prediction_nrmse's ``static``) --
 the verdict's; ``point``: each sample's prediction a value, ``fc sign(qd)`` at rest too, which no
 parameters can meet while a joint sticks; ``true_``: MuJoCo's own parameters scored on the same
-held-out run, the floor of each.
+held-out run, what the right model scores by each.
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import shutil
 import sys
 import tempfile
@@ -98,7 +99,7 @@ def oracle(robot: str, truth: StandInTruth, report: dict, held_out: str, window:
     """The true parameters' held-out NRMSE per joint, ``(point, set)``: the held-out bag filtered as
     ``pdsmc identify --validate`` filtered it (the identification's cut-off and Coulomb band), each
     sample's prediction a value, and static friction a set at rest (prediction_nrmse's ``static``).
-    The floor of each: what no identification of these parameters can beat on this run."""
+    What the right model scores by each on this run."""
     dynamics = ArmDynamics(arm_of(robot))
     recording = read_joint_states(held_out, dynamics.layout.joint_names)
     if window:
@@ -109,6 +110,27 @@ def oracle(robot: str, truth: StandInTruth, report: dict, held_out: str, window:
     values = truth_values(dynamics, truth)
     return (prediction_nrmse(regressor, values, prepared),
             prediction_nrmse(regressor, values, prepared, static=dynamics.layout.joint_field("friction_coulomb")))
+
+
+CHANGES = (
+    ("as they are", {}),
+    ("every Coulomb friction 1.5 times", {"friction_coulomb": 1.5}),
+    ("every Coulomb friction halved", {"friction_coulomb": 0.5}),
+    ("viscous friction 1.1 times", {"friction_viscous": 1.1}),
+    ("no payload", {"payload_mass": 0.0}),
+)
+"""``--sensitivity``: the true parameters with one thing changed (each field by its factor)."""
+
+
+def sensitivity(robot: str, truth: StandInTruth, report: dict, held_out: str) -> None:
+    """Whether the held-out check sees a wrong model: the true parameters with one thing changed
+    (:data:`CHANGES`), scored on the held-out run as :func:`oracle` scores them, per joint."""
+    print("the true parameters with one change, on the held-out run: NRMSE per joint, static friction a set "
+          "| each prediction a value")
+    for label, change in CHANGES:
+        changed = dataclasses.replace(truth, **{key: getattr(truth, key) * factor for key, factor in change.items()})
+        point, static = oracle(robot, changed, report, held_out, None)
+        print(f"{label:34s} {', '.join(f'{v:.2%}' for v in static)} | {', '.join(f'{v:.2%}' for v in point)}")
 
 
 def write_truth(where: Path, robot: str, truth: StandInTruth) -> Path:
@@ -204,6 +226,8 @@ def main() -> int:
     parser.add_argument("--omega-n", type=float, default=60.0,
                         help="computed torque's natural frequency in the excitation runs (rad/s, default 60)")
     parser.add_argument("--feedback", action="store_true", help="also the table of the model-based laws")
+    parser.add_argument("--sensitivity", action="store_true",
+                        help="also the true parameters with one thing changed, scored on the held-out run")
     parser.add_argument("--realtime", default=None, help="a bag recorded in real time to check as well")
     parser.add_argument("--realtime-held-out", default=None,
                         help="its held-out bag (default: the in-process held-out bag, the same arm)")
@@ -257,6 +281,9 @@ def main() -> int:
     print(printed, end="")
     print(f"identify: {identify_s:.2f} s")
     met = check(where / "identified", robot, truth, "in-process lockstep", str(where / "held_out"))
+    if options.sensitivity:
+        report = yaml.safe_load((where / "identified" / "identification.yaml").read_text())
+        sensitivity(robot, truth, report, str(where / "held_out"))
     if options.feedback:
         models = {"URDF's": robot, "identified": str(where / "identified" / "identified.yaml"),
                   "true": str(write_truth(where, robot, truth))}

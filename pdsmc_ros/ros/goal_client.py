@@ -120,6 +120,8 @@ class ServerWatch:
 
     def __init__(self, ready: Callable[[], bool], patience: float, *,
                  clock: Callable[[], float] = time.monotonic) -> None:
+        if not patience >= 0.0 or patience == float("inf"):
+            raise ValueError(f"patience must be a finite number of seconds >= 0, got {patience!r}")
         self.ready = ready
         self.patience = float(patience)
         self.clock = clock

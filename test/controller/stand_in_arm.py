@@ -54,7 +54,12 @@ class StandInArm(SpunNode):
             subprocess.Popen(["ros2", "run", "pdsmc_ros", "controller", *COMMON, *controller],
                              env=env, stdout=(log_dir / "controller.log").open("w"), stderr=subprocess.STDOUT,
                              start_new_session=True)]
-        super().__init__(self.domain, name)
+        try:
+            super().__init__(self.domain, name)
+        except BaseException:  # the client did not start: the processes are this test's to stop
+            for proc in self.procs:
+                stop_process(proc)
+            raise
         self.lock = threading.Lock()
         self.states: list[tuple[float, np.ndarray, np.ndarray]] = []
         # the newest state only: a Python client on a loaded machine may take fewer than 1,000 a second

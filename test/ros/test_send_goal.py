@@ -251,6 +251,9 @@ def test_server_watch_waits_out_brief_absences() -> None:
     present[0] = False
     assert not run_for(1.5)
     assert run_for(1.0)
+    for bad in (-1.0, float("nan"), float("inf")):
+        with pytest.raises(ValueError, match="patience must be"):
+            ServerWatch(lambda: True, bad)
 
 
 def test_a_bad_goal_file_is_refused_before_ros_starts(tmp_path: Path) -> None:
