@@ -152,7 +152,14 @@ def test_ros2_run_node_in_a_clean_environment(tmp_path: Path) -> None:
                 seen += line
             assert started in seen, seen
             os.killpg(proc.pid, signal.SIGINT)
-            rest, _ = proc.communicate(timeout=20)
+            try:
+                rest, _ = proc.communicate(timeout=20)
+            except subprocess.TimeoutExpired:  # where it is stuck: its threads' stacks (SIGUSR1), then fail
+                os.killpg(proc.pid, signal.SIGUSR1)
+                time.sleep(2.0)
+                os.killpg(proc.pid, signal.SIGKILL)
+                stacks, _ = proc.communicate()
+                raise AssertionError(f"{name} did not stop within 20 s of SIGINT:\n{seen}{stacks}") from None
         finally:
             if proc.poll() is None:
                 os.killpg(proc.pid, signal.SIGKILL)

@@ -3,6 +3,7 @@ loop (:mod:`.serve`) run lockstep or paced in real time, then their teardown."""
 
 from __future__ import annotations
 
+import faulthandler
 import os
 import signal
 import sys
@@ -148,6 +149,9 @@ def run_nodes(
     hands the loop's messages between them without DDS (:mod:`.intra`).
     """
     choose_middleware([name] if node_names is None else node_names, args)
+    # SIGUSR1 prints every thread's stack and the process goes on: how a node that does not stop is
+    # looked into (faulthandler's C handler: it answers even when a thread holds the GIL)
+    faulthandler.register(signal.SIGUSR1, file=sys.__stderr__, all_threads=True)
     rclpy.init(args=args)
     wrappers: list[Any] = []
     reports: list[LoopReport] = []  # the real-time settings and loop statistics of each loop node
