@@ -215,6 +215,22 @@ def test_with_decelerate_on_cancel_a_canceled_goal_brakes_from_where_the_hold_wo
     assert isinstance(source, Stop)  # nothing commanded yet: from the measured state
     np.testing.assert_allclose(source.q0, q0) and np.testing.assert_allclose(source.qd0, qd)
     np.testing.assert_allclose(source.q, q0 + np.sign(qd) * qd ** 2 / (2 * decel))
+    # lockstep: the same stop, sampled at the steps' times from the first step after the cancel
+    locked = ControllerCore(SPEC, JointSelector(NAMES), JointMap(NAMES, list(NAMES)), JointLimits.of(ROBOT, NAMES),
+                            TorqueGuard(None), 20 / SPEC.rate, True, holds.append,
+                            goal_settings=g.GoalSettings(stop_deceleration=decel))
+    locked.configure()
+    locked.activate()
+    locked.add_state(state(0, q0, qd), "joint_states")
+    started = locked.check_goal(0.0, NAMES, [((q0 + 0.1).tolist(), [], [], 2, 0)], (), 0.0, [], [], 0.0)
+    locked.start_goal(started.goal)
+    assert locked.goals.cancel(started.goal) and isinstance(locked.pairing.trajectory, Stop)
+    paired, _ = locked.add_state(state(1, q0, qd), "joint_states")
+    assert paired is not None
+    np.testing.assert_allclose(paired[3][0], q0) and np.testing.assert_allclose(paired[3][1], qd)  # braking starts
+    paired, _ = locked.add_state(state(1 + int(SPEC.rate), q0, qd), "joint_states")  # 1 s on: at rest
+    np.testing.assert_allclose(paired[3][0], q0 + np.sign(qd) * qd ** 2 / (2 * decel))
+    np.testing.assert_allclose(paired[3][1], 0.0)
     # without the setting the same cancel holds at once
     plain = core(lockstep=False)
     plain.add_state(state(0, q0, qd), "joint_states")
