@@ -85,19 +85,16 @@ def effective_gains(spec: LawRun, mass: FloatArray, qd_ref: FloatArray | None = 
     return kp @ e_map + kd @ g_map, kd @ e_map
 
 
-TAYLOR_TERMS = 12
-"""Terms of the exponential's series in :func:`held_plant`, on a matrix scaled to norm <= 1/4
-(the remainder below 1e-17 of it), then squared back."""
-
-
 def held_plant(mass: FloatArray, damping: FloatArray, h: float | FloatArray) -> tuple[FloatArray, FloatArray]:
     """``(Ad, Bd)`` of the damped double integrator ``edd = -Mbar^{-1} B ed + a`` with ``a`` held over ``h``.
 
-    The exact zero-order-hold discretisation: the exponential of ``h [[0, I, 0], [0, -Mbar^{-1} B, I],
-    [0, 0, 0]]`` (scaling and squaring of its Taylor series, :data:`TAYLOR_TERMS`), whose first ``2n``
-    rows are ``[Ad, Bd]``; ``B = 0`` gives the undamped ``Ad = [[I, hI], [0, I]]``, ``Bd = [h^2/2 I;
-    h I]`` of :func:`loop_matrix`. ``damping``: ``B``'s diagonal (shape ``(n,)``, N m s/rad).
+    The exact zero-order-hold discretisation: the exponential (``scipy.linalg.expm``, stacks
+    included) of ``h [[0, I, 0], [0, -Mbar^{-1} B, I], [0, 0, 0]]``, whose first ``2n`` rows are
+    ``[Ad, Bd]``; ``B = 0`` gives the undamped ``Ad = [[I, hI], [0, I]]``, ``Bd = [h^2/2 I; h I]`` of
+    :func:`loop_matrix`. ``damping``: ``B``'s diagonal (shape ``(n,)``, N m s/rad).
     """
+    from scipy.linalg import expm  # here: the check without damping (every node's start) needs no scipy
+
     mass = np.asarray(mass, dtype=float)
     n = mass.shape[-1]
     b = np.broadcast_to(np.asarray(damping, dtype=float), (n,))
@@ -108,17 +105,7 @@ def held_plant(mass: FloatArray, damping: FloatArray, h: float | FloatArray) -> 
     z[..., :n, n:2 * n] = eye
     z[..., n:2 * n, n:2 * n] = -np.linalg.solve(mass, np.broadcast_to(np.diag(b), mass.shape))
     z[..., n:2 * n, 2 * n:] = eye
-    z = z * h
-    norm = float(np.max(np.sum(np.abs(z), axis=-1))) if z.size else 0.0  # the largest row sum
-    squarings = max(0, int(np.ceil(np.log2(norm / 0.25)))) if norm > 0.25 else 0
-    z = z / 2.0 ** squarings
-    term = np.broadcast_to(np.eye(3 * n), z.shape).copy()
-    total = term.copy()
-    for k in range(1, TAYLOR_TERMS + 1):
-        term = term @ z / k
-        total += term
-    for _ in range(squarings):
-        total = total @ total
+    total = expm(z * h)
     return total[..., :2 * n, :2 * n], total[..., :2 * n, 2 * n:]
 
 
