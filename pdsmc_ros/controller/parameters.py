@@ -153,12 +153,12 @@ def declare_controller_parameters(node: Node, robot: Manipulator) -> ControllerP
     stop = None
     if values["constraints.decelerate_on_cancel"]:
         decelerations = [values[f"constraints.{joint}.max_deceleration_on_cancel"] for joint in joint_map.joints]
-        if all(a > 0.0 for a in decelerations):
+        unset = [joint for joint, a in zip(joint_map.joints, decelerations, strict=True) if not a > 0.0]
+        if not unset:
             stop = np.asarray(joint_map.to_robot(decelerations), dtype=float)
         else:  # as JTC: a joint without a deceleration turns the feature off, with a warning
-            slow = [j for j, a in zip(joint_map.joints, decelerations, strict=True) if not a > 0.0]
-            node.get_logger().warn(f"constraints.decelerate_on_cancel is true but {', '.join(slow)} "
-                                   "ha(s) no constraints.<joint>.max_deceleration_on_cancel > 0: holding at once")
+            node.get_logger().warn(f"constraints.decelerate_on_cancel is true but constraints.<joint>."
+                                   f"max_deceleration_on_cancel is not > 0 for {', '.join(unset)}: holding at once")
     try:
         settings = GoalSettings(rules, defaults, values["cmd_timeout"], values["allowed_start_tolerance"],
                                 values["reject_beyond_limits"], stop_deceleration=stop)
