@@ -113,7 +113,7 @@ def warm_up(law: ControlLaw, selector: JointSelector, limits: JointLimits | None
             guard: TorqueGuard, joint_map: JointMap) -> None:
     """Run once, on made-up inputs at position ``q``, every step of the path from a message to
     a command: a quintic three-point trajectory parsed and sampled, its limit check, a goal's
-    tolerance check, a hold, the law, the torque guard and the joint order of the output; the
+    tolerance check, a hold and a braking stop, the law, the torque guard and the joint order of the output; the
     results are discarded.
 
     A real-time controller must not stall on its first command: numba loads a compiled law on
@@ -136,6 +136,9 @@ def warm_up(law: ControlLaw, selector: JointSelector, limits: JointLimits | None
         goal.update(t, q, np.zeros(n), desired)
         tau = law.torque(q, np.zeros(n), *desired)
     tau = law.torque(q, np.zeros(n), *Hold(q, "warm-up").sample(0.0))
+    braking = Stop(q, np.full(n, 0.1), np.ones(n), "warm-up")  # a cancel's stop with decelerate_on_cancel
+    braking.begin(0.0)
+    tau = law.torque(q, np.zeros(n), *braking.sample(0.05))
     # a torque inside the limits: the guard's counters stay at zero
     zero = np.zeros_like(tau)
     guard.limit(zero, q, np.zeros(n))
