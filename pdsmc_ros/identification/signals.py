@@ -317,12 +317,9 @@ def rest_window(sigma_q: FloatArray, band: FloatArray, rate: float) -> int:
     def enough(count: int) -> bool:
         return count * (count * count - 1) / 12.0 >= target
 
-    count = max(3, int(np.cbrt(12.0 * target)) - 2)  # N^3 ~ 12 needed^2: within a few samples
-    count += 1 - count % 2
+    count = 3
     while not enough(count):
         count += 2
-    while count > 3 and enough(count - 2):
-        count -= 2
     return count
 
 
