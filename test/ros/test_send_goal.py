@@ -184,20 +184,6 @@ rclpy.spin(node, executor=rclpy.executors.MultiThreadedExecutor())
 """
 
 
-SHORT_LEASE = """<?xml version="1.0" encoding="UTF-8" ?>
-<profiles xmlns="http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles">
-  <participant profile_name="short_lease" is_default_profile="true">
-    <rtps><builtin><discovery_config>
-      <leaseDuration><sec>2</sec></leaseDuration>
-      <leaseAnnouncement><sec>0</sec><nanosec>500000000</nanosec></leaseAnnouncement>
-    </discovery_config></builtin></rtps>
-  </participant>
-</profiles>
-"""
-"""A Fast DDS participant profile whose lease runs out 2 s after its process dies (the default is
-20 s): how long the others take to notice a killed process, here the test's server."""
-
-
 @pytest.mark.timeout(180)
 def test_a_server_killed_during_the_goal_ends_the_wait(ros_env: dict, tmp_path: Path) -> None:
     """The server's process is SIGKILLed while it executes the goal: nothing will ever send the result,
@@ -206,9 +192,9 @@ def test_a_server_killed_during_the_goal_ends_the_wait(ros_env: dict, tmp_path: 
     domain = next_domain()
     goal = tmp_path / "goal.yaml"
     write_goal(goal, goal_data(["a", "b"], [1.0, 2.0], [[0.1, 0.2], [0.3, 0.4]]))
-    profile = tmp_path / "short_lease.xml"
-    profile.write_text(SHORT_LEASE)
-    server_env = dict(ros_env, ROS_DOMAIN_ID=str(domain), FASTRTPS_DEFAULT_PROFILES_FILE=str(profile))
+    # the project's Fast DDS profile (scripts/run_experiment.sh's): a killed process is dropped after 2 s, not 20
+    server_env = dict(ros_env, ROS_DOMAIN_ID=str(domain), FASTRTPS_DEFAULT_PROFILES_FILE=str(ROOT / "config" /
+                                                                                              "fastdds_profile.xml"))
     server = subprocess.Popen([sys.executable, "-c", HOLDING_SERVER, ACTION], env=server_env, stdout=subprocess.PIPE,
                               stderr=subprocess.STDOUT, text=True, start_new_session=True)
     proc = None
