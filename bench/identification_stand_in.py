@@ -44,6 +44,7 @@ import shutil
 import sys
 import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -94,12 +95,13 @@ def truth_values(dynamics: ArmDynamics, truth: StandInTruth) -> np.ndarray:
     return values
 
 
-def oracle(robot: str, truth: StandInTruth, report: dict, held_out: str, window: str | None) -> tuple[np.ndarray,
-                                                                                                      np.ndarray]:
-    """The true parameters' held-out NRMSE per joint, ``(point, set)``: the held-out bag filtered as
-    ``pdsmc identify --validate`` filtered it (the identification's cut-off and Coulomb band), each
-    sample's prediction a value, and static friction a set at rest (prediction_nrmse's ``static``).
-    What the right model scores by each on this run."""
+def oracle(robot: str, report: dict, held_out: str,
+           window: str | None) -> Callable[[StandInTruth], tuple[np.ndarray, np.ndarray]]:
+    """A scorer of true parameters on the held-out run: its NRMSE per joint, ``(point, set)``. The
+    held-out bag is read and filtered once, as ``pdsmc identify --validate`` filtered it (the
+    identification's cut-off and Coulomb band); each call scores one truth, each sample's prediction
+    a value and static friction a set at rest (prediction_nrmse's ``static``): what the right model
+    scores by each on this run."""
     dynamics = ArmDynamics(arm_of(robot))
     recording = read_joint_states(held_out, dynamics.layout.joint_names)
     if window:
@@ -107,9 +109,13 @@ def oracle(robot: str, truth: StandInTruth, report: dict, held_out: str, window:
     band = np.array(list(report["filter"]["coulomb_band"].values()), dtype=float)
     prepared = prepare(recording.t, recording.q, recording.tau, cutoff=report["filter"]["cutoff_hz"], stick_band=band)
     regressor = filtered_regressor(dynamics, prepared)
-    values = truth_values(dynamics, truth)
-    return (prediction_nrmse(regressor, values, prepared),
-            prediction_nrmse(regressor, values, prepared, static=dynamics.layout.joint_field("friction_coulomb")))
+
+    def score(truth: StandInTruth) -> tuple[np.ndarray, np.ndarray]:
+        values = truth_values(dynamics, truth)
+        return (prediction_nrmse(regressor, values, prepared),
+                prediction_nrmse(regressor, values, prepared, static=dynamics.layout.joint_field("friction_coulomb")))
+
+    return score
 
 
 CHANGES = (
@@ -124,12 +130,13 @@ CHANGES = (
 
 def sensitivity(robot: str, truth: StandInTruth, report: dict, held_out: str) -> None:
     """Whether the held-out check sees a wrong model: the true parameters with one thing changed
-    (:data:`CHANGES`), scored on the held-out run as :func:`oracle` scores them, per joint."""
+    (:data:`CHANGES`), scored on the held-out run as :func:`oracle` scores the truth, per joint."""
     print("the true parameters with one change, on the held-out run: NRMSE per joint, static friction a set "
           "| each prediction a value")
+    score = oracle(robot, report, held_out, None)
     for label, change in CHANGES:
         changed = dataclasses.replace(truth, **{key: getattr(truth, key) * factor for key, factor in change.items()})
-        point, static = oracle(robot, changed, report, held_out, None)
+        point, static = score(changed)
         print(f"{label:34s} {', '.join(f'{v:.2%}' for v in static)} | {', '.join(f'{v:.2%}' for v in point)}")
 
 
@@ -179,7 +186,7 @@ def check(identified_dir: Path, robot: str, truth: StandInTruth, label: str, hel
     held_out = np.array(list(report["nrmse"]["validation"].values()), dtype=float)
     moving = np.array(list(report["nrmse"]["validation_outside_dead_zone"].values()), dtype=float)
     static = np.array(list(report["nrmse"]["validation_static_friction_set"].values()), dtype=float)
-    true_point, true_static = oracle(robot, truth, report, held_out_bag, held_out_window)
+    true_point, true_static = oracle(robot, report, held_out_bag, held_out_window)(truth)
     dynamics = ArmDynamics(arm_of(robot))
     standard = np.array([entry["value"] for entry in report["standard_parameters"]], dtype=float)
     consistent = bool(np.all(is_consistent(standard, dynamics)))
